@@ -1,0 +1,36 @@
+#pragma once
+
+// Subcommand registration for the carat CLI.
+
+#include <functional>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+
+namespace carat::cli {
+
+/// Subcommands and the action to run for the one that was parsed.
+class CommandRegistry {
+ public:
+  /// Remembers `action` to run when `command` was selected on the command line.
+  void add(CLI::App* command, std::function<int()> action) {
+    entries_.push_back({command, std::move(action)});
+  }
+  /// Runs the selected subcommand's action; returns its exit code.
+  int run_selected() const {
+    for (const auto& [command, action] : entries_) {
+      if (command->parsed()) return action();
+    }
+    return 2;
+  }
+
+ private:
+  std::vector<std::pair<CLI::App*, std::function<int()>>> entries_;
+};
+
+/// `carat demo`: the main job on the built-in synthetic world.
+void register_demo(CLI::App& app, CommandRegistry& registry);
+/// `carat solve-g2o`: optimize a g2o pose graph.
+void register_solve_g2o(CLI::App& app, CommandRegistry& registry);
+
+}  // namespace carat::cli

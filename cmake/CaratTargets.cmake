@@ -1,0 +1,46 @@
+# Helpers shared by carat's module targets.
+
+# carat_add_module(NAME <name> [DEPS <targets...>] [PRIVATE_DEPS <targets...>])
+# Declares the library carat_<name> (alias carat::<name>, export name <name>) from
+# <name>/src/*.cpp with public headers in <name>/include/carat/<name>/.
+function(carat_add_module)
+  cmake_parse_arguments(ARG "" "NAME" "DEPS;PRIVATE_DEPS" ${ARGN})
+  file(GLOB _sources CONFIGURE_DEPENDS "${CMAKE_CURRENT_SOURCE_DIR}/src/*.cpp")
+  set(_target carat_${ARG_NAME})
+  if(_sources)
+    add_library(${_target} STATIC ${_sources})
+    set_target_properties(${_target} PROPERTIES EXPORT_NAME ${ARG_NAME} OUTPUT_NAME carat_${ARG_NAME})
+    target_include_directories(${_target} PUBLIC
+      $<BUILD_INTERFACE:${CMAKE_CURRENT_SOURCE_DIR}/include>
+      $<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}>)
+    target_compile_features(${_target} PUBLIC cxx_std_20)
+    target_link_libraries(${_target} PUBLIC ${ARG_DEPS} PRIVATE ${ARG_PRIVATE_DEPS})
+    carat_set_warnings(${_target})
+  else()
+    # A module with headers only (or none yet).
+    add_library(${_target} INTERFACE)
+    set_target_properties(${_target} PROPERTIES EXPORT_NAME ${ARG_NAME})
+    target_include_directories(${_target} INTERFACE
+      $<BUILD_INTERFACE:${CMAKE_CURRENT_SOURCE_DIR}/include>
+      $<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}>)
+    target_link_libraries(${_target} INTERFACE ${ARG_DEPS})
+  endif()
+  add_library(carat::${ARG_NAME} ALIAS ${_target})
+  install(TARGETS ${_target} EXPORT caratTargets
+          ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
+          LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR})
+  install(DIRECTORY "${CMAKE_CURRENT_SOURCE_DIR}/include/" DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
+endfunction()
+
+# Warnings as errors, on carat's own targets only.
+function(carat_set_warnings target)
+  target_compile_options(${target} PRIVATE -Wall -Wextra -Werror)
+  if(CARAT_NATIVE)
+    target_compile_options(${target} PRIVATE -march=native)
+  endif()
+  if(CARAT_SANITIZE)
+    target_compile_options(${target} PRIVATE -fsanitize=address,undefined -fno-omit-frame-pointer
+                                             -fno-sanitize-recover=all)
+    target_link_options(${target} PUBLIC -fsanitize=address,undefined)
+  endif()
+endfunction()

@@ -1,0 +1,31 @@
+// Solves a tiny pose graph through the installed carat package.
+#include <cmath>
+#include <cstdio>
+#include <memory>
+
+#include <carat/residuals/relative_pose_block.hpp>
+#include <carat/solver/se3.hpp>
+#include <carat/solver/solve.hpp>
+
+int main() {
+  carat::Problem problem;
+  const auto a = problem.add_se3(Eigen::Isometry3d::Identity());
+  Eigen::Isometry3d guess = Eigen::Isometry3d::Identity();
+  guess.translation() = Eigen::Vector3d(0.5, -0.2, 0.1);
+  const auto b = problem.add_se3(guess);
+  problem.set_constant(a);
+  Eigen::Isometry3d measured = Eigen::Isometry3d::Identity();
+  measured.translation() = Eigen::Vector3d(1.0, 2.0, 3.0);
+  problem.add_residual_block(std::make_shared<carat::RelativePoseBlock>(
+                                 measured, carat::se3::Matrix6d::Identity()),
+                             {a, b});
+  const carat::SolverSummary summary = carat::solve(carat::SolverOptions{}, problem);
+  const double error = (problem.se3(b).translation() - measured.translation()).norm();
+  std::printf("%s\n", summary.brief_report().c_str());
+  if (summary.termination != carat::TerminationType::kConvergence || error > 1e-9) {
+    std::printf("consumer: FAILED (error %.3e)\n", error);
+    return 1;
+  }
+  std::printf("consumer: ok\n");
+  return 0;
+}

@@ -1,0 +1,194 @@
+#include "carat/residuals/g2o_io.hpp"
+
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+#include <string_view>
+#include <unordered_map>
+#include <vector>
+
+#include "carat/residuals/pose_prior_block.hpp"
+#include "carat/solver/atomic_file.hpp"
+#include "carat/solver/error.hpp"
+
+namespace carat {
+namespace {
+
+std::vector<std::string_view> split(std::string_view line) {
+  std::vector<std::string_view> tokens;
+  std::size_t i = 0;
+  while (i < line.size()) {
+    while (i < line.size() && std::isspace(static_cast<unsigned char>(line[i]))) ++i;
+    const std::size_t start = i;
+    while (i < line.size() && !std::isspace(static_cast<unsigned char>(line[i]))) ++i;
+    if (i > start) tokens.push_back(line.substr(start, i - start));
+  }
+  return tokens;
+}
+
+class LineParser {
+ public:
+  LineParser(const std::string& name, std::size_t line) : name_(name), line_(line) {}
+
+  [[noreturn]] void fail(const std::string& problem) const {
+    throw Error(name_ + ":" + std::to_string(line_) + ": " + problem);
+  }
+
+  double number(std::string_view token, const char* what) const {
+    double value = 0.0;
+    const auto [ptr, ec] = std::from_chars(token.data(), token.data() + token.size(), value);
+    if (ec != std::errc() || ptr != token.data() + token.size()) {
+      fail(std::string("cannot read ") + what + " from '" + std::string(token) + "'");
+    }
+    if (!std::isfinite(value)) fail(std::string(what) + " is not finite");
+    return value;
+  }
+
+  std::int64_t id(std::string_view token) const {
+    std::int64_t value = 0;
+    const auto [ptr, ec] = std::from_chars(token.data(), token.data() + token.size(), value);
+    if (ec != std::errc() || ptr != token.data() + token.size()) {
+      fail("cannot read a vertex id from '" + std::string(token) + "'");
+    }
+    return value;
+  }
+
+  Eigen::Isometry3d pose(const std::vector<std::string_view>& t, std::size_t first) const {
+    const Eigen::Vector3d translation(number(t[first], "x"), number(t[first + 1], "y"),
+                                      number(t[first + 2], "z"));
+    Eigen::Quaterniond q(number(t[first + 6], "qw"), number(t[first + 3], "qx"),
+                         number(t[first + 4], "qy"), number(t[first + 5], "qz"));
+    const double norm = q.norm();
+    if (!(norm > 1e-6)) fail("quaternion has zero length");
+    if (std::abs(norm - 1.0) > 1e-3) {
+      fail("quaternion is not normalized (length " + std::to_string(norm) + ")");
+    }
+    return se3::make(q, translation);
+  }
+
+ private:
+  const std::string& name_;
+  std::size_t line_;
+};
+
+void expect_count(const LineParser& p, const std::vector<std::string_view>& t, std::size_t count,
+                  const char* tag) {
+  if (t.size() != count + 1) {
+    p.fail(std::string(tag) + " needs " + std::to_string(count) + " numbers, found " +
+           std::to_string(t.size() - 1));
+  }
+}
+
+}  // namespace
+
+PoseGraph parse_g2o(std::istream& in, const std::string& name) {
+  PoseGraph graph;
+  std::unordered_map<std::int64_t, std::size_t> vertex_line;
+  std::vector<std::size_t> edge_lines;
+  std::string text;
+  std::size_t line = 0;
+  while (std::getline(in, text)) {
+    ++line;
+    const auto hash = text.find('#');
+    const auto tokens = split(std::string_view(text).substr(0, hash));
+    if (tokens.empty()) continue;
+    const LineParser p(name, line);
+    const std::string_view tag = tokens[0];
+    if (tag == "VERTEX_SE3:QUAT") {
+      expect_count(p, tokens, 8, "VERTEX_SE3:QUAT");
+      PoseGraph::Vertex v;
+      v.id = p.id(tokens[1]);
+      v.T_world_vertex = p.pose(tokens, 2);
+      if (!vertex_line.emplace(v.id, line).second) {
+        p.fail("vertex " + std::to_string(v.id) + " was already defined on line " +
+               std::to_string(vertex_line[v.id]));
+      }
+      graph.vertices.push_back(v);
+    } else if (tag == "EDGE_SE3:QUAT") {
+      expect_count(p, tokens, 30, "EDGE_SE3:QUAT");
+      PoseGraph::Edge e;
+      e.from = p.id(tokens[1]);
+      e.to = p.id(tokens[2]);
+      if (e.from == e.to) p.fail("edge joins vertex " + std::to_string(e.from) + " to itself");
+      e.T_from_to = p.pose(tokens, 3);
+      std::size_t k = 10;
+      for (int r = 0; r < 6; ++r) {
+        for (int c = r; c < 6; ++c) {
+          e.information(r, c) = e.information(c, r) = p.number(tokens[k++], "information entry");
+        }
+      }
+      try {
+        (void)sqrt_information(e.information, "information matrix");
+      } catch (const Error& error) {
+        p.fail(error.what());
+      }
+      graph.edges.push_back(e);
+      edge_lines.push_back(line);
+    } else if (tag == "FIX") {
+      if (tokens.size() < 2) p.fail("FIX needs at least one vertex id");
+      for (std::size_t k = 1; k < tokens.size(); ++k) graph.fixed.push_back(p.id(tokens[k]));
+    } else if (tag == "VERTEX_SE2" || tag == "EDGE_SE2") {
+      p.fail("2D records (" + std::string(tag) + ") are not supported; carat reads 3D graphs (VERTEX_SE3:QUAT / EDGE_SE3:QUAT)");
+    } else {
+      p.fail("unknown record '" + std::string(tag) + "'");
+    }
+  }
+  if (in.bad()) throw Error(name + ": read error");
+  if (graph.vertices.empty()) throw Error(name + ": no VERTEX_SE3:QUAT records (empty or not a 3D g2o file)");
+  for (std::size_t e = 0; e < graph.edges.size(); ++e) {
+    for (std::int64_t id : {graph.edges[e].from, graph.edges[e].to}) {
+      if (!vertex_line.count(id)) {
+        throw Error(name + ":" + std::to_string(edge_lines[e]) + ": edge names vertex " +
+                    std::to_string(id) + ", which is not defined");
+      }
+    }
+  }
+  for (std::int64_t id : graph.fixed) {
+    if (!vertex_line.count(id)) throw Error(name + ": FIX names vertex " + std::to_string(id) + ", which is not defined");
+  }
+  return graph;
+}
+
+PoseGraph read_g2o(const std::filesystem::path& path) {
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) throw Error(path.string() + ": no such file");
+  if (std::filesystem::is_directory(path, ec)) throw Error(path.string() + ": is a directory, not a g2o file");
+  std::ifstream in(path);
+  if (!in) throw Error(path.string() + ": cannot open for reading");
+  return parse_g2o(in, path.string());
+}
+
+void write_g2o(const std::filesystem::path& path, const PoseGraph& graph) {
+  write_file_atomically(path, [&](std::ostream& out) {
+    char buffer[128];
+    const auto put_pose = [&](const Eigen::Isometry3d& T) {
+      const Eigen::Quaterniond q(T.linear());
+      const Eigen::Vector3d& t = T.translation();
+      std::snprintf(buffer, sizeof(buffer), " %.17g %.17g %.17g", t.x(), t.y(), t.z());
+      out << buffer;
+      std::snprintf(buffer, sizeof(buffer), " %.17g %.17g %.17g %.17g", q.x(), q.y(), q.z(), q.w());
+      out << buffer;
+    };
+    for (const auto& v : graph.vertices) {
+      out << "VERTEX_SE3:QUAT " << v.id;
+      put_pose(v.T_world_vertex);
+      out << '\n';
+    }
+    for (const auto& e : graph.edges) {
+      out << "EDGE_SE3:QUAT " << e.from << ' ' << e.to;
+      put_pose(e.T_from_to);
+      for (int r = 0; r < 6; ++r) {
+        for (int c = r; c < 6; ++c) {
+          std::snprintf(buffer, sizeof(buffer), " %.17g", e.information(r, c));
+          out << buffer;
+        }
+      }
+      out << '\n';
+    }
+    for (std::int64_t id : graph.fixed) out << "FIX " << id << '\n';
+  });
+}
+
+}  // namespace carat

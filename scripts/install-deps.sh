@@ -1,0 +1,46 @@
+#!/usr/bin/env bash
+# Installs carat's build and test dependencies from Debian 12 packages.
+# Idempotent and non-interactive; needs root (or sudo) and apt.
+set -euo pipefail
+
+packages=(
+  build-essential cmake git pkg-config
+  libeigen3-dev libsuitesparse-dev libtbb-dev
+  libgtest-dev libgmock-dev libbenchmark-dev
+  libcli11-dev nlohmann-json3-dev libnanoflann-dev
+  # BLAS/LAPACK for CHOLMOD's supernodal factorization: OpenBLAS, single-threaded
+  # (measured faster than ATLAS and reference BLAS on carat's pose-graph benchmark; see README).
+  libopenblas0-serial
+)
+if [[ "${CARAT_WITH_CERES:-0}" == "1" ]]; then
+  packages+=(libceres-dev)
+fi
+
+SUDO=""
+if [[ "$(id -u)" != "0" ]]; then SUDO="sudo"; fi
+
+missing=()
+for p in "${packages[@]}"; do
+  if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
+    missing+=("$p")
+  fi
+done
+
+if ((${#missing[@]})); then
+  export DEBIAN_FRONTEND=noninteractive
+  $SUDO apt-get update -qq
+  $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+fi
+
+# Make the choice of BLAS explicit rather than leaving it to whichever package came first.
+arch_dir="/usr/lib/$(dpkg-architecture -qDEB_HOST_MULTIARCH 2>/dev/null || echo x86_64-linux-gnu)"
+for lib in libblas.so.3 liblapack.so.3; do
+  target="${arch_dir}/openblas-serial/${lib}"
+  name="${lib}-$(basename "${arch_dir}")"
+  if [[ -e "$target" ]] && update-alternatives --query "$name" >/dev/null 2>&1; then
+    current=$(update-alternatives --query "$name" | awk '/^Value:/ {print $2}')
+    if [[ "$current" != "$target" ]]; then
+      $SUDO update-alternatives --quiet --set "$name" "$target"
+    fi
+  fi
+done

@@ -1,0 +1,51 @@
+#pragma once
+
+/// Robust losses rho(s) applied to a residual block's squared norm s = |r|^2 (Ceres's
+/// convention: the block's cost is 1/2 rho(s)).
+
+#include <memory>
+
+namespace carat {
+
+/// rho(s) and its first two derivatives at s.
+struct LossValue {
+  double rho = 0.0;    ///< rho(s)
+  double rho1 = 1.0;   ///< rho'(s)
+  double rho2 = 0.0;   ///< rho''(s)
+};
+
+/// A robust loss rho(s) of a block's squared residual norm s >= 0; rho(0) = 0, rho'(0) = 1.
+class LossFunction {
+ public:
+  virtual ~LossFunction() = default;
+  /// rho(s), rho'(s), rho''(s).
+  virtual LossValue evaluate(double s) const = 0;
+  /// Short name for reports.
+  virtual const char* name() const = 0;
+};
+
+/// Huber: rho(s) = s for s <= d^2, 2 d sqrt(s) - d^2 beyond (d: scale in residual units).
+class HuberLoss final : public LossFunction {
+ public:
+  /// delta > 0 is the residual norm where the loss turns linear.
+  explicit HuberLoss(double delta);
+  LossValue evaluate(double s) const override;
+  const char* name() const override { return "huber"; }
+
+ private:
+  double delta_;
+};
+
+/// Cauchy: rho(s) = c^2 log(1 + s / c^2) (c: scale in residual units).
+class CauchyLoss final : public LossFunction {
+ public:
+  /// scale > 0 is the residual norm where the loss starts to flatten.
+  explicit CauchyLoss(double scale);
+  LossValue evaluate(double s) const override;
+  const char* name() const override { return "cauchy"; }
+
+ private:
+  double c2_;
+};
+
+}  // namespace carat

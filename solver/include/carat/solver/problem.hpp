@@ -1,0 +1,109 @@
+#pragma once
+
+/// A nonlinear least-squares problem: variables on manifolds and residual blocks over them.
+/// The problem owns the variable values; solve() updates them in place.
+
+#include <cstddef>
+#include <memory>
+#include <span>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include "carat/solver/loss_function.hpp"
+#include "carat/solver/manifold.hpp"
+#include "carat/solver/residual_block.hpp"
+#include "carat/solver/variable_id.hpp"
+
+namespace carat {
+
+/// Variables (with manifolds and values), residual blocks, losses and constant flags.
+class Problem {
+ public:
+  /// One residual block and what it is attached to.
+  struct BlockEntry {
+    std::shared_ptr<const ResidualBlock> block;  ///< the residual block
+    std::shared_ptr<const LossFunction> loss;    ///< robust loss, null for plain least squares
+    std::vector<VariableId> variables;           ///< variables in the block's parameter order
+  };
+
+  /// Adds a variable on `manifold` with initial value `initial` (ambient_size() doubles).
+  /// Throws carat::Error if the size is wrong or the value invalid.
+  VariableId add_variable(std::shared_ptr<const Manifold> manifold, std::span<const double> initial);
+
+  /// Adds an SE(3) variable T_world_body (see se3.hpp for the storage).
+  VariableId add_se3(const Eigen::Isometry3d& T_world_body);
+
+  /// Adds a Euclidean variable.
+  VariableId add_euclidean(const Eigen::VectorXd& initial);
+
+  /// Holds a variable fixed (true) or frees it again (false).
+  void set_constant(VariableId id, bool constant = true);
+
+  /// Whether the variable is held fixed.
+  bool is_constant(VariableId id) const;
+
+  /// Adds a residual block over `variables` (distinct, tangent sizes matching the block's
+  /// tangent_dims()); `loss` may be null. Throws carat::Error on any mismatch.
+  ResidualBlockId add_residual_block(std::shared_ptr<const ResidualBlock> block,
+                                     std::span<const VariableId> variables,
+                                     std::shared_ptr<const LossFunction> loss = nullptr);
+
+  /// Same as above with a braced list of variables.
+  ResidualBlockId add_residual_block(std::shared_ptr<const ResidualBlock> block,
+                                     std::initializer_list<VariableId> variables,
+                                     std::shared_ptr<const LossFunction> loss = nullptr);
+
+  /// Number of variables.
+  int num_variables() const { return static_cast<int>(manifolds_.size()); }
+  /// Number of residual blocks.
+  int num_residual_blocks() const { return static_cast<int>(blocks_.size()); }
+  /// Total number of scalar residual rows over all blocks.
+  std::size_t num_residual_rows() const;
+
+  /// The manifold of a variable.
+  const Manifold& manifold(VariableId id) const;
+  /// Read-only view of a variable's stored value.
+  std::span<const double> value(VariableId id) const;
+  /// Mutable view of a variable's stored value (keep it valid for its manifold).
+  std::span<double> mutable_value(VariableId id);
+  /// The stored value of an SE(3) variable as a transform. Throws if it is not SE(3)-sized.
+  Eigen::Isometry3d se3(VariableId id) const;
+  /// Sets an SE(3) variable.
+  void set_se3(VariableId id, const Eigen::Isometry3d& T_world_body);
+
+  /// A residual block and its attachments.
+  const BlockEntry& block(ResidualBlockId id) const;
+  /// All residual blocks in insertion order.
+  std::span<const BlockEntry> blocks() const { return blocks_; }
+
+  /// Replaces the residual block of `id` by one with the same variables and tangent sizes
+  /// (e.g. its compressed form). Throws carat::Error on a mismatch.
+  void replace_residual_block(ResidualBlockId id, std::shared_ptr<const ResidualBlock> block);
+
+  /// Total cost 1/2 sum_blocks rho(|r|^2) at the current values (serial; for checks).
+  double evaluate_cost() const;
+
+  /// Sum of memory_bytes() over all residual blocks.
+  std::size_t residual_memory_bytes() const;
+
+  /// All stored values, concatenated in variable order (ambient storage).
+  std::span<const double> all_values() const { return values_; }
+  /// Overwrites all stored values at once (same layout as all_values()); throws carat::Error
+  /// if the size differs or a value is invalid for its manifold (nothing is changed then).
+  void set_all_values(std::span<const double> values);
+  /// Offset of a variable's storage inside all_values().
+  std::size_t value_offset(VariableId id) const;
+
+ private:
+  void check(VariableId id) const;
+
+  std::vector<std::shared_ptr<const Manifold>> manifolds_;
+  std::vector<std::size_t> offsets_;
+  std::vector<char> constant_;
+  std::vector<double> values_;
+  std::vector<BlockEntry> blocks_;
+};
+
+}  // namespace carat

@@ -1,0 +1,66 @@
+#pragma once
+
+/// The residual block contract. A block touches a few variables and has num_rows() scalar
+/// residuals r_k. Its cost is 1/2 rho(sum_k r_k^2) (rho = identity without a loss), so
+/// H = J^T J, b = J^T r, c = r^T r are the quantities the solver needs. A block must be able to
+/// evaluate any subset of its rows; that one capability makes every block compressible.
+///
+/// Jacobians are with respect to the tangent spaces of the variables (right perturbation,
+/// see manifold.hpp). A block may factor its Jacobian through a lower-dimensional quantity:
+/// J = J_r A with J_r (N x r) per row and A (r x D) fixed at the evaluation point. Binary
+/// registration blocks do this with r = 6 (the relative pose); all rows then share A.
+
+#include <cstddef>
+#include <memory>
+#include <span>
+
+#include <Eigen/Core>
+
+namespace carat {
+
+/// Pointers to the ambient storage of a block's variables, in the block's variable order.
+using ParameterPointers = std::span<const double* const>;
+
+/// A sum of squared scalar residual rows over a fixed list of variables.
+class ResidualBlock {
+ public:
+  virtual ~ResidualBlock() = default;
+
+  /// Number of scalar residual rows N (>= 1).
+  virtual int num_rows() const = 0;
+
+  /// Tangent dimension of each variable, in the order parameters are passed.
+  virtual std::span<const int> tangent_dims() const = 0;
+
+  /// Total tangent dimension D (sum of tangent_dims()).
+  int tangent_dim() const;
+
+  /// Width r of the Jacobian rows that evaluate_rows() writes; D unless the block is reduced.
+  virtual int reduced_dim() const { return tangent_dim(); }
+
+  /// Writes A (r x D, row-major) such that J = J_r A at `params`; the default is the identity.
+  virtual void reduced_map(ParameterPointers params, double* A) const;
+
+  /// Evaluates the rows `rows` (indices in [0, N), any order, repeats allowed): residuals[k]
+  /// is row rows[k]; when jacobian is not null its row k (r doubles, row-major, stride r) is
+  /// the reduced Jacobian of that row.
+  virtual void evaluate_rows(ParameterPointers params, std::span<const int> rows,
+                             double* residuals, double* jacobian) const = 0;
+
+  /// Adds J_r^T J_r to H_r (r x r) and J_r^T r to b_r over all rows; returns r^T r.
+  /// The default evaluates rows in chunks; blocks override it with a faster direct path.
+  virtual double accumulate(ParameterPointers params, Eigen::Ref<Eigen::MatrixXd> H_r,
+                            Eigen::Ref<Eigen::VectorXd> b_r) const;
+
+  /// r^T r over all rows (the default evaluates residuals in chunks).
+  virtual double squared_norm(ParameterPointers params) const;
+
+  /// A block that holds only the data of `rows` (row k of the result is row rows[k] here), or
+  /// null when the block cannot do that; compression uses it to release unused data.
+  virtual std::unique_ptr<ResidualBlock> extract_rows(std::span<const int> rows) const;
+
+  /// Bytes of per-row data this block holds (what compression is meant to shrink).
+  virtual std::size_t memory_bytes() const = 0;
+};
+
+}  // namespace carat

@@ -1,0 +1,98 @@
+#include "carat/solver/manifold.hpp"
+
+#include <cmath>
+#include <string>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include "carat/solver/error.hpp"
+#include "carat/solver/se3.hpp"
+#include "carat/solver/so3.hpp"
+
+namespace carat {
+namespace {
+
+bool all_finite(const double* x, int n) {
+  for (int i = 0; i < n; ++i) {
+    if (!std::isfinite(x[i])) return false;
+  }
+  return true;
+}
+
+bool unit_quaternion(const double* q) {
+  const double n2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3];
+  return std::abs(n2 - 1.0) < 1e-6;
+}
+
+Eigen::Quaterniond read_quaternion(const double* x) { return {x[3], x[0], x[1], x[2]}; }
+
+void write_quaternion(Eigen::Quaterniond q, double* out) {
+  q.normalize();
+  out[0] = q.x();
+  out[1] = q.y();
+  out[2] = q.z();
+  out[3] = q.w();
+}
+
+}  // namespace
+
+EuclideanManifold::EuclideanManifold(int size) : size_(size) {
+  if (size < 1) throw Error("EuclideanManifold: size must be >= 1, got " + std::to_string(size));
+}
+
+void EuclideanManifold::plus(const double* x, const double* delta, double* out) const {
+  for (int i = 0; i < size_; ++i) out[i] = x[i] + delta[i];
+}
+
+void EuclideanManifold::minus(const double* y, const double* x, double* delta) const {
+  for (int i = 0; i < size_; ++i) delta[i] = y[i] - x[i];
+}
+
+bool EuclideanManifold::is_valid(const double* x) const { return all_finite(x, size_); }
+
+void SO3Manifold::plus(const double* x, const double* delta, double* out) const {
+  const Eigen::Quaterniond q = read_quaternion(x) * so3::exp(Eigen::Map<const Eigen::Vector3d>(delta));
+  write_quaternion(q, out);
+}
+
+void SO3Manifold::minus(const double* y, const double* x, double* delta) const {
+  const Eigen::Vector3d w = so3::log(read_quaternion(x).conjugate() * read_quaternion(y));
+  Eigen::Map<Eigen::Vector3d> out(delta);
+  out = w;
+}
+
+bool SO3Manifold::is_valid(const double* x) const {
+  return all_finite(x, 4) && unit_quaternion(x);
+}
+
+void SE3Manifold::plus(const double* x, const double* delta, double* out) const {
+  const Eigen::Isometry3d T = se3::from_storage(x) * se3::exp(Eigen::Map<const se3::Vector6d>(delta));
+  se3::to_storage(T, out);
+}
+
+void SE3Manifold::minus(const double* y, const double* x, double* delta) const {
+  const se3::Vector6d xi = se3::log(se3::from_storage(x).inverse() * se3::from_storage(y));
+  Eigen::Map<se3::Vector6d> out(delta);
+  out = xi;
+}
+
+bool SE3Manifold::is_valid(const double* x) const {
+  return all_finite(x, 7) && unit_quaternion(x);
+}
+
+std::shared_ptr<const Manifold> se3_manifold() {
+  static const auto instance = std::make_shared<const SE3Manifold>();
+  return instance;
+}
+
+std::shared_ptr<const Manifold> so3_manifold() {
+  static const auto instance = std::make_shared<const SO3Manifold>();
+  return instance;
+}
+
+std::shared_ptr<const Manifold> euclidean_manifold(int size) {
+  return std::make_shared<const EuclideanManifold>(size);
+}
+
+}  // namespace carat

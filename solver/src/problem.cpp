@@ -1,0 +1,200 @@
+#include "carat/solver/problem.hpp"
+
+#include <algorithm>
+#include <string>
+
+#include "carat/solver/error.hpp"
+#include "carat/solver/se3.hpp"
+
+namespace carat {
+
+VariableId Problem::add_variable(std::shared_ptr<const Manifold> manifold,
+                                 std::span<const double> initial) {
+  if (!manifold) throw Error("Problem::add_variable: manifold is null");
+  if (static_cast<int>(initial.size()) != manifold->ambient_size()) {
+    throw Error("Problem::add_variable: a " + std::string(manifold->name()) + " value needs " +
+                std::to_string(manifold->ambient_size()) + " numbers, got " +
+                std::to_string(initial.size()));
+  }
+  if (!manifold->is_valid(initial.data())) {
+    throw Error("Problem::add_variable: initial value is not a valid " +
+                std::string(manifold->name()) + " value (non-finite or not normalized)");
+  }
+  const VariableId id{static_cast<std::int32_t>(manifolds_.size())};
+  offsets_.push_back(values_.size());
+  values_.insert(values_.end(), initial.begin(), initial.end());
+  manifolds_.push_back(std::move(manifold));
+  constant_.push_back(0);
+  return id;
+}
+
+VariableId Problem::add_se3(const Eigen::Isometry3d& T_world_body) {
+  double storage[7];
+  se3::to_storage(T_world_body, storage);
+  return add_variable(se3_manifold(), storage);
+}
+
+VariableId Problem::add_euclidean(const Eigen::VectorXd& initial) {
+  return add_variable(euclidean_manifold(static_cast<int>(initial.size())),
+                      std::span<const double>(initial.data(), static_cast<std::size_t>(initial.size())));
+}
+
+void Problem::check(VariableId id) const {
+  if (id.index < 0 || id.index >= num_variables()) {
+    throw Error("Problem: variable id " + std::to_string(id.index) + " does not exist (" +
+                std::to_string(num_variables()) + " variables)");
+  }
+}
+
+void Problem::set_constant(VariableId id, bool constant) {
+  check(id);
+  constant_[static_cast<std::size_t>(id.index)] = constant ? 1 : 0;
+}
+
+bool Problem::is_constant(VariableId id) const {
+  check(id);
+  return constant_[static_cast<std::size_t>(id.index)] != 0;
+}
+
+ResidualBlockId Problem::add_residual_block(std::shared_ptr<const ResidualBlock> block,
+                                            std::initializer_list<VariableId> variables,
+                                            std::shared_ptr<const LossFunction> loss) {
+  return add_residual_block(std::move(block),
+                            std::span<const VariableId>(variables.begin(), variables.size()),
+                            std::move(loss));
+}
+
+ResidualBlockId Problem::add_residual_block(std::shared_ptr<const ResidualBlock> block,
+                                            std::span<const VariableId> variables,
+                                            std::shared_ptr<const LossFunction> loss) {
+  const std::string where = "Problem::add_residual_block (block " +
+                            std::to_string(blocks_.size()) + "): ";
+  if (!block) throw Error(where + "block is null");
+  const auto dims = block->tangent_dims();
+  if (dims.size() != variables.size()) {
+    throw Error(where + "the block expects " + std::to_string(dims.size()) + " variables, got " +
+                std::to_string(variables.size()));
+  }
+  if (block->num_rows() < 1) throw Error(where + "the block has no rows");
+  for (std::size_t i = 0; i < variables.size(); ++i) {
+    check(variables[i]);
+    const int tangent = manifolds_[static_cast<std::size_t>(variables[i].index)]->tangent_size();
+    if (tangent != dims[i]) {
+      throw Error(where + "variable " + std::to_string(variables[i].index) + " has tangent size " +
+                  std::to_string(tangent) + " but the block expects " + std::to_string(dims[i]));
+    }
+    for (std::size_t j = 0; j < i; ++j) {
+      if (variables[j] == variables[i]) {
+        throw Error(where + "variable " + std::to_string(variables[i].index) +
+                    " is listed twice");
+      }
+    }
+  }
+  const int r = block->reduced_dim();
+  if (r < 1) throw Error(where + "reduced_dim() must be >= 1");
+  blocks_.push_back({std::move(block), std::move(loss),
+                     std::vector<VariableId>(variables.begin(), variables.end())});
+  return ResidualBlockId{static_cast<std::int32_t>(blocks_.size() - 1)};
+}
+
+std::size_t Problem::num_residual_rows() const {
+  std::size_t n = 0;
+  for (const auto& entry : blocks_) n += static_cast<std::size_t>(entry.block->num_rows());
+  return n;
+}
+
+const Manifold& Problem::manifold(VariableId id) const {
+  check(id);
+  return *manifolds_[static_cast<std::size_t>(id.index)];
+}
+
+std::span<const double> Problem::value(VariableId id) const {
+  check(id);
+  const auto i = static_cast<std::size_t>(id.index);
+  return {values_.data() + offsets_[i], static_cast<std::size_t>(manifolds_[i]->ambient_size())};
+}
+
+std::span<double> Problem::mutable_value(VariableId id) {
+  check(id);
+  const auto i = static_cast<std::size_t>(id.index);
+  return {values_.data() + offsets_[i], static_cast<std::size_t>(manifolds_[i]->ambient_size())};
+}
+
+void Problem::set_all_values(std::span<const double> values) {
+  if (values.size() != values_.size()) {
+    throw Error("Problem::set_all_values: expected " + std::to_string(values_.size()) +
+                " values, got " + std::to_string(values.size()));
+  }
+  for (std::size_t i = 0; i < manifolds_.size(); ++i) {
+    if (!manifolds_[i]->is_valid(values.data() + offsets_[i])) {
+      throw Error("Problem::set_all_values: value of variable " + std::to_string(i) +
+                  " is not a valid " + manifolds_[i]->name() + " value");
+    }
+  }
+  std::copy(values.begin(), values.end(), values_.begin());
+}
+
+std::size_t Problem::value_offset(VariableId id) const {
+  check(id);
+  return offsets_[static_cast<std::size_t>(id.index)];
+}
+
+Eigen::Isometry3d Problem::se3(VariableId id) const {
+  const auto v = value(id);
+  if (v.size() != 7) {
+    throw Error("Problem::se3: variable " + std::to_string(id.index) + " is not an SE(3) variable");
+  }
+  return se3::from_storage(v.data());
+}
+
+void Problem::set_se3(VariableId id, const Eigen::Isometry3d& T_world_body) {
+  auto v = mutable_value(id);
+  if (v.size() != 7) {
+    throw Error("Problem::set_se3: variable " + std::to_string(id.index) +
+                " is not an SE(3) variable");
+  }
+  se3::to_storage(T_world_body, v.data());
+}
+
+const Problem::BlockEntry& Problem::block(ResidualBlockId id) const {
+  if (id.index < 0 || id.index >= num_residual_blocks()) {
+    throw Error("Problem: residual block id " + std::to_string(id.index) + " does not exist");
+  }
+  return blocks_[static_cast<std::size_t>(id.index)];
+}
+
+void Problem::replace_residual_block(ResidualBlockId id,
+                                     std::shared_ptr<const ResidualBlock> block) {
+  const BlockEntry& old = this->block(id);
+  if (!block) throw Error("Problem::replace_residual_block: block is null");
+  const auto a = old.block->tangent_dims();
+  const auto b = block->tangent_dims();
+  if (!std::equal(a.begin(), a.end(), b.begin(), b.end())) {
+    throw Error("Problem::replace_residual_block: block " + std::to_string(id.index) +
+                ": the new block's variables have different tangent sizes");
+  }
+  if (block->num_rows() < 1) {
+    throw Error("Problem::replace_residual_block: the new block has no rows");
+  }
+  blocks_[static_cast<std::size_t>(id.index)].block = std::move(block);
+}
+
+double Problem::evaluate_cost() const {
+  double cost = 0.0;
+  std::vector<const double*> params;
+  for (const auto& entry : blocks_) {
+    params.clear();
+    for (VariableId v : entry.variables) params.push_back(values_.data() + offsets_[static_cast<std::size_t>(v.index)]);
+    const double s = entry.block->squared_norm(params);
+    cost += 0.5 * (entry.loss ? entry.loss->evaluate(s).rho : s);
+  }
+  return cost;
+}
+
+std::size_t Problem::residual_memory_bytes() const {
+  std::size_t bytes = 0;
+  for (const auto& entry : blocks_) bytes += entry.block->memory_bytes();
+  return bytes;
+}
+
+}  // namespace carat

@@ -1,0 +1,331 @@
+#include "carat/solver/solve.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include <tbb/task_arena.h>
+
+#include "block_evaluator.hpp"
+#include "carat/solver/error.hpp"
+#include "sparse_system.hpp"
+
+namespace carat {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double seconds_since(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+/// Applies the tangent step to every free variable: out = x [+] delta.
+void apply_step(const Problem& problem, const std::vector<int>& var_offset, const double* x,
+                const Eigen::VectorXd& delta, double* out) {
+  const int n = problem.num_variables();
+  for (int v = 0; v < n; ++v) {
+    const VariableId id{v};
+    const std::size_t offset = problem.value_offset(id);
+    const Manifold& m = problem.manifold(id);
+    const int t = var_offset[static_cast<std::size_t>(v)];
+    if (t < 0) {
+      std::copy_n(x + offset, m.ambient_size(), out + offset);
+    } else {
+      m.plus(x + offset, delta.data() + t, out + offset);
+    }
+  }
+}
+
+double free_parameter_norm(const Problem& problem, const std::vector<int>& var_offset,
+                           const double* x) {
+  double sum = 0.0;
+  for (int v = 0; v < problem.num_variables(); ++v) {
+    if (var_offset[static_cast<std::size_t>(v)] < 0) continue;
+    const VariableId id{v};
+    const double* p = x + problem.value_offset(id);
+    for (int k = 0; k < problem.manifold(id).ambient_size(); ++k) sum += p[k] * p[k];
+  }
+  return std::sqrt(sum);
+}
+
+class Solver {
+ public:
+  Solver(const SolverOptions& options, Problem& problem, SolverSummary& summary)
+      : options_(options), problem_(problem), summary_(summary) {}
+
+  void run();
+  /// Copies the last accepted iterate (finite cost, lowest so far) into the problem.
+  void write_back() {
+    if (!buffers_[current_].empty()) problem_.set_all_values(buffers_[current_]);
+  }
+
+ private:
+  bool linearize();
+  void record(IterationSummary row, Clock::time_point iteration_start);
+  bool finish(TerminationType type, std::string message);
+
+  const SolverOptions& options_;
+  Problem& problem_;
+  SolverSummary& summary_;
+  Clock::time_point start_ = Clock::now();
+  std::unique_ptr<internal::SparseSystem> system_;
+  std::unique_ptr<internal::BlockEvaluator> evaluator_;
+  internal::BlockLinearizations lin_;
+  std::vector<double> buffers_[2];
+  int current_ = 0;
+  double cost_ = 0.0;
+  Eigen::VectorXd gradient_;
+};
+
+bool Solver::finish(TerminationType type, std::string message) {
+  summary_.termination = type;
+  summary_.message = std::move(message);
+  return true;
+}
+
+void Solver::record(IterationSummary row, Clock::time_point iteration_start) {
+  row.iteration_time_s = seconds_since(iteration_start);
+  row.cumulative_time_s = seconds_since(start_);
+  if (options_.record_iterations) summary_.iterations.push_back(row);
+}
+
+bool Solver::linearize() {
+  auto t0 = Clock::now();
+  std::string error;
+  if (!evaluator_->linearize(current_, &lin_, &error)) {
+    summary_.time.linearize_s += seconds_since(t0);
+    return finish(TerminationType::kFailure, error), false;
+  }
+  summary_.time.linearize_s += seconds_since(t0);
+  t0 = Clock::now();
+  system_->assemble(lin_, &gradient_);
+  summary_.time.assembly_s += seconds_since(t0);
+  cost_ = 0.0;
+  for (double c : lin_.cost) cost_ += c;
+  return true;
+}
+
+void Solver::run() {
+  summary_.num_threads = options_.num_threads;
+  summary_.method = options_.method == Method::kLevenbergMarquardt ? "levenberg_marquardt" : "gauss_newton";
+  summary_.num_variables = problem_.num_variables();
+  summary_.num_residual_blocks = problem_.num_residual_blocks();
+  summary_.num_residual_rows = problem_.num_residual_rows();
+  summary_.residual_memory_bytes = problem_.residual_memory_bytes();
+  for (int v = 0; v < problem_.num_variables(); ++v) {
+    if (!problem_.is_constant(VariableId{v})) ++summary_.num_free_variables;
+  }
+
+  auto t0 = Clock::now();
+  system_ = std::make_unique<internal::SparseSystem>(problem_, options_.ordering);
+  system_->set_num_threads(options_.num_threads);
+  summary_.time.symbolic_s += seconds_since(t0);
+  summary_.num_tangent_parameters = system_->size();
+  summary_.hessian_nonzeros = system_->hessian_nonzeros();
+  summary_.factor_nonzeros = system_->factor_nonzeros();
+  summary_.linear_solver = system_->description();
+
+  const auto values = problem_.all_values();
+  buffers_[0].assign(values.begin(), values.end());
+  buffers_[1] = buffers_[0];
+  evaluator_ = std::make_unique<internal::BlockEvaluator>(problem_);
+  evaluator_->bind(0, buffers_[0].data());
+  evaluator_->bind(1, buffers_[1].data());
+  evaluator_->allocate(&lin_);
+
+  const auto iteration0 = Clock::now();
+  if (!linearize()) return;
+  summary_.initial_cost = cost_;
+  summary_.final_cost = cost_;
+  if (!std::isfinite(cost_)) {
+    finish(TerminationType::kFailure, "the initial cost is not finite");
+    return;
+  }
+  IterationSummary row0;
+  row0.cost = cost_;
+  row0.gradient_max_norm = gradient_.size() ? gradient_.cwiseAbs().maxCoeff() : 0.0;
+  row0.trust_region_radius = options_.initial_trust_region_radius;
+  row0.step_is_successful = true;
+  record(row0, iteration0);
+
+  if (system_->size() == 0) {
+    finish(TerminationType::kConvergence, "no free variables: nothing to optimize");
+    return;
+  }
+
+  const bool lm = options_.method == Method::kLevenbergMarquardt;
+  double radius = options_.initial_trust_region_radius;
+  double decrease_factor = 2.0;
+  Eigen::VectorXd damping(system_->size());
+  Eigen::VectorXd delta;
+  Eigen::VectorXd rhs;
+  const std::vector<int>& var_offset = system_->variable_offset();
+
+  for (int iteration = 1;; ++iteration) {
+    const double gradient_max = gradient_.cwiseAbs().maxCoeff();
+    if (gradient_max <= options_.gradient_tolerance) {
+      finish(TerminationType::kConvergence, "gradient tolerance reached: max |gradient| = " +
+                                                std::to_string(gradient_max));
+      break;
+    }
+    if (iteration > options_.max_iterations) {
+      finish(TerminationType::kNoConvergence,
+             "maximum number of iterations reached (" + std::to_string(options_.max_iterations) + ")");
+      break;
+    }
+    const auto iteration_start = Clock::now();
+    ++summary_.num_iterations;
+    IterationSummary row;
+    row.iteration = iteration;
+    row.gradient_max_norm = gradient_max;
+    row.cost = cost_;
+
+    // Damping: LM uses diag(H) clamped, scaled by 1/radius; GN none unless indefinite.
+    const Eigen::VectorXd diag = system_->diagonal();
+    const Eigen::VectorXd scaled_diag =
+        diag.cwiseMax(options_.min_lm_diagonal).cwiseMin(options_.max_lm_diagonal);
+    bool factorized = false;
+    if (lm) {
+      damping = scaled_diag / radius;
+      auto tf = Clock::now();
+      factorized = system_->factorize(damping);
+      summary_.time.numeric_s += seconds_since(tf);
+    } else {
+      damping.setZero();
+      for (double lambda = 0.0; lambda <= 1.0; lambda = (lambda == 0.0 ? 1e-12 : lambda * 100.0)) {
+        damping = lambda * scaled_diag;
+        auto tf = Clock::now();
+        factorized = system_->factorize(damping);
+        summary_.time.numeric_s += seconds_since(tf);
+        if (factorized) break;
+        row.linear_solver_failed = true;
+        ++summary_.num_linear_solver_failures;
+      }
+    }
+    if (!factorized) {
+      if (lm) {
+        row.linear_solver_failed = true;
+        ++summary_.num_linear_solver_failures;
+        ++summary_.num_unsuccessful_steps;
+        radius /= decrease_factor;
+        decrease_factor *= 2.0;
+        row.trust_region_radius = radius;
+        record(row, iteration_start);
+        if (radius < options_.min_trust_region_radius) {
+          finish(TerminationType::kNoConvergence,
+                 "trust region radius below min_trust_region_radius (system not positive definite)");
+          break;
+        }
+        continue;
+      }
+      record(row, iteration_start);
+      finish(TerminationType::kFailure,
+             "Gauss-Newton: the system is not positive definite even with damping (gauge not fixed or rank-deficient H?)");
+      break;
+    }
+    auto ts = Clock::now();
+    rhs = -gradient_;
+    system_->solve(rhs, &delta);
+    summary_.time.solve_s += seconds_since(ts);
+    row.step_norm = delta.norm();
+    if (!delta.allFinite()) {
+      row.linear_solver_failed = true;
+      ++summary_.num_linear_solver_failures;
+      record(row, iteration_start);
+      finish(TerminationType::kFailure, "the linear solve produced a non-finite step");
+      break;
+    }
+
+    const double x_norm = free_parameter_norm(problem_, var_offset, buffers_[current_].data());
+    if (row.step_norm <= options_.parameter_tolerance * (x_norm + options_.parameter_tolerance)) {
+      row.trust_region_radius = radius;
+      record(row, iteration_start);
+      finish(TerminationType::kConvergence,
+             "parameter tolerance reached: |step| = " + std::to_string(row.step_norm));
+      break;
+    }
+
+    const int trial = 1 - current_;
+    apply_step(problem_, var_offset, buffers_[current_].data(), delta, buffers_[trial].data());
+    auto tc = Clock::now();
+    const double new_cost = evaluator_->cost(trial);
+    summary_.time.cost_s += seconds_since(tc);
+
+    // Predicted decrease of the quadratic model: -g.d - 1/2 d.H.d = 1/2 (-g.d + d.damping.d).
+    const double model_decrease =
+        0.5 * (-gradient_.dot(delta) + delta.dot(damping.cwiseProduct(delta)));
+    const double actual_decrease = cost_ - new_cost;
+    const double ratio = model_decrease > 0.0 ? actual_decrease / model_decrease : -1.0;
+    row.relative_decrease = ratio;
+    const bool accept = std::isfinite(new_cost) &&
+                        (lm ? ratio > options_.min_relative_decrease : new_cost <= cost_);
+    if (accept) {
+      ++summary_.num_successful_steps;
+      row.step_is_successful = true;
+      row.cost_change = actual_decrease;
+      row.cost = new_cost;
+      if (lm) {
+        const double t = 2.0 * ratio - 1.0;
+        radius = std::min(options_.max_trust_region_radius,
+                          radius / std::max(1.0 / 3.0, 1.0 - t * t * t));
+        decrease_factor = 2.0;
+      }
+      row.trust_region_radius = radius;
+      const double old_cost = cost_;
+      current_ = trial;
+      if (!linearize()) {
+        record(row, iteration_start);
+        break;
+      }
+      record(row, iteration_start);
+      if (std::abs(actual_decrease) <= options_.function_tolerance * old_cost) {
+        finish(TerminationType::kConvergence,
+               "function tolerance reached: |cost change| / cost = " +
+                   std::to_string(old_cost > 0.0 ? std::abs(actual_decrease) / old_cost : 0.0));
+        break;
+      }
+    } else {
+      ++summary_.num_unsuccessful_steps;
+      if (!lm) {
+        record(row, iteration_start);
+        finish(TerminationType::kNoConvergence,
+               std::isfinite(new_cost) ? "Gauss-Newton step did not decrease the cost"
+                                       : "Gauss-Newton step gave a non-finite cost");
+        break;
+      }
+      radius /= decrease_factor;
+      decrease_factor *= 2.0;
+      row.trust_region_radius = radius;
+      record(row, iteration_start);
+      if (radius < options_.min_trust_region_radius) {
+        finish(TerminationType::kNoConvergence, "trust region radius below min_trust_region_radius");
+        break;
+      }
+    }
+  }
+  summary_.final_cost = cost_;
+}
+
+}  // namespace
+
+SolverSummary solve(const SolverOptions& options, Problem& problem) {
+  const auto start = Clock::now();
+  SolverSummary summary;
+  std::string error;
+  if (!options.validate(&error)) {
+    summary.termination = TerminationType::kFailure;
+    summary.message = "invalid options: " + error;
+    return summary;
+  }
+  Solver solver(options, problem, summary);
+  tbb::task_arena arena(options.num_threads);
+  arena.execute([&] { solver.run(); });
+  solver.write_back();
+  summary.time.total_s = seconds_since(start);
+  return summary;
+}
+
+}  // namespace carat

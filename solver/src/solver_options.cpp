@@ -1,0 +1,45 @@
+#include "carat/solver/solver_options.hpp"
+
+#include <cmath>
+
+namespace carat {
+namespace {
+
+bool fail(std::string* error, const std::string& message) {
+  if (error) *error = message;
+  return false;
+}
+
+}  // namespace
+
+bool SolverOptions::validate(std::string* error) const {
+  if (max_iterations < 0) return fail(error, "max_iterations must be >= 0, got " + std::to_string(max_iterations));
+  if (num_threads < 1) return fail(error, "num_threads must be >= 1, got " + std::to_string(num_threads));
+  const struct {
+    const char* name;
+    double value;
+  } non_negative[] = {{"function_tolerance", function_tolerance},
+                      {"gradient_tolerance", gradient_tolerance},
+                      {"parameter_tolerance", parameter_tolerance},
+                      {"min_relative_decrease", min_relative_decrease},
+                      {"min_trust_region_radius", min_trust_region_radius},
+                      {"min_lm_diagonal", min_lm_diagonal}};
+  for (const auto& item : non_negative) {
+    if (!(item.value >= 0.0) || !std::isfinite(item.value)) {
+      return fail(error, std::string(item.name) + " must be finite and >= 0, got " + std::to_string(item.value));
+    }
+  }
+  if (!(initial_trust_region_radius > 0.0) || !std::isfinite(initial_trust_region_radius)) {
+    return fail(error, "initial_trust_region_radius must be finite and > 0");
+  }
+  if (!(max_trust_region_radius >= initial_trust_region_radius)) {
+    return fail(error, "max_trust_region_radius must be >= initial_trust_region_radius");
+  }
+  if (!(max_lm_diagonal >= min_lm_diagonal)) {
+    return fail(error, "max_lm_diagonal must be >= min_lm_diagonal");
+  }
+  if (min_relative_decrease >= 1.0) return fail(error, "min_relative_decrease must be < 1");
+  return true;
+}
+
+}  // namespace carat

@@ -1,0 +1,125 @@
+#include "carat/solver/solver_summary.hpp"
+
+#include <cstdio>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+namespace carat {
+namespace {
+
+std::string format(const char* fmt, auto... args) {
+  char buffer[512];
+  std::snprintf(buffer, sizeof(buffer), fmt, args...);
+  return buffer;
+}
+
+}  // namespace
+
+const char* to_string(TerminationType type) {
+  switch (type) {
+    case TerminationType::kConvergence:
+      return "CONVERGENCE";
+    case TerminationType::kNoConvergence:
+      return "NO_CONVERGENCE";
+    case TerminationType::kFailure:
+      return "FAILURE";
+  }
+  return "UNKNOWN";
+}
+
+std::string SolverSummary::brief_report() const {
+  return format("carat %s: cost %.6e -> %.6e, %d iterations (%d accepted), %s, %.3f s",
+                method.c_str(), initial_cost, final_cost, num_iterations, num_successful_steps,
+                to_string(termination), time.total_s);
+}
+
+std::string SolverSummary::iteration_table() const {
+  std::string out =
+      "iter      cost      cost_change  |gradient|   |step|    tr_ratio  tr_radius  iter_time  total_time\n";
+  for (const auto& it : iterations) {
+    out += format("%4d % 8.6e % 3.2e % 3.2e % 3.2e % 3.2e % 3.2e % 4.2e % 4.2e%s\n", it.iteration,
+                  it.cost, it.cost_change, it.gradient_max_norm, it.step_norm,
+                  it.relative_decrease, it.trust_region_radius, it.iteration_time_s,
+                  it.cumulative_time_s,
+                  it.linear_solver_failed ? "  (not positive definite)"
+                                          : (it.iteration > 0 && !it.step_is_successful ? "  (rejected)" : ""));
+  }
+  return out;
+}
+
+std::string SolverSummary::full_report() const {
+  std::string out = iteration_table();
+  out += "\nSolver summary\n";
+  out += format("  %-28s %d (%d free)\n", "variables", num_variables, num_free_variables);
+  out += format("  %-28s %d\n", "tangent parameters", num_tangent_parameters);
+  out += format("  %-28s %d\n", "residual blocks", num_residual_blocks);
+  out += format("  %-28s %zu\n", "residual rows", num_residual_rows);
+  out += format("  %-28s %zu\n", "residual block bytes", residual_memory_bytes);
+  out += format("  %-28s %s\n", "method", method.c_str());
+  out += format("  %-28s %s\n", "linear solver", linear_solver.c_str());
+  out += format("  %-28s %zu / %zu\n", "nonzeros H (upper) / L", hessian_nonzeros, factor_nonzeros);
+  out += format("  %-28s %d\n", "threads", num_threads);
+  out += format("  %-28s %.9e\n", "initial cost", initial_cost);
+  out += format("  %-28s %.9e\n", "final cost", final_cost);
+  out += format("  %-28s %.9e\n", "change", initial_cost - final_cost);
+  out += format("  %-28s %d (%d accepted, %d rejected, %d not positive definite)\n",
+                "iterations", num_iterations, num_successful_steps, num_unsuccessful_steps,
+                num_linear_solver_failures);
+  out += "\nTime (seconds)\n";
+  out += format("  %-28s %.6f\n", "symbolic analysis", time.symbolic_s);
+  out += format("  %-28s %.6f\n", "linearization", time.linearize_s);
+  out += format("  %-28s %.6f\n", "cost evaluation", time.cost_s);
+  out += format("  %-28s %.6f\n", "assembly", time.assembly_s);
+  out += format("  %-28s %.6f\n", "numeric factorization", time.numeric_s);
+  out += format("  %-28s %.6f\n", "triangular solves", time.solve_s);
+  out += format("  %-28s %.6f\n", "total", time.total_s);
+  out += format("\nTermination: %s (%s)\n", to_string(termination), message.c_str());
+  return out;
+}
+
+std::string SolverSummary::to_json() const {
+  nlohmann::json j;
+  j["termination"] = to_string(termination);
+  j["message"] = message;
+  j["initial_cost"] = initial_cost;
+  j["final_cost"] = final_cost;
+  j["iterations"] = num_iterations;
+  j["successful_steps"] = num_successful_steps;
+  j["unsuccessful_steps"] = num_unsuccessful_steps;
+  j["linear_solver_failures"] = num_linear_solver_failures;
+  j["variables"] = num_variables;
+  j["free_variables"] = num_free_variables;
+  j["tangent_parameters"] = num_tangent_parameters;
+  j["residual_blocks"] = num_residual_blocks;
+  j["residual_rows"] = num_residual_rows;
+  j["hessian_nonzeros"] = hessian_nonzeros;
+  j["factor_nonzeros"] = factor_nonzeros;
+  j["residual_memory_bytes"] = residual_memory_bytes;
+  j["threads"] = num_threads;
+  j["method"] = method;
+  j["linear_solver"] = linear_solver;
+  j["time_s"] = time.total_s;
+  j["time_breakdown"] = {{"symbolic_s", time.symbolic_s}, {"linearize_s", time.linearize_s},
+                         {"cost_s", time.cost_s},         {"assembly_s", time.assembly_s},
+                         {"numeric_s", time.numeric_s},   {"solve_s", time.solve_s},
+                         {"total_s", time.total_s}};
+  nlohmann::json rows = nlohmann::json::array();
+  for (const auto& it : iterations) {
+    rows.push_back({{"iteration", it.iteration},
+                    {"cost", it.cost},
+                    {"cost_change", it.cost_change},
+                    {"gradient_max_norm", it.gradient_max_norm},
+                    {"step_norm", it.step_norm},
+                    {"relative_decrease", it.relative_decrease},
+                    {"trust_region_radius", it.trust_region_radius},
+                    {"step_is_successful", it.step_is_successful},
+                    {"linear_solver_failed", it.linear_solver_failed},
+                    {"iteration_time_s", it.iteration_time_s},
+                    {"cumulative_time_s", it.cumulative_time_s}});
+  }
+  j["iteration_rows"] = rows;
+  return j.dump();
+}
+
+}  // namespace carat

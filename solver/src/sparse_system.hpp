@@ -1,0 +1,100 @@
+#pragma once
+
+// Internal: the block-sparse normal equations H delta = -b of a Problem, stored as the upper
+// triangle of H in CHOLMOD's compressed-column arrays, with a fixed pattern, precomputed
+// gather lists (deterministic scatter) and one symbolic analysis.
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "carat/solver/problem.hpp"
+#include "carat/solver/solver_options.hpp"
+
+namespace carat::internal {
+
+/// Per-block dense linearization storage: H (D x D, column-major) and b (D) for every block.
+struct BlockLinearizations {
+  std::vector<std::size_t> h_offset;  ///< start of block i's H in h
+  std::vector<std::size_t> b_offset;  ///< start of block i's b in b
+  std::vector<int> dim;               ///< D of block i
+  std::vector<double> h;              ///< all blocks' H
+  std::vector<double> b;              ///< all blocks' b
+  std::vector<double> cost;           ///< 1/2 rho(s) per block
+};
+
+class SparseSystem {
+ public:
+  SparseSystem(const Problem& problem, Ordering ordering);
+  ~SparseSystem();
+  SparseSystem(const SparseSystem&) = delete;
+  SparseSystem& operator=(const SparseSystem&) = delete;
+
+  /// Scalar size n of the system (tangent dimensions of the free variables).
+  int size() const { return n_; }
+  /// Tangent offset of each variable in the system, -1 for constant variables.
+  const std::vector<int>& variable_offset() const { return var_offset_; }
+  /// Stored nonzeros of the upper triangle.
+  std::size_t hessian_nonzeros() const { return rows_.size(); }
+  /// Nonzeros of the factor after symbolic analysis.
+  std::size_t factor_nonzeros() const { return factor_nnz_; }
+  /// Name of the factorization and ordering for reports.
+  const std::string& description() const { return description_; }
+
+  /// Gathers blocks' H and b into the undamped matrix values and the gradient (parallel over
+  /// columns; each destination sums its sources in a fixed order).
+  void assemble(const BlockLinearizations& blocks, Eigen::VectorXd* gradient);
+
+  /// Undamped diagonal of H.
+  Eigen::VectorXd diagonal() const;
+
+  /// Factorizes H + diag(damping) numerically; false if not positive definite.
+  bool factorize(const Eigen::VectorXd& damping);
+
+  /// Solves (H + diag(damping)) x = rhs with the last successful factorization.
+  void solve(const Eigen::VectorXd& rhs, Eigen::VectorXd* x);
+
+  /// Number of threads used by assemble().
+  void set_num_threads(int threads) { threads_ = threads; }
+
+ private:
+  struct Impl;
+  int n_ = 0;
+  int threads_ = 1;
+  std::size_t factor_nnz_ = 0;
+  std::string description_;
+  std::vector<int> var_offset_;
+  std::vector<int> var_dim_;
+  // Upper-triangular CSC pattern.
+  std::vector<std::int64_t> colptr_;
+  std::vector<std::int64_t> rows_;
+  std::vector<double> values_;
+  std::vector<std::int64_t> diag_pos_;
+  // Gather lists for H: per free-variable column J, a list of (row variable block, row offset
+  // within the column), and for each such pair a list of contributions.
+  struct PairEntry {
+    int row_var;
+    std::int64_t row_in_column;
+    std::size_t contrib_begin;
+    std::size_t contrib_end;
+  };
+  struct Contribution {
+    std::int32_t block;
+    std::int16_t row_local;  // offset of the row variable inside the block's D
+    std::int16_t col_local;  // offset of the column variable inside the block's D
+  };
+  std::vector<int> free_vars_;                 // free variable indices in column order
+  std::vector<std::size_t> column_pair_begin_; // per free variable (column order)
+  std::vector<PairEntry> pairs_;
+  std::vector<Contribution> contributions_;
+  // Gradient gather: per free variable, (block, local offset).
+  std::vector<std::size_t> grad_begin_;
+  std::vector<std::pair<std::int32_t, std::int16_t>> grad_sources_;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace carat::internal
