@@ -21,6 +21,7 @@ struct SolveG2oArgs {
   int max_iterations = 100;
   int threads = 1;
   std::string method = "lm";
+  std::string ordering = "auto";
   std::string loss = "none";
   double loss_scale = 1.0;
   bool json = false;
@@ -37,6 +38,9 @@ int run_solve_g2o(const SolveG2oArgs& args) {
   options.max_iterations = args.max_iterations;
   options.num_threads = args.threads;
   options.method = args.method == "gn" ? Method::kGaussNewton : Method::kLevenbergMarquardt;
+  options.ordering = args.ordering == "amd"     ? Ordering::kAmd
+                     : args.ordering == "metis" ? Ordering::kMetis
+                                                : Ordering::kAuto;
   const SolverSummary summary = solve(options, built.problem);
   if (summary.termination == TerminationType::kFailure) {
     throw Error(args.input + ": the solve failed: " + summary.message);
@@ -74,6 +78,8 @@ void register_solve_g2o(CLI::App& app, CommandRegistry& registry) {
       ->check(CLI::Range(1, 1024))->capture_default_str();
   cmd->add_option("--method", args->method, "lm (Levenberg-Marquardt) or gn (Gauss-Newton)")
       ->check(CLI::IsMember({"lm", "gn"}))->capture_default_str();
+  cmd->add_option("--ordering", args->ordering, "fill-reducing ordering of the variables")
+      ->check(CLI::IsMember({"auto", "amd", "metis"}))->capture_default_str();
   cmd->add_option("--loss", args->loss, "robust loss on every edge")
       ->check(CLI::IsMember({"none", "huber", "cauchy"}))->capture_default_str();
   cmd->add_option("--loss-scale", args->loss_scale, "scale of the robust loss (whitened units)")

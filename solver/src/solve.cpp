@@ -132,8 +132,7 @@ void Solver::run() {
   buffers_[0].assign(values.begin(), values.end());
   buffers_[1] = buffers_[0];
   evaluator_ = std::make_unique<internal::BlockEvaluator>(problem_);
-  evaluator_->bind(0, buffers_[0].data());
-  evaluator_->bind(1, buffers_[1].data());
+  for (int k = 0; k < 2; ++k) evaluator_->bind(k, buffers_[k].data());
   evaluator_->allocate(&lin_);
 
   const auto iteration0 = Clock::now();

@@ -5,7 +5,7 @@
 #include <numeric>
 #include <tuple>
 
-#include <amd.h>
+#include <omp.h>
 #include <cholmod.h>
 #include <tbb/parallel_for.h>
 
@@ -41,21 +41,102 @@ SparseSystem::SparseSystem(const Problem& problem, Ordering ordering) : impl_(st
   const int num_vars = problem.num_variables();
   var_offset_.assign(static_cast<std::size_t>(num_vars), -1);
   var_dim_.assign(static_cast<std::size_t>(num_vars), 0);
+  std::vector<int> free_in_id_order;
+  std::vector<int> id_rank(static_cast<std::size_t>(num_vars), -1);  // rank among free variables
   for (int v = 0; v < num_vars; ++v) {
     const VariableId id{v};
     var_dim_[static_cast<std::size_t>(v)] = problem.manifold(id).tangent_size();
     if (problem.is_constant(id)) continue;
-    var_offset_[static_cast<std::size_t>(v)] = n_;
-    n_ += var_dim_[static_cast<std::size_t>(v)];
-    free_vars_.push_back(v);
+    id_rank[static_cast<std::size_t>(v)] = static_cast<int>(free_in_id_order.size());
+    free_in_id_order.push_back(v);
   }
-  // Column index (position among free variables) of each variable.
-  std::vector<int> column_of(static_cast<std::size_t>(num_vars), -1);
-  for (std::size_t k = 0; k < free_vars_.size(); ++k) {
-    column_of[static_cast<std::size_t>(free_vars_[k])] = static_cast<int>(k);
+  const std::size_t nb = free_in_id_order.size();
+  const auto blocks = problem.blocks();
+
+  // Free variables of each block, as ranks.
+  std::vector<std::size_t> block_free_begin{0};
+  std::vector<std::pair<int, int>> block_free;  // (rank, local tangent offset)
+  for (const auto& entry : blocks) {
+    int local = 0;
+    for (VariableId v : entry.variables) {
+      const int rank = id_rank[static_cast<std::size_t>(v.index)];
+      if (rank >= 0) block_free.emplace_back(rank, local);
+      local += var_dim_[static_cast<std::size_t>(v.index)];
+    }
+    block_free_begin.push_back(block_free.size());
   }
 
-  // (column J, row I, block, local row offset, local col offset), I <= J by column index.
+  Impl& im = *impl_;
+  cholmod_l_start(&im.common);
+  im.started = true;
+  im.common.print = 0;  // library code never prints
+  im.common.error_handler = nullptr;
+
+  // 1. Fill-reducing, postordered ordering of the variable-level graph.
+  std::vector<int> position(nb);
+  std::iota(position.begin(), position.end(), 0);
+  if (nb > 1) {
+    std::vector<std::vector<SuiteSparse_long>> adjacency(nb);
+    for (std::size_t bi = 0; bi < blocks.size(); ++bi) {
+      for (std::size_t a = block_free_begin[bi]; a < block_free_begin[bi + 1]; ++a) {
+        for (std::size_t b = block_free_begin[bi]; b < block_free_begin[bi + 1]; ++b) {
+          if (a != b) adjacency[static_cast<std::size_t>(block_free[a].first)].push_back(block_free[b].first);
+        }
+      }
+    }
+    std::size_t nnz = 0;
+    for (std::size_t k = 0; k < nb; ++k) {
+      auto& list = adjacency[k];
+      list.push_back(static_cast<SuiteSparse_long>(k));
+      std::sort(list.begin(), list.end());
+      list.erase(std::unique(list.begin(), list.end()), list.end());
+      nnz += list.size();
+    }
+    cholmod_sparse* G = cholmod_l_allocate_sparse(nb, nb, nnz, 1, 1, 0, CHOLMOD_PATTERN, &im.common);
+    if (!G) throw Error("sparse system: out of memory while ordering " + std::to_string(nb) + " variables");
+    auto* Gp = static_cast<SuiteSparse_long*>(G->p);
+    auto* Gi = static_cast<SuiteSparse_long*>(G->i);
+    Gp[0] = 0;
+    for (std::size_t k = 0; k < nb; ++k) {
+      std::copy(adjacency[k].begin(), adjacency[k].end(), Gi + Gp[k]);
+      Gp[k + 1] = Gp[k] + static_cast<SuiteSparse_long>(adjacency[k].size());
+    }
+    adjacency.clear();
+    G->stype = 1;  // symmetric, both triangles stored: CHOLMOD uses the upper part
+    im.common.supernodal = CHOLMOD_SIMPLICIAL;
+    im.common.postorder = 1;
+    if (ordering == Ordering::kAmd) {
+      im.common.nmethods = 1;
+      im.common.method[0].ordering = CHOLMOD_AMD;
+    } else if (ordering == Ordering::kMetis) {
+      im.common.nmethods = 1;
+      im.common.method[0].ordering = CHOLMOD_METIS;
+    } else {
+      im.common.nmethods = 2;  // both; the one whose factor needs fewer flops wins
+      im.common.method[0].ordering = CHOLMOD_AMD;
+      im.common.method[1].ordering = CHOLMOD_METIS;
+    }
+    cholmod_factor* LG = cholmod_l_analyze(G, &im.common);
+    cholmod_l_free_sparse(&G, &im.common);
+    if (!LG) throw Error("sparse system: ordering failed (CHOLMOD status " + std::to_string(im.common.status) + ")");
+    const auto* perm = static_cast<const SuiteSparse_long*>(LG->Perm);
+    for (std::size_t k = 0; k < nb; ++k) position[static_cast<std::size_t>(perm[k])] = static_cast<int>(k);
+    const int selected = im.common.method[im.common.selected].ordering;
+    ordering_name_ = selected == CHOLMOD_METIS ? "METIS" : (selected == CHOLMOD_AMD ? "AMD" : "natural");
+    cholmod_l_free_factor(&LG, &im.common);
+  } else {
+    ordering_name_ = "natural";
+  }
+
+  // 2. Variables and scalar offsets in elimination order.
+  free_vars_.assign(nb, -1);
+  for (std::size_t r = 0; r < nb; ++r) free_vars_[static_cast<std::size_t>(position[r])] = free_in_id_order[r];
+  for (std::size_t k = 0; k < nb; ++k) {
+    var_offset_[static_cast<std::size_t>(free_vars_[k])] = n_;
+    n_ += var_dim_[static_cast<std::size_t>(free_vars_[k])];
+  }
+
+  // 3. Block pairs (column J <= row I in elimination order) and their contributions.
   struct Raw {
     int col;
     int row;
@@ -64,162 +145,109 @@ SparseSystem::SparseSystem(const Problem& problem, Ordering ordering) : impl_(st
     std::int16_t col_local;
   };
   std::vector<Raw> raw;
-  std::vector<std::tuple<int, std::int32_t, std::int16_t>> grad_raw;  // (column, block, local)
-  const auto blocks = problem.blocks();
+  std::vector<std::tuple<int, std::int32_t, std::int16_t>> grad_raw;  // (position, block, local)
   for (std::size_t bi = 0; bi < blocks.size(); ++bi) {
-    const auto& vars = blocks[bi].variables;
-    std::vector<std::pair<int, int>> free_local;  // (column index, local offset)
-    int local = 0;
-    for (VariableId v : vars) {
-      const int col = column_of[static_cast<std::size_t>(v.index)];
-      if (col >= 0) free_local.emplace_back(col, local);
-      local += var_dim_[static_cast<std::size_t>(v.index)];
-    }
-    for (std::size_t a = 0; a < free_local.size(); ++a) {
-      grad_raw.emplace_back(free_local[a].first, static_cast<std::int32_t>(bi),
-                            static_cast<std::int16_t>(free_local[a].second));
-      for (std::size_t b = 0; b < free_local.size(); ++b) {
-        if (free_local[a].first > free_local[b].first) continue;
-        raw.push_back({free_local[b].first, free_local[a].first, static_cast<std::int32_t>(bi),
-                       static_cast<std::int16_t>(free_local[a].second),
-                       static_cast<std::int16_t>(free_local[b].second)});
+    for (std::size_t a = block_free_begin[bi]; a < block_free_begin[bi + 1]; ++a) {
+      const int pa = position[static_cast<std::size_t>(block_free[a].first)];
+      grad_raw.emplace_back(pa, static_cast<std::int32_t>(bi), static_cast<std::int16_t>(block_free[a].second));
+      for (std::size_t b = block_free_begin[bi]; b < block_free_begin[bi + 1]; ++b) {
+        const int pb = position[static_cast<std::size_t>(block_free[b].first)];
+        if (pa < pb) continue;  // keep row >= column
+        raw.push_back({pb, pa, static_cast<std::int32_t>(bi),
+                       static_cast<std::int16_t>(block_free[a].second),
+                       static_cast<std::int16_t>(block_free[b].second)});
       }
     }
   }
-  // Every free variable has its diagonal block, touched or not.
-  for (std::size_t k = 0; k < free_vars_.size(); ++k) {
-    raw.push_back({static_cast<int>(k), static_cast<int>(k), -1, 0, 0});
-  }
+  for (std::size_t k = 0; k < nb; ++k) raw.push_back({static_cast<int>(k), static_cast<int>(k), -1, 0, 0});
   std::sort(raw.begin(), raw.end(), [](const Raw& x, const Raw& y) {
     return std::tie(x.col, x.row, x.block) < std::tie(y.col, y.row, y.block);
   });
-
-  const std::size_t num_cols = free_vars_.size();
-  column_pair_begin_.assign(num_cols + 1, 0);
+  column_pair_begin_.assign(nb + 1, 0);
   for (std::size_t i = 0; i < raw.size();) {
     std::size_t j = i;
     PairEntry pair{raw[i].row, 0, contributions_.size(), 0};
     for (; j < raw.size() && raw[j].col == raw[i].col && raw[j].row == raw[i].row; ++j) {
-      if (raw[j].block >= 0) {
-        contributions_.push_back({raw[j].block, raw[j].row_local, raw[j].col_local});
-      }
+      if (raw[j].block >= 0) contributions_.push_back({raw[j].block, raw[j].row_local, raw[j].col_local});
     }
     pair.contrib_end = contributions_.size();
     pairs_.push_back(pair);
     column_pair_begin_[static_cast<std::size_t>(raw[i].col) + 1] = pairs_.size();
     i = j;
   }
-  for (std::size_t k = 1; k <= num_cols; ++k) {
-    column_pair_begin_[k] = std::max(column_pair_begin_[k], column_pair_begin_[k - 1]);
-  }
+  raw.clear();
+  raw.shrink_to_fit();
 
-  // Scalar CSC pattern of the upper triangle.
+  // 4. Scalar lower-triangular CSC: per scalar column c of block J, the diagonal block's rows
+  // c..d_J-1, then every block below it.
   colptr_.assign(static_cast<std::size_t>(n_) + 1, 0);
   std::size_t scalar_col = 0;
-  for (std::size_t J = 0; J < num_cols; ++J) {
+  for (std::size_t J = 0; J < nb; ++J) {
     const int dJ = var_dim_[static_cast<std::size_t>(free_vars_[J])];
-    std::int64_t above = 0;
+    std::int64_t below = 0;
     for (std::size_t p = column_pair_begin_[J]; p < column_pair_begin_[J + 1]; ++p) {
-      pairs_[p].row_in_column = above;
-      if (static_cast<std::size_t>(pairs_[p].row_var) != J) {
-        above += var_dim_[static_cast<std::size_t>(free_vars_[static_cast<std::size_t>(pairs_[p].row_var)])];
-      }
+      if (static_cast<std::size_t>(pairs_[p].row_var) == J) continue;
+      pairs_[p].row_in_column = below;
+      below += var_dim_[static_cast<std::size_t>(free_vars_[static_cast<std::size_t>(pairs_[p].row_var)])];
     }
-    for (int c = 0; c < dJ; ++c) {
-      colptr_[scalar_col + 1] = colptr_[scalar_col] + above + c + 1;
-      ++scalar_col;
+    for (int c = 0; c < dJ; ++c, ++scalar_col) {
+      colptr_[scalar_col + 1] = colptr_[scalar_col] + (dJ - c) + below;
     }
   }
   rows_.resize(static_cast<std::size_t>(colptr_.back()));
   scalar_col = 0;
-  for (std::size_t J = 0; J < num_cols; ++J) {
-    const int dJ = var_dim_[static_cast<std::size_t>(free_vars_[J])];
-    for (int c = 0; c < dJ; ++c) {
+  for (std::size_t J = 0; J < nb; ++J) {
+    const int vJ = free_vars_[J];
+    const int dJ = var_dim_[static_cast<std::size_t>(vJ)];
+    for (int c = 0; c < dJ; ++c, ++scalar_col) {
       std::int64_t pos = colptr_[scalar_col];
+      for (int r = c; r < dJ; ++r) rows_[static_cast<std::size_t>(pos++)] = var_offset_[static_cast<std::size_t>(vJ)] + r;
       for (std::size_t p = column_pair_begin_[J]; p < column_pair_begin_[J + 1]; ++p) {
+        if (static_cast<std::size_t>(pairs_[p].row_var) == J) continue;
         const int I = free_vars_[static_cast<std::size_t>(pairs_[p].row_var)];
-        const int dI = var_dim_[static_cast<std::size_t>(I)];
-        const int count = (static_cast<std::size_t>(pairs_[p].row_var) == J) ? c + 1 : dI;
-        for (int r = 0; r < count; ++r) rows_[static_cast<std::size_t>(pos++)] = var_offset_[static_cast<std::size_t>(I)] + r;
+        for (int r = 0; r < var_dim_[static_cast<std::size_t>(I)]; ++r) {
+          rows_[static_cast<std::size_t>(pos++)] = var_offset_[static_cast<std::size_t>(I)] + r;
+        }
       }
-      ++scalar_col;
     }
   }
   values_.assign(rows_.size(), 0.0);
-  diag_pos_.resize(static_cast<std::size_t>(n_));
-  for (int k = 0; k < n_; ++k) diag_pos_[static_cast<std::size_t>(k)] = colptr_[static_cast<std::size_t>(k) + 1] - 1;
+  diag_pos_.assign(colptr_.begin(), colptr_.end() - 1);
 
-  // Gradient gather lists.
   std::sort(grad_raw.begin(), grad_raw.end());
-  grad_begin_.assign(num_cols + 1, 0);
-  for (const auto& [col, block, local] : grad_raw) {
+  grad_begin_.assign(nb + 1, 0);
+  for (const auto& [pos, block, local] : grad_raw) {
     grad_sources_.emplace_back(block, local);
-    grad_begin_[static_cast<std::size_t>(col) + 1] = grad_sources_.size();
+    grad_begin_[static_cast<std::size_t>(pos) + 1] = grad_sources_.size();
   }
-  for (std::size_t k = 1; k <= num_cols; ++k) grad_begin_[k] = std::max(grad_begin_[k], grad_begin_[k - 1]);
+  for (std::size_t k = 1; k <= nb; ++k) grad_begin_[k] = std::max(grad_begin_[k], grad_begin_[k - 1]);
+  for (std::size_t k = 1; k <= nb; ++k) column_pair_begin_[k] = std::max(column_pair_begin_[k], column_pair_begin_[k - 1]);
 
   if (n_ == 0) return;
 
-  // CHOLMOD: matrix, ordering, symbolic analysis (once).
-  Impl& im = *impl_;
-  cholmod_l_start(&im.common);
-  im.started = true;
-  im.common.print = 0;  // library code never prints
-  im.common.error_handler = nullptr;
-  im.common.supernodal = CHOLMOD_SUPERNODAL;
+  // 5. CHOLMOD supernodal symbolic analysis, natural ordering on the pre-ordered matrix.
   im.A = cholmod_l_allocate_sparse(static_cast<std::size_t>(n_), static_cast<std::size_t>(n_),
-                                   rows_.size(), 1, 1, 1, CHOLMOD_REAL, &im.common);
+                                   rows_.size(), 1, 1, -1, CHOLMOD_REAL, &im.common);
   if (!im.A) throw Error("sparse system: CHOLMOD could not allocate the matrix (out of memory?)");
   std::memcpy(im.A->p, colptr_.data(), colptr_.size() * sizeof(std::int64_t));
   std::memcpy(im.A->i, rows_.data(), rows_.size() * sizeof(std::int64_t));
   std::fill_n(static_cast<double*>(im.A->x), rows_.size(), 0.0);
-
-  std::vector<SuiteSparse_long> perm;
-  if (ordering == Ordering::kBlockAmd) {
-    // AMD on the variable graph (both triangles, no diagonal), expanded to scalars.
-    std::vector<std::vector<SuiteSparse_long>> adjacency(num_cols);
-    for (std::size_t J = 0; J < num_cols; ++J) {
-      for (std::size_t p = column_pair_begin_[J]; p < column_pair_begin_[J + 1]; ++p) {
-        const auto I = static_cast<std::size_t>(pairs_[p].row_var);
-        if (I == J) continue;
-        adjacency[J].push_back(static_cast<SuiteSparse_long>(I));
-        adjacency[I].push_back(static_cast<SuiteSparse_long>(J));
-      }
-    }
-    std::vector<SuiteSparse_long> Ap(num_cols + 1, 0);
-    std::vector<SuiteSparse_long> Ai;
-    for (std::size_t J = 0; J < num_cols; ++J) {
-      auto& list = adjacency[J];
-      std::sort(list.begin(), list.end());
-      Ai.insert(Ai.end(), list.begin(), list.end());
-      Ap[J + 1] = static_cast<SuiteSparse_long>(Ai.size());
-    }
-    if (Ai.empty()) Ai.push_back(0);  // AMD wants a non-null array
-    std::vector<SuiteSparse_long> block_perm(num_cols);
-    double control[AMD_CONTROL];
-    double info[AMD_INFO];
-    amd_l_defaults(control);
-    const SuiteSparse_long status =
-        amd_l_order(static_cast<SuiteSparse_long>(num_cols), Ap.data(), Ai.data(),
-                    block_perm.data(), control, info);
-    if (status < AMD_OK) throw Error("sparse system: AMD ordering failed (status " + std::to_string(status) + ")");
-    perm.reserve(static_cast<std::size_t>(n_));
-    for (SuiteSparse_long k : block_perm) {
-      const int v = free_vars_[static_cast<std::size_t>(k)];
-      for (int d = 0; d < var_dim_[static_cast<std::size_t>(v)]; ++d) {
-        perm.push_back(var_offset_[static_cast<std::size_t>(v)] + d);
-      }
-    }
-    im.common.nmethods = 1;
-    im.common.method[0].ordering = CHOLMOD_GIVEN;
-    im.common.postorder = 1;
-    description_ = "cholmod supernodal, block AMD ordering";
-  } else {
-    description_ = "cholmod supernodal, cholmod default ordering";
-  }
-  im.L = cholmod_l_analyze_p(im.A, perm.empty() ? nullptr : perm.data(), nullptr, 0, &im.common);
+  im.common.supernodal = CHOLMOD_SUPERNODAL;
+  im.common.nmethods = 1;
+  im.common.method[0].ordering = CHOLMOD_NATURAL;
+  im.common.postorder = 0;  // already postordered at the variable level
+  // Larger relaxed supernodes: fewer, bigger BLAS calls for 6x6-block matrices.
+  im.common.nrelax[0] = 16;
+  im.common.nrelax[1] = 48;
+  im.common.nrelax[2] = 96;
+  im.common.zrelax[0] = 0.8;
+  im.common.zrelax[1] = 0.2;
+  im.common.zrelax[2] = 0.1;
+  im.L = cholmod_l_analyze(im.A, &im.common);
   if (!im.L) throw Error("sparse system: CHOLMOD symbolic analysis failed (status " + std::to_string(im.common.status) + ")");
   factor_nnz_ = static_cast<std::size_t>(im.common.lnz);
+  factor_flops_ = im.common.fl;
+  description_ = "cholmod supernodal, " + ordering_name_ + " ordering on the variable graph";
   im.B = cholmod_l_zeros(static_cast<std::size_t>(n_), 1, CHOLMOD_REAL, &im.common);
   if (!im.B) throw Error("sparse system: CHOLMOD could not allocate the right-hand side");
 }
@@ -245,13 +273,17 @@ void SparseSystem::assemble(const BlockLinearizations& blocks, Eigen::VectorXd* 
         for (std::size_t q = pair.contrib_begin; q < pair.contrib_end; ++q) {
           const Contribution& src = contributions_[q];
           const auto bi = static_cast<std::size_t>(src.block);
-          const int D = blocks.dim[bi];
+          const auto D = static_cast<std::size_t>(blocks.dim[bi]);
           const double* H = blocks.h.data() + blocks.h_offset[bi];
           for (int c = 0; c < dJ; ++c) {
-            double* dst = values_.data() + colptr_[static_cast<std::size_t>(col0 + c)] + pair.row_in_column;
-            const double* col = H + static_cast<std::size_t>(src.col_local + c) * static_cast<std::size_t>(D) + src.row_local;
-            const int count = diagonal ? c + 1 : dI;
-            for (int r = 0; r < count; ++r) dst[r] += col[r];
+            double* column = values_.data() + colptr_[static_cast<std::size_t>(col0 + c)];
+            const double* src_col = H + static_cast<std::size_t>(src.col_local + c) * D + src.row_local;
+            if (diagonal) {
+              for (int r = c; r < dJ; ++r) column[r - c] += src_col[r];
+            } else {
+              double* dst = column + (dJ - c) + pair.row_in_column;
+              for (int r = 0; r < dI; ++r) dst[r] += src_col[r];
+            }
           }
         }
       }
@@ -276,7 +308,13 @@ bool SparseSystem::factorize(const Eigen::VectorXd& damping) {
   auto* x = static_cast<double*>(im.A->x);
   std::copy(values_.begin(), values_.end(), x);
   for (int k = 0; k < n_; ++k) x[diag_pos_[static_cast<std::size_t>(k)]] += damping[k];
+  // Debian's CHOLMOD runs some loops of its supernodal factorization under OpenMP with a fixed
+  // team size; on small machines that oversubscribes the cores and costs more in thread wake-ups
+  // than it gains. Run those regions inactive (single-threaded) for this call only.
+  const int saved_levels = omp_get_max_active_levels();
+  if (threads_ <= 1) omp_set_max_active_levels(0);
   const int ok = cholmod_l_factorize(im.A, im.L, &im.common);
+  omp_set_max_active_levels(saved_levels);
   return ok && im.common.status == CHOLMOD_OK && im.L->minor == static_cast<std::size_t>(n_);
 }
 

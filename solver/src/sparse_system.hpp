@@ -1,8 +1,11 @@
 #pragma once
 
-// Internal: the block-sparse normal equations H delta = -b of a Problem, stored as the upper
-// triangle of H in CHOLMOD's compressed-column arrays, with a fixed pattern, precomputed
-// gather lists (deterministic scatter) and one symbolic analysis.
+// Internal: the block-sparse normal equations H delta = -b of a Problem. The free variables
+// are ordered once (fill-reducing, postordered, on the variable-level graph) and the system
+// is laid out directly in that order as the lower triangle of H in CHOLMOD's compressed-column
+// arrays. CHOLMOD then factorizes it with the natural ordering: no permutation or transpose
+// per iteration. Values are gathered through precomputed lists (deterministic), and CHOLMOD's
+// supernodal symbolic analysis runs once.
 
 #include <cstddef>
 #include <cstdint>
@@ -36,12 +39,14 @@ class SparseSystem {
 
   /// Scalar size n of the system (tangent dimensions of the free variables).
   int size() const { return n_; }
-  /// Tangent offset of each variable in the system, -1 for constant variables.
+  /// Tangent offset of each variable in the (permuted) system, -1 for constant variables.
   const std::vector<int>& variable_offset() const { return var_offset_; }
   /// Stored nonzeros of the upper triangle.
   std::size_t hessian_nonzeros() const { return rows_.size(); }
   /// Nonzeros of the factor after symbolic analysis.
   std::size_t factor_nonzeros() const { return factor_nnz_; }
+  /// Flops of one numeric factorization (CHOLMOD's estimate).
+  double factor_flops() const { return factor_flops_; }
   /// Name of the factorization and ordering for reports.
   const std::string& description() const { return description_; }
 
@@ -66,19 +71,21 @@ class SparseSystem {
   int n_ = 0;
   int threads_ = 1;
   std::size_t factor_nnz_ = 0;
+  double factor_flops_ = 0.0;
+  std::string ordering_name_;
   std::string description_;
   std::vector<int> var_offset_;
   std::vector<int> var_dim_;
-  // Upper-triangular CSC pattern.
+  // Lower-triangular CSC pattern, columns in elimination order.
   std::vector<std::int64_t> colptr_;
   std::vector<std::int64_t> rows_;
   std::vector<double> values_;
   std::vector<std::int64_t> diag_pos_;
-  // Gather lists for H: per free-variable column J, a list of (row variable block, row offset
-  // within the column), and for each such pair a list of contributions.
+  // Gather lists for H: per block column J (elimination position), the block rows I >= J with
+  // their offset below the diagonal block, and for each such pair a list of contributions.
   struct PairEntry {
-    int row_var;
-    std::int64_t row_in_column;
+    int row_var;                  // elimination position of the row block
+    std::int64_t row_in_column;   // offset of the row block below the diagonal block
     std::size_t contrib_begin;
     std::size_t contrib_end;
   };
@@ -87,8 +94,8 @@ class SparseSystem {
     std::int16_t row_local;  // offset of the row variable inside the block's D
     std::int16_t col_local;  // offset of the column variable inside the block's D
   };
-  std::vector<int> free_vars_;                 // free variable indices in column order
-  std::vector<std::size_t> column_pair_begin_; // per free variable (column order)
+  std::vector<int> free_vars_;                 // free variable at each elimination position
+  std::vector<std::size_t> column_pair_begin_; // per elimination position
   std::vector<PairEntry> pairs_;
   std::vector<Contribution> contributions_;
   // Gradient gather: per free variable, (block, local offset).

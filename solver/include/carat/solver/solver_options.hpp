@@ -12,16 +12,18 @@ enum class Method {
   kGaussNewton,         ///< undamped steps; damping only to recover from an indefinite system
 };
 
-/// Fill-reducing ordering for the sparse Cholesky factorization.
+/// Fill-reducing ordering of the variables (computed once, on the variable-level graph, then
+/// expanded to scalars and postordered).
 enum class Ordering {
-  kBlockAmd,    ///< AMD on the variable-level graph, expanded to scalars (default)
-  kCholmodDefault,  ///< CHOLMOD's own choice on the scalar pattern
+  kAuto,   ///< both AMD and METIS; the one whose factor needs fewer flops wins
+  kAmd,    ///< approximate minimum degree
+  kMetis,  ///< METIS nested dissection (good for large, mesh-like graphs)
 };
 
 /// What solve() does and when it stops.
 struct SolverOptions {
   Method method = Method::kLevenbergMarquardt;  ///< nonlinear method
-  Ordering ordering = Ordering::kBlockAmd;       ///< fill-reducing ordering
+  Ordering ordering = Ordering::kAuto;           ///< fill-reducing ordering
   int max_iterations = 50;          ///< iterations (accepted or not) before giving up
   double function_tolerance = 1e-6;   ///< stop when |cost change| / cost < this
   double gradient_tolerance = 1e-10;  ///< stop when max |gradient| < this

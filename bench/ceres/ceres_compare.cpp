@@ -1,0 +1,149 @@
+// Side-by-side: Ceres 2.1 and carat solve the same g2o pose graph in the same process.
+// Ceres gets its standard setup for this problem (as in its pose_graph_3d example): one
+// parameter block per pose = position + EigenQuaternionManifold (ProductManifold), the
+// relative-pose cost with the square-root information (autodiff), LM,
+// SPARSE_NORMAL_CHOLESKY with SuiteSparse, 1 thread, default tolerances, 200 iterations.
+// carat solves the identical cost function (RelativePoseBlock), 1 thread, same limits.
+//
+// Usage: ceres_compare [--repeat N] FILE.g2o...   (prints one JSON object per file)
+#include <chrono>
+#include <cstdio>
+#include <string>
+#include <vector>
+
+#include <ceres/ceres.h>
+#include <ceres/manifold.h>
+#include <ceres/product_manifold.h>
+#include <nlohmann/json.hpp>
+
+#include "carat/residuals/g2o_io.hpp"
+#include "carat/residuals/pose_graph.hpp"
+#include "carat/solver/solve.hpp"
+
+namespace {
+
+/// Ceres's pose-graph residual: [R_a^T (p_b - p_a) - p_ab; 2 vec(q_ab^-1 q_a^-1 q_b)], whitened.
+struct PoseGraphError {
+  PoseGraphError(const Eigen::Vector3d& p_ab, const Eigen::Quaterniond& q_ab,
+                 const Eigen::Matrix<double, 6, 6>& sqrt_information)
+      : p_ab_(p_ab), q_ab_(q_ab), sqrt_information_(sqrt_information) {}
+
+  template <typename T>
+  bool operator()(const T* pose_a, const T* pose_b, T* residuals) const {
+    const Eigen::Map<const Eigen::Matrix<T, 3, 1>> p_a(pose_a);
+    const Eigen::Map<const Eigen::Quaternion<T>> q_a(pose_a + 3);
+    const Eigen::Map<const Eigen::Matrix<T, 3, 1>> p_b(pose_b);
+    const Eigen::Map<const Eigen::Quaternion<T>> q_b(pose_b + 3);
+    const Eigen::Quaternion<T> q_a_inverse = q_a.conjugate();
+    const Eigen::Quaternion<T> q_ab_estimated = q_a_inverse * q_b;
+    const Eigen::Matrix<T, 3, 1> p_ab_estimated = q_a_inverse * (p_b - p_a);
+    const Eigen::Quaternion<T> delta_q = q_ab_.template cast<T>().conjugate() * q_ab_estimated;
+    Eigen::Map<Eigen::Matrix<T, 6, 1>> r(residuals);
+    r.template head<3>() = p_ab_estimated - p_ab_.template cast<T>();
+    r.template tail<3>() = T(2.0) * delta_q.vec();
+    r.applyOnTheLeft(sqrt_information_.template cast<T>());
+    return true;
+  }
+
+  Eigen::Vector3d p_ab_;
+  Eigen::Quaterniond q_ab_;
+  Eigen::Matrix<double, 6, 6> sqrt_information_;
+};
+
+nlohmann::json run_ceres(const carat::PoseGraph& graph) {
+  using PoseManifold = ceres::ProductManifold<ceres::EuclideanManifold<3>, ceres::EigenQuaternionManifold>;
+  std::vector<std::array<double, 7>> poses(graph.vertices.size());
+  for (std::size_t i = 0; i < graph.vertices.size(); ++i) {
+    const auto& T = graph.vertices[i].T_world_vertex;
+    const Eigen::Quaterniond q(T.linear());
+    poses[i] = {T.translation().x(), T.translation().y(), T.translation().z(), q.x(), q.y(), q.z(), q.w()};
+  }
+  ceres::Problem::Options problem_options;
+  ceres::Problem problem(problem_options);
+  for (const auto& edge : graph.edges) {
+    const Eigen::Matrix<double, 6, 6> sqrt_info = edge.information.llt().matrixU();
+    auto* cost = new ceres::AutoDiffCostFunction<PoseGraphError, 6, 7, 7>(new PoseGraphError(
+        edge.T_from_to.translation(), Eigen::Quaterniond(edge.T_from_to.linear()), sqrt_info));
+    problem.AddResidualBlock(cost, nullptr, poses[static_cast<std::size_t>(graph.index_of(edge.from))].data(),
+                             poses[static_cast<std::size_t>(graph.index_of(edge.to))].data());
+  }
+  for (auto& pose : poses) problem.SetManifold(pose.data(), new PoseManifold);
+  problem.SetParameterBlockConstant(poses.front().data());
+
+  ceres::Solver::Options options;
+  options.max_num_iterations = 200;
+  options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
+  options.sparse_linear_algebra_library_type = ceres::SUITE_SPARSE;
+  options.minimizer_type = ceres::TRUST_REGION;
+  options.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
+  options.num_threads = 1;
+  ceres::Solver::Summary summary;
+  ceres::Solve(options, &problem, &summary);
+  return {{"initial_cost", summary.initial_cost},
+          {"final_cost", summary.final_cost},
+          {"iterations", summary.iterations.size() - 1},
+          {"termination", ceres::TerminationTypeToString(summary.termination_type)},
+          {"time_s", summary.total_time_in_seconds},
+          {"linear_solver_time_s", summary.linear_solver_time_in_seconds},
+          {"jacobian_evaluation_time_s", summary.jacobian_evaluation_time_in_seconds}};
+}
+
+nlohmann::json run_carat(const carat::PoseGraph& graph) {
+  carat::PoseGraphProblem built = carat::build_pose_graph_problem(graph);
+  carat::SolverOptions options;
+  options.max_iterations = 200;
+  options.num_threads = 1;
+  const carat::SolverSummary summary = carat::solve(options, built.problem);
+  return {{"initial_cost", summary.initial_cost},
+          {"final_cost", summary.final_cost},
+          {"iterations", summary.num_iterations},
+          {"termination", carat::to_string(summary.termination)},
+          {"time_s", summary.time.total_s},
+          {"linear_solver_time_s", summary.time.numeric_s + summary.time.solve_s + summary.time.symbolic_s}};
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  int repeat = 1;
+  std::vector<std::string> files;
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    if (arg == "--repeat" && i + 1 < argc) {
+      repeat = std::stoi(argv[++i]);
+    } else {
+      files.push_back(arg);
+    }
+  }
+  if (files.empty()) {
+    for (const char* name : {"sphere2500", "parking-garage", "torus3D"}) {
+      files.push_back(std::string(CARAT_DATA_DIR) + "/posegraph/" + name + ".g2o");
+    }
+  }
+  for (const auto& file : files) {
+    carat::PoseGraph graph;
+    try {
+      graph = carat::read_g2o(file);
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "ceres_compare: skipping %s: %s\n", file.c_str(), e.what());
+      continue;
+    }
+    for (int r = 0; r < repeat; ++r) {
+      nlohmann::json j;
+      j["file"] = file;
+      j["vertices"] = graph.vertices.size();
+      j["edges"] = graph.edges.size();
+      j["ceres"] = run_ceres(graph);
+      j["carat"] = run_carat(graph);
+      const double ceres_cost = j["ceres"]["final_cost"];
+      const double carat_cost = j["carat"]["final_cost"];
+      const double ceres_time = j["ceres"]["time_s"];
+      const double carat_time = j["carat"]["time_s"];
+      j["cost_ratio_carat_over_ceres"] = carat_cost / ceres_cost;
+      j["time_ratio_carat_over_ceres"] = carat_time / ceres_time;
+      std::printf("%s\n", j.dump().c_str());
+      std::fflush(stdout);
+    }
+  }
+  return 0;
+}
