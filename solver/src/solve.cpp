@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include <tbb/info.h>
 #include <tbb/task_arena.h>
 
 #include "block_evaluator.hpp"
@@ -319,8 +320,11 @@ SolverSummary solve(const SolverOptions& options, Problem& problem) {
     summary.message = "invalid options: " + error;
     return summary;
   }
-  Solver solver(options, problem, summary);
-  tbb::task_arena arena(options.num_threads);
+  // More threads than TBB allows would only make TBB print a warning; clamp instead.
+  SolverOptions effective = options;
+  effective.num_threads = std::min(options.num_threads, tbb::info::default_concurrency());
+  Solver solver(effective, problem, summary);
+  tbb::task_arena arena(effective.num_threads);
   arena.execute([&] { solver.run(); });
   solver.write_back();
   summary.time.total_s = seconds_since(start);

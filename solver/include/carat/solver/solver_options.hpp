@@ -34,7 +34,7 @@ struct SolverOptions {
   double min_relative_decrease = 1e-3;       ///< LM: smallest gain ratio that accepts a step
   double min_lm_diagonal = 1e-6;             ///< LM: lower clamp of diag(H) in the damping
   double max_lm_diagonal = 1e32;             ///< LM: upper clamp of diag(H) in the damping
-  int num_threads = 1;                        ///< threads for linearization (>= 1)
+  int num_threads = 1;  ///< threads for linearization (>= 1; capped at the machine's cores)
   bool record_iterations = true;              ///< keep one IterationSummary per iteration
 
   /// True if every setting is in range; otherwise false with a message in *error.

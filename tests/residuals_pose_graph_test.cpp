@@ -1,0 +1,266 @@
+// Pose-graph residuals and g2o I/O: analytic Jacobians against numeric ones, parser errors,
+// round trips, and end-to-end solves (synthetic city-block graph always, smallGrid3D when the
+// real data is present).
+#include <fstream>
+#include <random>
+#include <sstream>
+
+#include <gtest/gtest.h>
+
+#include "carat/residuals/g2o_io.hpp"
+#include "carat/residuals/pose_graph.hpp"
+#include "carat/residuals/pose_prior_block.hpp"
+#include "carat/residuals/relative_pose_block.hpp"
+#include "carat/residuals/synthetic_pose_graph.hpp"
+#include "carat/solver/error.hpp"
+#include "carat/solver/jacobian_checker.hpp"
+#include "carat/solver/solve.hpp"
+#include "test_support.hpp"
+
+namespace carat {
+namespace {
+
+se3::Matrix6d random_information(std::mt19937_64& rng) {
+  std::normal_distribution<double> normal;
+  se3::Matrix6d M;
+  for (int i = 0; i < 36; ++i) M.data()[i] = normal(rng);
+  return M * M.transpose() + se3::Matrix6d::Identity();
+}
+
+Eigen::Isometry3d random_pose(std::mt19937_64& rng, double scale) {
+  std::normal_distribution<double> normal;
+  se3::Vector6d xi;
+  for (int i = 0; i < 6; ++i) xi[i] = scale * normal(rng);
+  return se3::exp(xi);
+}
+
+TEST(RelativePoseBlockTest, JacobiansMatchNumericAtIdentityAndRandomStates) {
+  std::mt19937_64 rng(1);
+  const Manifold* manifolds[2] = {se3_manifold().get(), se3_manifold().get()};
+  for (int trial = 0; trial < 20; ++trial) {
+    const double scale = trial == 0 ? 0.0 : 0.7;
+    const RelativePoseBlock block(random_pose(rng, scale), random_information(rng));
+    double xi[7], xj[7];
+    se3::to_storage(random_pose(rng, scale), xi);
+    se3::to_storage(random_pose(rng, scale), xj);
+    const double* params[2] = {xi, xj};
+    const JacobianCheckResult result = check_jacobians(block, manifolds, params);
+    EXPECT_TRUE(result.ok) << result.message;
+    EXPECT_LT(result.max_rel_error, 1e-7) << result.message;
+  }
+}
+
+TEST(RelativePoseBlockTest, ZeroAtTheMeasurementAndMatchesWhitening) {
+  std::mt19937_64 rng(2);
+  const Eigen::Isometry3d T_i = random_pose(rng, 1.0);
+  const Eigen::Isometry3d T_i_j = random_pose(rng, 1.0);
+  const se3::Matrix6d info = random_information(rng);
+  const RelativePoseBlock block(T_i_j, info);
+  double xi[7], xj[7];
+  se3::to_storage(T_i, xi);
+  se3::to_storage(T_i * T_i_j, xj);
+  const double* params[2] = {xi, xj};
+  EXPECT_LT(block.squared_norm(params), 1e-24);
+  EXPECT_LT((block.sqrt_information().transpose() * block.sqrt_information() - info).norm(), 1e-9 * info.norm());
+}
+
+TEST(PosePriorBlockTest, JacobianMatchesNumeric) {
+  std::mt19937_64 rng(3);
+  const Manifold* manifolds[1] = {se3_manifold().get()};
+  for (int trial = 0; trial < 20; ++trial) {
+    const PosePriorBlock block(random_pose(rng, 0.8), random_information(rng));
+    double x[7];
+    se3::to_storage(random_pose(rng, 0.8), x);
+    const double* params[1] = {x};
+    const JacobianCheckResult result = check_jacobians(block, manifolds, params);
+    EXPECT_TRUE(result.ok) << result.message;
+  }
+}
+
+TEST(PosePriorBlockTest, RejectsIndefiniteInformation) {
+  se3::Matrix6d info = se3::Matrix6d::Identity();
+  info(2, 2) = -1.0;
+  try {
+    PosePriorBlock block(Eigen::Isometry3d::Identity(), info);
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_STREQ(e.what(), "PosePriorBlock: information matrix is not positive definite");
+  }
+}
+
+TEST(JacobianCheckerTest, CatchesAWrongJacobian) {
+  // A block whose Jacobian is off by a factor of 2 in one column must be flagged.
+  class WrongBlock final : public ResidualBlock {
+   public:
+    int num_rows() const override { return 1; }
+    std::span<const int> tangent_dims() const override { return dims_; }
+    void evaluate_rows(ParameterPointers p, std::span<const int> rows, double* r, double* J) const override {
+      for (std::size_t k = 0; k < rows.size(); ++k) {
+        r[k] = p[0][0] * p[0][0] + p[0][1];
+        if (J) {
+          J[2 * k] = 4.0 * p[0][0];  // should be 2 x0
+          J[2 * k + 1] = 1.0;
+        }
+      }
+    }
+    std::size_t memory_bytes() const override { return 0; }
+
+   private:
+    std::array<int, 1> dims_{2};
+  };
+  const WrongBlock block;
+  const double x[2] = {1.5, -0.5};
+  const double* params[1] = {x};
+  const auto m = euclidean_manifold(2);
+  const Manifold* manifolds[1] = {m.get()};
+  const JacobianCheckResult result = check_jacobians(block, manifolds, params);
+  EXPECT_FALSE(result.ok);
+  EXPECT_EQ(result.worst_col, 0);
+  EXPECT_NEAR(result.max_abs_error, 3.0, 1e-6);
+}
+
+std::string edge_line(const char* ids, const char* info) {
+  return std::string("EDGE_SE3:QUAT ") + ids + " 1 0 0 0 0 0 1 " + info + "\n";
+}
+const char* kIdentityInfo = "1 0 0 0 0 0 1 0 0 0 0 1 0 0 0 1 0 0 1 0 1";
+
+void expect_parse_error(const std::string& text, const std::string& message) {
+  std::istringstream in(text);
+  try {
+    parse_g2o(in, "graph.g2o");
+    FAIL() << "expected an error for:\n" << text;
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()), message);
+  }
+}
+
+TEST(G2oTest, MalformedFilesNameTheLineAndTheProblem) {
+  const std::string v0 = "VERTEX_SE3:QUAT 0 0 0 0 0 0 0 1\n";
+  const std::string v1 = "VERTEX_SE3:QUAT 1 1 0 0 0 0 0 1\n";
+  expect_parse_error("", "graph.g2o: no VERTEX_SE3:QUAT records (empty or not a 3D g2o file)");
+  expect_parse_error(v0 + edge_line("0 2", kIdentityInfo), "graph.g2o:2: edge names vertex 2, which is not defined");
+  expect_parse_error(v0 + "VERTEX_SE3:QUAT 1 0 0 0 0 0 1\n", "graph.g2o:2: VERTEX_SE3:QUAT needs 8 numbers, found 7");
+  expect_parse_error(v0 + "VERTEX_SE3:QUAT 1 0 nan 0 0 0 0 1\n", "graph.g2o:2: y is not finite");
+  expect_parse_error(v0 + "VERTEX_SE3:QUAT 1 0 abc 0 0 0 0 1\n", "graph.g2o:2: cannot read y from 'abc'");
+  expect_parse_error(v0 + "VERTEX_SE3:QUAT 1 0 0 0 0 0 0 0\n", "graph.g2o:2: quaternion has zero length");
+  expect_parse_error(v0 + v0, "graph.g2o:2: vertex 0 was already defined on line 1");
+  expect_parse_error(v0 + v1 + edge_line("0 1", "1 0 0 0 0 0 1 0 0 0 0 1 0 0 0 -1 0 0 1 0 1"),
+                     "graph.g2o:3: information matrix: information matrix is not positive definite");
+  expect_parse_error(v0 + v1 + "EDGE_SE3:QUAT 0 1 1 0 0 0 0 0 1 1 0 0\n", "graph.g2o:3: EDGE_SE3:QUAT needs 30 numbers, found 12");
+  expect_parse_error(v0 + "PARAMS_SE3OFFSET 0 0 0 0 0 0 0 1\n", "graph.g2o:2: unknown record 'PARAMS_SE3OFFSET'");
+  expect_parse_error("VERTEX_SE2 0 0 0 0\n", "graph.g2o:1: 2D records (VERTEX_SE2) are not supported; carat reads 3D graphs (VERTEX_SE3:QUAT / EDGE_SE3:QUAT)");
+  expect_parse_error(v0 + v1 + edge_line("1 1", kIdentityInfo), "graph.g2o:3: edge joins vertex 1 to itself");
+  expect_parse_error(v0 + "FIX 3\n", "graph.g2o: FIX names vertex 3, which is not defined");
+}
+
+TEST(G2oTest, MissingFileAndDirectory) {
+  try {
+    read_g2o("/nonexistent/graph.g2o");
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_STREQ(e.what(), "/nonexistent/graph.g2o: no such file");
+  }
+  const auto dir = test::scratch_dir("g2o_dir");
+  EXPECT_THROW(read_g2o(dir), Error);
+}
+
+TEST(G2oTest, WriteReadRoundTripIsExact) {
+  SyntheticPoseGraphOptions options;
+  options.poses_per_lap = 20;
+  const SyntheticPoseGraph synthetic = make_synthetic_pose_graph(options);
+  const auto path = test::scratch_dir("g2o_roundtrip") / "graph.g2o";
+  write_g2o(path, synthetic.graph);
+  const PoseGraph back = read_g2o(path);
+  ASSERT_EQ(back.vertices.size(), synthetic.graph.vertices.size());
+  ASSERT_EQ(back.edges.size(), synthetic.graph.edges.size());
+  EXPECT_EQ(back.fixed, synthetic.graph.fixed);
+  for (std::size_t i = 0; i < back.vertices.size(); ++i) {
+    EXPECT_LT((back.vertices[i].T_world_vertex.matrix() - synthetic.graph.vertices[i].T_world_vertex.matrix()).norm(), 1e-14);
+  }
+  for (std::size_t i = 0; i < back.edges.size(); ++i) {
+    EXPECT_EQ(back.edges[i].information, synthetic.graph.edges[i].information);
+  }
+  // No temporary file is left next to the output.
+  int files = 0;
+  for ([[maybe_unused]] const auto& entry : std::filesystem::directory_iterator(path.parent_path())) ++files;
+  EXPECT_EQ(files, 1);
+}
+
+TEST(PoseGraphTest, SyntheticCityBlockIsRecovered) {
+  SyntheticPoseGraphOptions options;
+  options.poses_per_lap = 150;
+  options.laps = 2;
+  options.seed = 5;
+  SyntheticPoseGraph synthetic = make_synthetic_pose_graph(options);
+  const double before = position_rmse(synthetic.graph, synthetic.T_world_truth);
+  PoseGraphProblem built = build_pose_graph_problem(synthetic.graph);
+  const SolverSummary summary = solve(SolverOptions{}, built.problem);
+  ASSERT_EQ(summary.termination, TerminationType::kConvergence) << summary.full_report();
+  update_vertices(built, &synthetic.graph);
+  const double after = position_rmse(synthetic.graph, synthetic.T_world_truth);
+  EXPECT_LT(after, 0.5 * before);
+  // At the optimum the cost is about half the chi-square degrees of freedom.
+  const double dof = static_cast<double>(summary.num_residual_rows) - summary.num_tangent_parameters;
+  EXPECT_NEAR(summary.final_cost, 0.5 * dof, 0.2 * 0.5 * dof);
+}
+
+TEST(PoseGraphTest, FirstVertexIsTheGaugeAndEdgesMustNameVertices) {
+  PoseGraph graph;
+  graph.vertices.push_back({0, Eigen::Isometry3d::Identity()});
+  graph.vertices.push_back({5, Eigen::Isometry3d::Identity()});
+  PoseGraph::Edge edge;
+  edge.from = 0;
+  edge.to = 7;
+  graph.edges.push_back(edge);
+  try {
+    build_pose_graph_problem(graph);
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_STREQ(e.what(), "pose graph: edge 0 (0 -> 7) names a missing vertex 7");
+  }
+  graph.edges[0].to = 5;
+  const PoseGraphProblem built = build_pose_graph_problem(graph);
+  EXPECT_TRUE(built.problem.is_constant(built.vertex_variables[0]));
+  EXPECT_FALSE(built.problem.is_constant(built.vertex_variables[1]));
+}
+
+TEST(PoseGraphTest, SmallGrid3DConverges) {
+  CARAT_REQUIRE_DATA("posegraph/smallGrid3D.g2o");
+  PoseGraph graph = read_g2o(test::data_dir() / "posegraph/smallGrid3D.g2o");
+  ASSERT_EQ(graph.vertices.size(), 125u);
+  ASSERT_EQ(graph.edges.size(), 297u);
+  PoseGraphProblem built = build_pose_graph_problem(graph);
+  SolverOptions options;
+  options.max_iterations = 100;
+  const SolverSummary lm = solve(options, built.problem);
+  ASSERT_EQ(lm.termination, TerminationType::kConvergence) << lm.full_report();
+  EXPECT_LT(lm.final_cost, 1e-2 * lm.initial_cost);
+  // Gauss-Newton from the same start reaches the same minimum.
+  PoseGraphProblem again = build_pose_graph_problem(graph);
+  options.method = Method::kGaussNewton;
+  const SolverSummary gn = solve(options, again.problem);
+  ASSERT_NE(gn.termination, TerminationType::kFailure) << gn.message;
+  EXPECT_NEAR(gn.final_cost, lm.final_cost, 1e-6 * lm.final_cost);
+}
+
+TEST(PoseGraphTest, DeterministicAcrossThreadCounts) {
+  SyntheticPoseGraphOptions options;
+  options.poses_per_lap = 100;
+  const SyntheticPoseGraph synthetic = make_synthetic_pose_graph(options);
+  std::vector<double> reference;
+  for (int threads : {1, 2}) {
+    PoseGraphProblem built = build_pose_graph_problem(synthetic.graph);
+    SolverOptions solver_options;
+    solver_options.num_threads = threads;
+    solve(solver_options, built.problem);
+    const auto values = built.problem.all_values();
+    if (reference.empty()) {
+      reference.assign(values.begin(), values.end());
+    } else {
+      EXPECT_TRUE(std::equal(values.begin(), values.end(), reference.begin()));
+    }
+  }
+}
+
+}  // namespace
+}  // namespace carat

@@ -1,0 +1,390 @@
+// The solver: problem validation, LM/GN on problems with known optima, robust losses,
+// constant variables, determinism across thread counts, indefinite systems, the sparse
+// assembly against a dense reference.
+#include <cmath>
+#include <memory>
+#include <random>
+
+#include <gtest/gtest.h>
+
+#include "../solver/src/block_evaluator.hpp"
+#include "../solver/src/sparse_system.hpp"
+#include "carat/solver/error.hpp"
+#include "carat/solver/problem.hpp"
+#include "carat/solver/solve.hpp"
+#include "solver_test_blocks.hpp"
+
+namespace carat {
+namespace {
+
+using test::LinearBlock;
+using test::RosenbrockBlock;
+
+/// A random sparse linear least-squares problem: `n` Euclidean variables of size 3 (and 2),
+/// chain plus random extra blocks. Returns the problem and the dense (J, y) for reference.
+struct RandomLinear {
+  Problem problem;
+  Eigen::MatrixXd J;  // rows x total dims (variable order)
+  Eigen::VectorXd y;
+};
+
+RandomLinear make_random_linear(int n, std::uint64_t seed) {
+  RandomLinear out;
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> normal;
+  std::vector<int> dims, offsets;
+  int total = 0;
+  for (int v = 0; v < n; ++v) {
+    const int d = (v % 3 == 0) ? 2 : 3;
+    out.problem.add_euclidean(Eigen::VectorXd::Zero(d));
+    dims.push_back(d);
+    offsets.push_back(total);
+    total += d;
+  }
+  std::vector<Eigen::MatrixXd> rowsJ;
+  std::vector<double> ys;
+  auto add = [&](std::vector<int> vars, int rows) {
+    std::vector<Eigen::MatrixXd> A;
+    Eigen::VectorXd y(rows);
+    for (int i = 0; i < rows; ++i) y[i] = normal(rng);
+    Eigen::MatrixXd dense = Eigen::MatrixXd::Zero(rows, total);
+    std::vector<VariableId> ids;
+    for (int v : vars) {
+      Eigen::MatrixXd a(rows, dims[static_cast<std::size_t>(v)]);
+      for (int i = 0; i < a.size(); ++i) a.data()[i] = normal(rng);
+      dense.block(0, offsets[static_cast<std::size_t>(v)], rows, a.cols()) = a;
+      A.push_back(a);
+      ids.push_back(VariableId{v});
+    }
+    out.problem.add_residual_block(std::make_shared<LinearBlock>(A, y), ids);
+    rowsJ.push_back(dense);
+    for (int i = 0; i < rows; ++i) ys.push_back(y[i]);
+  };
+  for (int v = 0; v < n; ++v) add({v}, 3);
+  for (int v = 0; v + 1 < n; ++v) add({v, v + 1}, 4);
+  std::uniform_int_distribution<int> pick(0, n - 1);
+  for (int k = 0; k < n; ++k) {
+    const int a = pick(rng), b = pick(rng);
+    if (a != b) add({a, b}, 5);
+  }
+  int total_rows = 0;
+  for (const auto& m : rowsJ) total_rows += static_cast<int>(m.rows());
+  out.J.resize(total_rows, total);
+  int r = 0;
+  for (const auto& m : rowsJ) {
+    out.J.middleRows(r, m.rows()) = m;
+    r += static_cast<int>(m.rows());
+  }
+  out.y = Eigen::Map<Eigen::VectorXd>(ys.data(), static_cast<Eigen::Index>(ys.size()));
+  return out;
+}
+
+TEST(SolveTest, LinearLeastSquaresReachesTheDenseSolution) {
+  RandomLinear lin = make_random_linear(40, 7);
+  const Eigen::VectorXd expected = (lin.J.transpose() * lin.J).ldlt().solve(lin.J.transpose() * lin.y);
+  for (Method method : {Method::kLevenbergMarquardt, Method::kGaussNewton}) {
+    Problem problem = lin.problem;
+    SolverOptions options;
+    options.method = method;
+    options.function_tolerance = 1e-14;
+    options.gradient_tolerance = 1e-12;
+    const SolverSummary summary = solve(options, problem);
+    ASSERT_EQ(summary.termination, TerminationType::kConvergence) << summary.message;
+    const auto x = problem.all_values();
+    const Eigen::Map<const Eigen::VectorXd> xv(x.data(), static_cast<Eigen::Index>(x.size()));
+    EXPECT_LT((xv - expected).norm() / expected.norm(), 1e-8) << summary.full_report();
+    EXPECT_NEAR(summary.final_cost, 0.5 * (lin.J * expected - lin.y).squaredNorm(), 1e-9 * summary.final_cost);
+  }
+}
+
+TEST(SolveTest, AssemblyMatchesDenseNormalEquations) {
+  RandomLinear lin = make_random_linear(25, 3);
+  for (Ordering ordering : {Ordering::kAmd, Ordering::kMetis, Ordering::kAuto}) {
+    internal::SparseSystem system(lin.problem, ordering);
+    internal::BlockEvaluator evaluator(lin.problem);
+    std::vector<double> values(lin.problem.all_values().begin(), lin.problem.all_values().end());
+    evaluator.bind(0, values.data());
+    internal::BlockLinearizations blocks;
+    evaluator.allocate(&blocks);
+    std::string error;
+    ASSERT_TRUE(evaluator.linearize(0, &blocks, &error)) << error;
+    Eigen::VectorXd gradient;
+    system.assemble(blocks, &gradient);
+    // Solve H x = -g through CHOLMOD and compare with the dense solution (permuted layout).
+    ASSERT_TRUE(system.factorize(Eigen::VectorXd::Zero(system.size())));
+    Eigen::VectorXd delta;
+    system.solve(-gradient, &delta);
+    const Eigen::VectorXd expected = (lin.J.transpose() * lin.J).ldlt().solve(lin.J.transpose() * lin.y);
+    Eigen::VectorXd x(expected.size());
+    Eigen::VectorXd g_dense = -lin.J.transpose() * lin.y;  // gradient J^T r at x = 0
+    Eigen::VectorXd g_perm(expected.size());
+    for (int v = 0, offset = 0; v < lin.problem.num_variables(); ++v) {
+      const int d = lin.problem.manifold(VariableId{v}).tangent_size();
+      const int o = system.variable_offset()[static_cast<std::size_t>(v)];
+      x.segment(offset, d) = delta.segment(o, d);
+      g_perm.segment(offset, d) = gradient.segment(o, d);
+      offset += d;
+    }
+    EXPECT_LT((g_perm - g_dense).norm(), 1e-12 * g_dense.norm());
+    EXPECT_LT((x - expected).norm(), 1e-9 * expected.norm());
+    const Eigen::VectorXd diag = system.diagonal();
+    EXPECT_NEAR(diag.sum(), (lin.J.transpose() * lin.J).trace(), 1e-9 * diag.sum());
+  }
+}
+
+TEST(SolveTest, RosenbrockFromTheClassicStart) {
+  Problem problem;
+  const VariableId x = problem.add_euclidean(Eigen::Vector2d(-1.2, 1.0));
+  problem.add_residual_block(std::make_shared<RosenbrockBlock>(), {x});
+  SolverOptions options;
+  options.max_iterations = 100;
+  options.function_tolerance = 1e-15;
+  options.gradient_tolerance = 1e-14;
+  const SolverSummary summary = solve(options, problem);
+  EXPECT_EQ(summary.termination, TerminationType::kConvergence) << summary.full_report();
+  EXPECT_NEAR(problem.value(x)[0], 1.0, 1e-8);
+  EXPECT_NEAR(problem.value(x)[1], 1.0, 1e-8);
+  EXPECT_LT(summary.final_cost, 1e-16);
+  EXPECT_GT(summary.num_successful_steps, 3);
+}
+
+TEST(SolveTest, ConstantVariablesDoNotMove) {
+  Problem problem;
+  const VariableId a = problem.add_euclidean(Eigen::Vector2d(1.0, 2.0));
+  const VariableId b = problem.add_euclidean(Eigen::Vector2d(0.0, 0.0));
+  // r = b - a - (3, 4): with a fixed, b must become a + (3, 4).
+  std::vector<Eigen::MatrixXd> A = {-Eigen::MatrixXd::Identity(2, 2), Eigen::MatrixXd::Identity(2, 2)};
+  problem.add_residual_block(std::make_shared<LinearBlock>(A, Eigen::Vector2d(3.0, 4.0)), {a, b});
+  problem.set_constant(a);
+  SolverOptions options;
+  options.function_tolerance = 1e-15;
+  options.parameter_tolerance = 1e-15;
+  const SolverSummary summary = solve(options, problem);
+  ASSERT_EQ(summary.termination, TerminationType::kConvergence) << summary.message;
+  EXPECT_EQ(problem.value(a)[0], 1.0);
+  EXPECT_EQ(problem.value(a)[1], 2.0);
+  EXPECT_NEAR(problem.value(b)[0], 4.0, 1e-9);
+  EXPECT_NEAR(problem.value(b)[1], 6.0, 1e-9);
+  EXPECT_EQ(summary.num_tangent_parameters, 2);
+}
+
+TEST(SolveTest, AllConstantIsConvergedWithoutSteps) {
+  Problem problem;
+  const VariableId a = problem.add_euclidean(Eigen::Vector2d(1.0, 2.0));
+  problem.add_residual_block(std::make_shared<RosenbrockBlock>(), {a});
+  problem.set_constant(a);
+  const SolverSummary summary = solve(SolverOptions{}, problem);
+  EXPECT_EQ(summary.termination, TerminationType::kConvergence);
+  EXPECT_NE(summary.message.find("no free variables"), std::string::npos);
+  EXPECT_EQ(summary.num_iterations, 0);
+}
+
+TEST(SolveTest, RobustLossesDownweightAnOutlier) {
+  // Estimate a scalar mean of 10 inliers near 1 and one outlier at 100.
+  auto run = [](std::shared_ptr<const LossFunction> loss) {
+    Problem problem;
+    const VariableId m = problem.add_euclidean(Eigen::VectorXd::Constant(1, 0.0));
+    for (int i = 0; i < 10; ++i) {
+      problem.add_residual_block(std::make_shared<LinearBlock>(std::vector<Eigen::MatrixXd>{Eigen::MatrixXd::Ones(1, 1)},
+                                                               Eigen::VectorXd::Constant(1, 1.0 + 0.01 * (i - 4.5))),
+                                 {m}, loss);
+    }
+    problem.add_residual_block(std::make_shared<LinearBlock>(std::vector<Eigen::MatrixXd>{Eigen::MatrixXd::Ones(1, 1)},
+                                                             Eigen::VectorXd::Constant(1, 100.0)),
+                               {m}, loss);
+    SolverOptions options;
+    options.max_iterations = 200;
+    options.function_tolerance = 1e-15;
+    options.parameter_tolerance = 1e-15;
+    const SolverSummary summary = solve(options, problem);
+    EXPECT_NE(summary.termination, TerminationType::kFailure) << summary.message;
+    return problem.value(m)[0];
+  };
+  EXPECT_NEAR(run(nullptr), (10.0 + 100.0) / 11.0, 1e-9);
+  EXPECT_NEAR(run(std::make_shared<HuberLoss>(0.1)), 1.0, 0.02);
+  EXPECT_NEAR(run(std::make_shared<CauchyLoss>(0.1)), 1.0, 1e-3);
+}
+
+TEST(LossTest, DerivativesMatchFiniteDifferences) {
+  const HuberLoss huber(0.7);
+  const CauchyLoss cauchy(1.3);
+  for (const LossFunction* loss : {static_cast<const LossFunction*>(&huber), static_cast<const LossFunction*>(&cauchy)}) {
+    for (double s : {0.01, 0.3, 0.45, 0.6, 2.0, 50.0}) {  // away from Huber's kink at 0.49
+      const double h = 1e-6 * std::max(1.0, s);
+      const LossValue v = loss->evaluate(s);
+      const LossValue p = loss->evaluate(s + h);
+      const LossValue m = loss->evaluate(s - h);
+      EXPECT_NEAR(v.rho1, (p.rho - m.rho) / (2 * h), 1e-6) << loss->name() << " s=" << s;
+      EXPECT_NEAR(v.rho2, (p.rho1 - m.rho1) / (2 * h), 1e-5) << loss->name() << " s=" << s;
+    }
+    EXPECT_DOUBLE_EQ(loss->evaluate(0.0).rho, 0.0);
+    EXPECT_DOUBLE_EQ(loss->evaluate(0.0).rho1, 1.0);
+  }
+  EXPECT_THROW(HuberLoss(0.0), Error);
+  EXPECT_THROW(CauchyLoss(-1.0), Error);
+}
+
+TEST(SolveTest, BitIdenticalAcrossThreadCounts) {
+  RandomLinear lin = make_random_linear(300, 11);
+  // Make it nonlinear: add a Rosenbrock variable too.
+  const VariableId r = lin.problem.add_euclidean(Eigen::Vector2d(-1.2, 1.0));
+  lin.problem.add_residual_block(std::make_shared<RosenbrockBlock>(), {r});
+  std::vector<double> reference;
+  double reference_cost = 0.0;
+  for (int threads : {1, 2, 4}) {
+    Problem problem = lin.problem;
+    SolverOptions options;
+    options.num_threads = threads;
+    options.max_iterations = 30;
+    const SolverSummary summary = solve(options, problem);
+    ASSERT_NE(summary.termination, TerminationType::kFailure);
+    const auto values = problem.all_values();
+    if (reference.empty()) {
+      reference.assign(values.begin(), values.end());
+      reference_cost = summary.final_cost;
+      continue;
+    }
+    EXPECT_EQ(summary.final_cost, reference_cost) << threads << " threads";
+    ASSERT_EQ(values.size(), reference.size());
+    for (std::size_t i = 0; i < values.size(); ++i) ASSERT_EQ(values[i], reference[i]) << "value " << i << ", " << threads << " threads";
+  }
+}
+
+TEST(SolveTest, SingularSystemIsHandledAndReported) {
+  // Two variables, one relative block, no gauge: H is singular (rank 2 of 4).
+  auto make = [] {
+    Problem problem;
+    const VariableId a = problem.add_euclidean(Eigen::Vector2d(0.0, 0.0));
+    const VariableId b = problem.add_euclidean(Eigen::Vector2d(0.0, 0.0));
+    std::vector<Eigen::MatrixXd> A = {-Eigen::MatrixXd::Identity(2, 2), Eigen::MatrixXd::Identity(2, 2)};
+    problem.add_residual_block(std::make_shared<LinearBlock>(A, Eigen::Vector2d(1.0, -1.0)), {a, b});
+    return problem;
+  };
+  {
+    Problem problem = make();
+    SolverOptions options;
+    options.method = Method::kGaussNewton;
+    const SolverSummary summary = solve(options, problem);
+    // GN cannot factorize H alone; it raises the damping and still reaches zero cost.
+    EXPECT_GT(summary.num_linear_solver_failures, 0);
+    EXPECT_NE(summary.termination, TerminationType::kFailure) << summary.message;
+    EXPECT_LT(summary.final_cost, 1e-12);
+    for (double v : problem.all_values()) EXPECT_TRUE(std::isfinite(v));
+  }
+  {
+    Problem problem = make();
+    const SolverSummary summary = solve(SolverOptions{}, problem);  // LM's damping regularizes
+    EXPECT_EQ(summary.termination, TerminationType::kConvergence) << summary.message;
+    EXPECT_LT(summary.final_cost, 1e-12);
+  }
+}
+
+/// A block with a negative definite "Gauss-Newton" matrix cannot exist (H = J^T J), but a
+/// robust loss can make a block's H indefinite only through the documented correction, which
+/// is dropped when unsafe. Check that Cauchy far in its tail keeps H positive semidefinite.
+TEST(SolveTest, CauchyTailKeepsTheSystemUsable) {
+  Problem problem;
+  const VariableId m = problem.add_euclidean(Eigen::VectorXd::Constant(1, 50.0));
+  problem.add_residual_block(std::make_shared<LinearBlock>(std::vector<Eigen::MatrixXd>{Eigen::MatrixXd::Ones(1, 1)},
+                                                           Eigen::VectorXd::Constant(1, 0.0)),
+                             {m}, std::make_shared<CauchyLoss>(1.0));
+  SolverOptions options;
+  options.max_iterations = 500;
+  const SolverSummary summary = solve(options, problem);
+  EXPECT_NE(summary.termination, TerminationType::kFailure) << summary.message;
+  EXPECT_LT(std::abs(problem.value(m)[0]), 1e-3) << summary.full_report();
+}
+
+TEST(SolveTest, NonFiniteInitialCostIsAFailureThatKeepsTheValues) {
+  class NanBlock final : public ResidualBlock {
+   public:
+    int num_rows() const override { return 1; }
+    std::span<const int> tangent_dims() const override { return dims_; }
+    void evaluate_rows(ParameterPointers, std::span<const int> rows, double* r, double* J) const override {
+      for (std::size_t k = 0; k < rows.size(); ++k) {
+        r[k] = std::nan("");
+        if (J) J[k] = 1.0;
+      }
+    }
+    std::size_t memory_bytes() const override { return 0; }
+
+   private:
+    std::array<int, 1> dims_{1};
+  };
+  Problem problem;
+  const VariableId a = problem.add_euclidean(Eigen::VectorXd::Constant(1, 3.0));
+  problem.add_residual_block(std::make_shared<NanBlock>(), {a});
+  const SolverSummary summary = solve(SolverOptions{}, problem);
+  EXPECT_EQ(summary.termination, TerminationType::kFailure);
+  EXPECT_EQ(summary.message, "residual block 0 produced a non-finite residual");
+  EXPECT_EQ(problem.value(a)[0], 3.0);
+}
+
+TEST(SolverOptionsTest, ValidateNamesTheBadSetting) {
+  std::string error;
+  SolverOptions options;
+  EXPECT_TRUE(options.validate(&error));
+  options.num_threads = 0;
+  EXPECT_FALSE(options.validate(&error));
+  EXPECT_EQ(error, "num_threads must be >= 1, got 0");
+  options = SolverOptions{};
+  options.function_tolerance = -1.0;
+  EXPECT_FALSE(options.validate(&error));
+  EXPECT_NE(error.find("function_tolerance must be finite and >= 0"), std::string::npos);
+  options = SolverOptions{};
+  options.initial_trust_region_radius = 0.0;
+  EXPECT_FALSE(options.validate(&error));
+  // solve() reports invalid options through the summary instead of throwing.
+  Problem problem;
+  problem.add_euclidean(Eigen::VectorXd::Zero(1));
+  const SolverSummary summary = solve(options, problem);
+  EXPECT_EQ(summary.termination, TerminationType::kFailure);
+  EXPECT_NE(summary.message.find("invalid options: initial_trust_region_radius"), std::string::npos);
+}
+
+TEST(ProblemTest, RejectsMismatchedBlocksWithClearMessages) {
+  Problem problem;
+  const VariableId a = problem.add_euclidean(Eigen::Vector3d::Zero());
+  const VariableId b = problem.add_se3(Eigen::Isometry3d::Identity());
+  auto rosen = std::make_shared<RosenbrockBlock>();
+  try {
+    problem.add_residual_block(rosen, {a});
+    FAIL() << "expected an error";
+  } catch (const Error& e) {
+    EXPECT_STREQ(e.what(), "Problem::add_residual_block (block 0): variable 0 has tangent size 3 but the block expects 2");
+  }
+  try {
+    problem.add_residual_block(rosen, {a, b});
+    FAIL() << "expected an error";
+  } catch (const Error& e) {
+    EXPECT_STREQ(e.what(), "Problem::add_residual_block (block 0): the block expects 1 variables, got 2");
+  }
+  try {
+    problem.add_residual_block(rosen, {VariableId{7}});
+    FAIL() << "expected an error";
+  } catch (const Error& e) {
+    EXPECT_STREQ(e.what(), "Problem: variable id 7 does not exist (2 variables)");
+  }
+  const double bad_quaternion[7] = {0, 0, 0, 0, 0, 0, 0};
+  EXPECT_THROW(problem.add_variable(se3_manifold(), bad_quaternion), Error);
+  const double nan_value[3] = {0, std::nan(""), 0};
+  EXPECT_THROW(problem.add_variable(euclidean_manifold(3), nan_value), Error);
+  EXPECT_THROW(problem.set_all_values(std::vector<double>(3, 0.0)), Error);
+}
+
+TEST(SummaryTest, ReportsContainTheTableAndTheBreakdown) {
+  RandomLinear lin = make_random_linear(10, 5);
+  const SolverSummary summary = solve(SolverOptions{}, lin.problem);
+  const std::string full = summary.full_report();
+  EXPECT_NE(full.find("iter      cost      cost_change  |gradient|"), std::string::npos);
+  EXPECT_NE(full.find("numeric factorization"), std::string::npos);
+  EXPECT_NE(full.find("Termination: CONVERGENCE"), std::string::npos);
+  EXPECT_EQ(summary.iterations.size(), static_cast<std::size_t>(summary.num_iterations) + 1);
+  const std::string json = summary.to_json();
+  for (const char* key : {"\"initial_cost\"", "\"final_cost\"", "\"iterations\"", "\"termination\"", "\"time_s\"", "\"time_breakdown\""}) {
+    EXPECT_NE(json.find(key), std::string::npos) << key;
+  }
+}
+
+}  // namespace
+}  // namespace carat
