@@ -10,6 +10,6 @@ for blas in openblas-serial atlas blas; do
     echo "== $blas: not installed, skipped"; continue
   fi
   echo "== $blas"
-  LD_LIBRARY_PATH="$arch_dir/$blas" ./build/bench/posegraph_bench --benchmark_filter='/auto$' \
+  LD_LIBRARY_PATH="$arch_dir/$blas" ./build/bench/posegraph_bench --benchmark_filter='/auto/' \
     --benchmark_repetitions="${REPETITIONS:-3}" --benchmark_report_aggregates_only=true "$@"
 done

@@ -5,7 +5,7 @@
 // SPARSE_NORMAL_CHOLESKY with SuiteSparse, 1 thread, default tolerances, 200 iterations.
 // carat solves the identical cost function (RelativePoseBlock), 1 thread, same limits.
 //
-// Usage: ceres_compare [--repeat N] FILE.g2o...   (prints one JSON object per file)
+// Usage: ceres_compare [--repeat N] [--carat-first] [FILE.g2o...]  (one JSON object per run)
 #include <chrono>
 #include <cstdio>
 #include <string>
@@ -106,10 +106,13 @@ nlohmann::json run_carat(const carat::PoseGraph& graph) {
 
 int main(int argc, char** argv) {
   int repeat = 1;
+  bool carat_first = false;
   std::vector<std::string> files;
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
-    if (arg == "--repeat" && i + 1 < argc) {
+    if (arg == "--carat-first") {
+      carat_first = true;
+    } else if (arg == "--repeat" && i + 1 < argc) {
       repeat = std::stoi(argv[++i]);
     } else {
       files.push_back(arg);
@@ -133,8 +136,13 @@ int main(int argc, char** argv) {
       j["file"] = file;
       j["vertices"] = graph.vertices.size();
       j["edges"] = graph.edges.size();
-      j["ceres"] = run_ceres(graph);
-      j["carat"] = run_carat(graph);
+      if (carat_first) {
+        j["carat"] = run_carat(graph);
+        j["ceres"] = run_ceres(graph);
+      } else {
+        j["ceres"] = run_ceres(graph);
+        j["carat"] = run_carat(graph);
+      }
       const double ceres_cost = j["ceres"]["final_cost"];
       const double carat_cost = j["carat"]["final_cost"];
       const double ceres_time = j["ceres"]["time_s"];
