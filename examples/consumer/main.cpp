@@ -19,7 +19,10 @@ int main() {
   problem.add_residual_block(std::make_shared<carat::RelativePoseBlock>(
                                  measured, carat::se3::Matrix6d::Identity()),
                              {a, b});
-  const carat::SolverSummary summary = carat::solve(carat::SolverOptions{}, problem);
+  carat::SolverOptions options;
+  options.function_tolerance = 1e-14;
+  options.parameter_tolerance = 1e-14;
+  const carat::SolverSummary summary = carat::solve(options, problem);
   const double error = (problem.se3(b).translation() - measured.translation()).norm();
   std::printf("%s\n", summary.brief_report().c_str());
   if (summary.termination != carat::TerminationType::kConvergence || error > 1e-9) {
