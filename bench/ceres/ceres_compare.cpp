@@ -1,13 +1,15 @@
-// Side-by-side: Ceres 2.1 and carat solve the same g2o pose graph in the same process.
+// Side-by-side: Ceres 2.1 and carat solve the same g2o pose graph in the same run, each in its
+// own child process so that each gets the BLAS it is built for (see main()).
 // Ceres gets its standard setup for this problem (as in its pose_graph_3d example): one
 // parameter block per pose = position + EigenQuaternionManifold (ProductManifold), the
 // relative-pose cost with the square-root information (autodiff), LM,
 // SPARSE_NORMAL_CHOLESKY with SuiteSparse, 1 thread, default tolerances, 200 iterations.
 // carat solves the identical cost function (RelativePoseBlock), 1 thread, same limits.
 //
-// Usage: ceres_compare [--repeat N] [--carat-first] [FILE.g2o...]  (one JSON object per run)
+// Usage: ceres_compare [--repeat N] [FILE.g2o...]  (one JSON object per file and repeat)
 #include <chrono>
 #include <cstdio>
+#include <filesystem>
 #include <string>
 #include <vector>
 
@@ -104,16 +106,34 @@ nlohmann::json run_carat(const carat::PoseGraph& graph) {
 
 }  // namespace
 
+/// Runs one solver in a child process (this program with --solver) and returns its JSON line.
+/// `preload` (may be empty) goes into LD_PRELOAD, which decides which BLAS CHOLMOD's dgemm_
+/// and friends resolve to in that process.
+nlohmann::json run_child(const std::string& self, const std::string& solver, const std::string& file,
+                         const std::string& preload) {
+  std::string command;
+  if (!preload.empty()) command += "LD_PRELOAD='" + preload + "' ";
+  command += "'" + self + "' --solver " + solver + " '" + file + "'";
+  FILE* pipe = popen(command.c_str(), "r");
+  if (!pipe) return {{"error", "cannot start " + command}};
+  std::string out;
+  char buffer[4096];
+  while (std::fgets(buffer, sizeof(buffer), pipe)) out += buffer;
+  const int status = pclose(pipe);
+  if (status != 0 || out.empty()) return {{"error", "child failed: " + command}};
+  return nlohmann::json::parse(out);
+}
+
 int main(int argc, char** argv) {
   int repeat = 1;
-  bool carat_first = false;
+  std::string solver;
   std::vector<std::string> files;
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
-    if (arg == "--carat-first") {
-      carat_first = true;
-    } else if (arg == "--repeat" && i + 1 < argc) {
+    if (arg == "--repeat" && i + 1 < argc) {
       repeat = std::stoi(argv[++i]);
+    } else if (arg == "--solver" && i + 1 < argc) {
+      solver = argv[++i];
     } else {
       files.push_back(arg);
     }
@@ -123,32 +143,42 @@ int main(int argc, char** argv) {
       files.push_back(std::string(CARAT_DATA_DIR) + "/posegraph/" + name + ".g2o");
     }
   }
+  if (!solver.empty()) {  // child: solve one file with one solver, print one JSON line
+    const carat::PoseGraph graph = carat::read_g2o(files.front());
+    const nlohmann::json j = solver == "carat" ? run_carat(graph) : run_ceres(graph);
+    std::printf("%s\n", j.dump().c_str());
+    return 0;
+  }
+  const std::string self = std::filesystem::read_symlink("/proc/self/exe").string();
+  // carat's BLAS is the system's libblas.so.3 (OpenBLAS serial after scripts/install-deps.sh).
+  // Debian's libceres links ATLAS's libf77blas.so.3 directly, so in a process that loads
+  // Ceres, dgemm_ resolves to ATLAS unless libblas.so.3 is preloaded.
+  const std::string system_blas = "libblas.so.3";
   for (const auto& file : files) {
-    carat::PoseGraph graph;
-    try {
-      graph = carat::read_g2o(file);
-    } catch (const std::exception& e) {
-      std::fprintf(stderr, "ceres_compare: skipping %s: %s\n", file.c_str(), e.what());
+    if (!std::filesystem::exists(file)) {
+      std::fprintf(stderr, "ceres_compare: skipping %s: not found\n", file.c_str());
       continue;
     }
+    const carat::PoseGraph graph = carat::read_g2o(file);
     for (int r = 0; r < repeat; ++r) {
       nlohmann::json j;
       j["file"] = file;
       j["vertices"] = graph.vertices.size();
       j["edges"] = graph.edges.size();
-      if (carat_first) {
-        j["carat"] = run_carat(graph);
-        j["ceres"] = run_ceres(graph);
-      } else {
-        j["ceres"] = run_ceres(graph);
-        j["carat"] = run_carat(graph);
+      j["ceres"] = run_child(self, "ceres", file, "");                  // as Debian ships it
+      j["ceres_system_blas"] = run_child(self, "ceres", file, system_blas);  // same BLAS as carat
+      j["carat"] = run_child(self, "carat", file, system_blas);
+      if (j["ceres"].contains("error") || j["carat"].contains("error") ||
+          j["ceres_system_blas"].contains("error")) {
+        std::printf("%s\n", j.dump().c_str());
+        return 1;
       }
-      const double ceres_cost = j["ceres"]["final_cost"];
       const double carat_cost = j["carat"]["final_cost"];
-      const double ceres_time = j["ceres"]["time_s"];
       const double carat_time = j["carat"]["time_s"];
-      j["cost_ratio_carat_over_ceres"] = carat_cost / ceres_cost;
-      j["time_ratio_carat_over_ceres"] = carat_time / ceres_time;
+      j["cost_ratio_carat_over_ceres"] = carat_cost / j["ceres"]["final_cost"].get<double>();
+      j["time_ratio_carat_over_ceres"] = carat_time / j["ceres"]["time_s"].get<double>();
+      j["time_ratio_carat_over_ceres_system_blas"] =
+          carat_time / j["ceres_system_blas"]["time_s"].get<double>();
       std::printf("%s\n", j.dump().c_str());
       std::fflush(stdout);
     }

@@ -57,8 +57,11 @@ double RelativePoseBlock::accumulate(ParameterPointers params, Eigen::Ref<Eigen:
   Eigen::Matrix<double, 6, 1> r;
   Eigen::Matrix<double, 6, 12> J;
   evaluate(params[0], params[1], &r, &J);
-  H_r.noalias() += J.transpose() * J;
-  b_r.noalias() += J.transpose() * r;
+  // Fixed-size products (a dynamic destination would take Eigen's general GEMM path).
+  const Eigen::Matrix<double, 12, 12> H = J.transpose() * J;
+  const Eigen::Matrix<double, 12, 1> b = J.transpose() * r;
+  H_r += H;
+  b_r += b;
   return r.squaredNorm();
 }
 
