@@ -1,0 +1,32 @@
+#!/usr/bin/env bash
+# Builds carat's libFuzzer targets with clang (build-fuzz/) and fuzzes each parser for a
+# bounded time: scripts/fuzz.sh [SECONDS_PER_TARGET (default 60)] [TARGET...]
+# Crashes, leaks and slow inputs (> 1 s) fail the run; artifacts land in build-fuzz/artifacts/.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+seconds=${1:-60}
+shift || true
+bash scripts/install-deps.sh
+if ! command -v clang++ >/dev/null; then
+  apt-get install -y -qq clang libclang-rt-14-dev >/dev/null
+fi
+CXX=clang++ cmake -S . -B build-fuzz -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCARAT_BUILD_FUZZERS=ON \
+  -DCARAT_BUILD_TESTS=OFF -DCARAT_BUILD_BENCHMARKS=OFF -DCARAT_BUILD_APPS=OFF >/dev/null
+targets=("$@")
+if ((${#targets[@]} == 0)); then
+  for f in fuzz/*_fuzz.cpp; do targets+=("$(basename "$f" .cpp)"); done
+fi
+cmake --build build-fuzz -j"$(nproc)" --target "${targets[@]}"
+mkdir -p build-fuzz/artifacts
+for target in "${targets[@]}"; do
+  name=${target%_fuzz}
+  work=build-fuzz/corpus/$name
+  mkdir -p "$work"
+  echo "== $target: ${seconds}s"
+  ./build-fuzz/fuzz/"$target" "$work" "fuzz/corpus/$name" -max_total_time="$seconds" -timeout=1 \
+    -rss_limit_mb=2048 -max_len=65536 -print_final_stats=1 -artifact_prefix=build-fuzz/artifacts/"$name"- \
+    2>&1 | grep -E "^(stat::number_of_executed_units|stat::peak_rss_mb|#[0-9]+ +DONE)|ERROR|SUMMARY" || true
+  if ls build-fuzz/artifacts/"$name"-* >/dev/null 2>&1; then
+    echo "FAIL $target: see build-fuzz/artifacts/"; exit 1
+  fi
+done
