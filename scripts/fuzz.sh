@@ -7,8 +7,11 @@ cd "$(dirname "$0")/.."
 seconds=${1:-60}
 shift || true
 bash scripts/install-deps.sh
-if ! command -v clang++ >/dev/null; then
-  apt-get install -y -qq clang libclang-rt-14-dev >/dev/null
+if ! command -v clang++ >/dev/null || ! dpkg-query -W -f='${Status}' libclang-rt-14-dev 2>/dev/null | grep -q "ok installed"; then
+  SUDO=""; [[ "$(id -u)" != "0" ]] && SUDO="sudo"
+  export DEBIAN_FRONTEND=noninteractive
+  $SUDO apt-get update -qq
+  $SUDO apt-get install -y -qq --no-install-recommends clang libclang-rt-14-dev >/dev/null
 fi
 CXX=clang++ cmake -S . -B build-fuzz -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCARAT_BUILD_FUZZERS=ON \
   -DCARAT_BUILD_TESTS=OFF -DCARAT_BUILD_BENCHMARKS=OFF -DCARAT_BUILD_APPS=OFF >/dev/null
