@@ -1,0 +1,74 @@
+// The coreset against forming H, b, c once with Eigen, on random rows (the paper's Table I
+// sizes: N = 30000, M in {29, 64, ..., 1024}) and N in {3000, 30000, 300000}.
+//
+//   ./build/bench/coreset_bench
+// Compare BM_Coreset/N/M with BM_EigenHbc/N in the same run (same data, same machine state).
+#include <random>
+
+#include <benchmark/benchmark.h>
+
+#include "carat/coreset/row_coreset.hpp"
+
+namespace {
+
+using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
+struct Data {
+  RowMatrix J;
+  Eigen::VectorXd e;
+};
+
+Data make_data(long n, int dim) {
+  std::mt19937_64 rng(42);
+  std::normal_distribution<double> normal;
+  Data d{RowMatrix(n, dim), Eigen::VectorXd(n)};
+  for (long i = 0; i < d.J.size(); ++i) d.J.data()[i] = normal(rng);
+  for (long i = 0; i < n; ++i) d.e[i] = normal(rng);
+  return d;
+}
+
+void BM_Coreset(benchmark::State& state) {
+  const Data d = make_data(state.range(0), 6);
+  carat::RowCoresetOptions options;
+  options.target_rows = static_cast<int>(state.range(1));
+  options.exact_size = state.range(2) != 0;
+  std::size_t rows = 0;
+  for (auto _ : state) {
+    const carat::RowCoreset coreset = carat::select_coreset_rows(d.J, d.e, options);
+    rows = coreset.rows.size();
+    benchmark::ClobberMemory();
+  }
+  state.counters["rows_out"] = static_cast<double>(rows);
+}
+
+void BM_EigenHbc(benchmark::State& state) {
+  const Data d = make_data(state.range(0), 6);
+  const Eigen::MatrixXd J = d.J;  // column-major, as Eigen likes it
+  for (auto _ : state) {
+    Eigen::Matrix<double, 6, 6> H = J.transpose() * J;
+    Eigen::Matrix<double, 6, 1> b = J.transpose() * d.e;
+    double c = d.e.squaredNorm();
+    benchmark::DoNotOptimize(H.data());
+    benchmark::DoNotOptimize(b.data());
+    benchmark::DoNotOptimize(&c);
+    benchmark::ClobberMemory();
+  }
+}
+
+}  // namespace
+
+BENCHMARK(BM_EigenHbc)->Arg(3000)->Arg(30000)->Arg(300000)->Unit(benchmark::kMicrosecond);
+// Table I: N = 30000, exact size M.
+BENCHMARK(BM_Coreset)
+    ->Args({30000, 29, 1})
+    ->Args({30000, 29, 0})
+    ->Args({30000, 64, 1})
+    ->Args({30000, 128, 1})
+    ->Args({30000, 256, 1})
+    ->Args({30000, 512, 1})
+    ->Args({30000, 1024, 1})
+    ->Unit(benchmark::kMicrosecond);
+// Scaling in N at M = 29.
+BENCHMARK(BM_Coreset)->Args({3000, 29, 1})->Args({300000, 29, 1})->Unit(benchmark::kMicrosecond);
+
+BENCHMARK_MAIN();
