@@ -84,6 +84,20 @@ check bad_method 2 "" -- "$CARAT" solve-g2o "$scratch/tiny.g2o" --method newton
 check no_subcommand 2 "" -- "$CARAT"
 check demo_bad_frames 2 "" -- "$CARAT" demo --frames 3
 
+# coreset-check: exact and of the requested size; JSON has the documented fields.
+check coreset_check 0 "" -- "$CARAT" coreset-check --rows 5000 --target 29 --trials 3 --json
+cp "$scratch/out" "$scratch/coreset.json"
+for key in rows dim target clusters trials rows_out_min rows_out_max max_rel_error_H max_rel_error_b max_rel_error_c median_ms reference_median_ms; do
+  if [[ $(json_field "$scratch/coreset.json" "'$key' in j") != "True" ]]; then
+    echo "FAIL coreset-check --json lacks $key"; fail=$((fail + 1))
+  fi
+done
+if [[ $(json_field "$scratch/coreset.json" "j['rows_out_min'] == 29 and j['rows_out_max'] == 29 and max(j['max_rel_error_H'], j['max_rel_error_b'], j['max_rel_error_c']) <= 1e-12") != "True" ]]; then
+  echo "FAIL coreset-check: wrong size or not exact"; fail=$((fail + 1))
+else pass=$((pass + 1)); fi
+check coreset_target_too_small 1 "coreset: target of 10 rows is below the minimum of 29" -- "$CARAT" coreset-check --rows 100 --target 10
+check coreset_bad_rows 2 "" -- "$CARAT" coreset-check --rows 0
+
 # Real data, when present.
 if [[ -f "${CARAT_DATA_DIR:-}/posegraph/sphere2500.g2o" ]]; then
   check sphere2500 0 "" -- "$CARAT" solve-g2o "$CARAT_DATA_DIR/posegraph/sphere2500.g2o" --json

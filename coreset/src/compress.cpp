@@ -1,0 +1,86 @@
+#include "carat/coreset/compress.hpp"
+
+#include <algorithm>
+#include <numeric>
+#include <string>
+
+#include "carat/coreset/row_coreset.hpp"
+#include "carat/solver/error.hpp"
+#include "shuffle.hpp"
+
+namespace carat {
+namespace {
+
+/// Keeps only the selected rows' data when the block can extract them.
+std::shared_ptr<CompressedBlock> make_compressed(std::shared_ptr<const ResidualBlock> block, std::vector<int> rows,
+                                                 std::vector<double> weights) {
+  if (std::unique_ptr<ResidualBlock> extracted = block->extract_rows(rows)) {
+    std::vector<int> local(rows.size());
+    std::iota(local.begin(), local.end(), 0);
+    return std::make_shared<CompressedBlock>(std::shared_ptr<const ResidualBlock>(std::move(extracted)),
+                                             std::move(local), std::move(weights));
+  }
+  return std::make_shared<CompressedBlock>(std::move(block), std::move(rows), std::move(weights));
+}
+
+}  // namespace
+
+std::shared_ptr<CompressedBlock> compress(std::shared_ptr<const ResidualBlock> block, ParameterPointers values,
+                                          const CompressionOptions& options) {
+  if (!block) throw Error("compress: block is null");
+  if (values.size() != block->tangent_dims().size()) {
+    throw Error("compress: the block has " + std::to_string(block->tangent_dims().size()) + " variables but " +
+                std::to_string(values.size()) + " values were given");
+  }
+  const int n = block->num_rows();
+  const int r = block->reduced_dim();
+  Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> J(n, r);
+  Eigen::VectorXd e(n);
+  std::vector<int> all(static_cast<std::size_t>(n));
+  std::iota(all.begin(), all.end(), 0);
+  block->evaluate_rows(values, all, e.data(), J.data());
+  RowCoresetOptions row_options;
+  row_options.target_rows = options.target_rows;
+  row_options.clusters = options.clusters;
+  row_options.seed = options.seed;
+  row_options.exact_size = options.exact_size;
+  RowCoreset coreset = select_coreset_rows(J, e, row_options);
+  return make_compressed(std::move(block), std::move(coreset.rows), std::move(coreset.weights));
+}
+
+std::shared_ptr<CompressedBlock> compress_random(std::shared_ptr<const ResidualBlock> block,
+                                                 const RandomSamplingOptions& options) {
+  if (!block) throw Error("compress_random: block is null");
+  const int n = block->num_rows();
+  const int g = options.group_size;
+  if (g < 1) throw Error("compress_random: group size must be >= 1, got " + std::to_string(g));
+  if (n % g != 0) {
+    throw Error("compress_random: the block's " + std::to_string(n) + " rows are not a whole number of groups of " +
+                std::to_string(g));
+  }
+  if (options.target_rows < g || options.target_rows % g != 0) {
+    throw Error("compress_random: target of " + std::to_string(options.target_rows) +
+                " rows must be a positive multiple of the group size " + std::to_string(g));
+  }
+  std::vector<int> rows;
+  std::vector<double> weights;
+  if (options.target_rows >= n) {
+    rows.resize(static_cast<std::size_t>(n));
+    std::iota(rows.begin(), rows.end(), 0);
+    weights.assign(rows.size(), 1.0);
+  } else {
+    const int groups = n / g;
+    const int keep = options.target_rows / g;
+    std::vector<int> order = internal::seeded_permutation(groups, options.seed);
+    order.resize(static_cast<std::size_t>(keep));
+    std::sort(order.begin(), order.end());
+    const double weight = static_cast<double>(n) / static_cast<double>(options.target_rows);
+    for (int group : order) {
+      for (int k = 0; k < g; ++k) rows.push_back(group * g + k);
+    }
+    weights.assign(rows.size(), weight);
+  }
+  return make_compressed(std::move(block), std::move(rows), std::move(weights));
+}
+
+}  // namespace carat

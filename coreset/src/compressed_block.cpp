@@ -1,0 +1,63 @@
+#include "carat/coreset/compressed_block.hpp"
+
+#include <cmath>
+#include <string>
+
+#include "carat/solver/error.hpp"
+
+namespace carat {
+
+CompressedBlock::CompressedBlock(std::shared_ptr<const ResidualBlock> inner, std::vector<int> rows,
+                                 std::vector<double> weights)
+    : inner_(std::move(inner)), rows_(std::move(rows)), weights_(std::move(weights)) {
+  if (!inner_) throw Error("CompressedBlock: inner block is null");
+  if (rows_.size() != weights_.size()) {
+    throw Error("CompressedBlock: " + std::to_string(rows_.size()) + " rows but " +
+                std::to_string(weights_.size()) + " weights");
+  }
+  if (rows_.empty()) throw Error("CompressedBlock: no rows selected");
+  const int n = inner_->num_rows();
+  sqrt_weights_.reserve(weights_.size());
+  for (std::size_t k = 0; k < rows_.size(); ++k) {
+    if (rows_[k] < 0 || rows_[k] >= n) {
+      throw Error("CompressedBlock: row " + std::to_string(rows_[k]) + " is out of range (block has " +
+                  std::to_string(n) + " rows)");
+    }
+    if (!std::isfinite(weights_[k]) || !(weights_[k] > 0.0)) {
+      throw Error("CompressedBlock: weight " + std::to_string(k) + " is " + std::to_string(weights_[k]) +
+                  "; weights must be finite and > 0");
+    }
+    sqrt_weights_.push_back(std::sqrt(weights_[k]));
+  }
+}
+
+void CompressedBlock::evaluate_rows(ParameterPointers params, std::span<const int> rows, double* residuals,
+                                    double* jacobian) const {
+  std::vector<int> inner_rows(rows.size());
+  for (std::size_t k = 0; k < rows.size(); ++k) inner_rows[k] = rows_[static_cast<std::size_t>(rows[k])];
+  inner_->evaluate_rows(params, inner_rows, residuals, jacobian);
+  const auto r = static_cast<std::size_t>(inner_->reduced_dim());
+  for (std::size_t k = 0; k < rows.size(); ++k) {
+    const double s = sqrt_weights_[static_cast<std::size_t>(rows[k])];
+    residuals[k] *= s;
+    if (jacobian) {
+      for (std::size_t c = 0; c < r; ++c) jacobian[k * r + c] *= s;
+    }
+  }
+}
+
+std::unique_ptr<ResidualBlock> CompressedBlock::extract_rows(std::span<const int> rows) const {
+  std::vector<int> inner_rows;
+  std::vector<double> weights;
+  for (int k : rows) {
+    inner_rows.push_back(rows_[static_cast<std::size_t>(k)]);
+    weights.push_back(weights_[static_cast<std::size_t>(k)]);
+  }
+  return std::make_unique<CompressedBlock>(inner_, std::move(inner_rows), std::move(weights));
+}
+
+std::size_t CompressedBlock::memory_bytes() const {
+  return inner_->memory_bytes() + rows_.size() * sizeof(int) + 2 * weights_.size() * sizeof(double);
+}
+
+}  // namespace carat
