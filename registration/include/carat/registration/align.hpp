@@ -1,0 +1,42 @@
+#pragma once
+
+/// Scan matching: align a source cloud to a target cloud with GICP, re-searching
+/// correspondences at every iteration and taking each step with carat's solver on a GicpBlock.
+
+#include <Eigen/Geometry>
+
+#include "carat/registration/kdtree.hpp"
+#include "carat/registration/point_cloud.hpp"
+#include "carat/solver/se3.hpp"
+
+namespace carat {
+
+/// Settings of align().
+struct AlignSettings {
+  double max_correspondence_distance = 1.0;  ///< metres; farther pairs are not used
+  int max_iterations = 30;                   ///< outer iterations (correspondence searches)
+  double translation_tolerance = 1e-4;       ///< converged when a step moves less (metres) ...
+  double rotation_tolerance = 1e-4;          ///< ... and turns less (radians)
+  int min_correspondences = 30;              ///< fewer pairs than this is a failure
+  int num_threads = 1;                       ///< threads for the search and the linearization
+};
+
+/// What align() found.
+struct AlignResult {
+  Eigen::Isometry3d T_target_source = Eigen::Isometry3d::Identity();  ///< maps source into target
+  se3::Matrix6d H = se3::Matrix6d::Zero();  ///< GICP Hessian J^T J at the result (right tangent of T)
+  double error = 0.0;           ///< sum of squared whitened residuals at the result
+  int iterations = 0;           ///< outer iterations run
+  int num_correspondences = 0;  ///< pairs used in the last iteration
+  bool converged = false;       ///< the last step was below both tolerances
+  double search_s = 0.0;        ///< time spent finding correspondences
+  double optimize_s = 0.0;      ///< time spent building blocks and solving
+};
+
+/// Aligns `source` to `target` starting at T_target_source_init. Both clouds need covariances
+/// (estimate_covariances); `target_tree` indexes target. Throws carat::Error if covariances are
+/// missing or fewer than settings.min_correspondences pairs are found.
+AlignResult align(const PointCloud& target, const KdTree& target_tree, const PointCloud& source,
+                  const Eigen::Isometry3d& T_target_source_init, const AlignSettings& settings = {});
+
+}  // namespace carat

@@ -1,0 +1,36 @@
+#pragma once
+
+/// k-nearest-neighbour search over a point cloud's positions (nanoflann k-d tree).
+
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "carat/registration/point_cloud.hpp"
+
+namespace carat {
+
+/// A k-d tree over the positions of a cloud; the cloud must outlive the tree and not change.
+class KdTree {
+ public:
+  /// Builds the tree (leaf size 10). An empty cloud gives a tree that finds nothing.
+  explicit KdTree(const PointCloud& cloud);
+  ~KdTree();
+  KdTree(const KdTree&) = delete;
+  KdTree& operator=(const KdTree&) = delete;
+
+  /// Up to k nearest points of `query`: indices and squared distances, nearest first.
+  /// Returns how many were found (fewer than k only when the cloud is smaller than k).
+  int knn(const Eigen::Vector3f& query, int k, std::uint32_t* indices, float* squared_distances) const;
+
+  /// The nearest point: its index and squared distance; false for an empty cloud.
+  bool nearest(const Eigen::Vector3f& query, std::uint32_t* index, float* squared_distance) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace carat

@@ -1,0 +1,26 @@
+#pragma once
+
+/// KITTI Velodyne scans: raw little-endian float32 records, no header.
+
+#include <filesystem>
+
+#include "carat/registration/point_cloud.hpp"
+
+namespace carat {
+
+/// Record layout of a KITTI .bin file.
+enum class KittiFormat {
+  kXyzi,  ///< x y z intensity: 16 bytes per point (the original KITTI layout)
+  kXyz,   ///< x y z: 12 bytes per point (intensity dropped, as in ../shared/data)
+};
+
+/// How to treat non-finite points while reading.
+struct ReadOptions {
+  bool drop_non_finite = false;  ///< drop NaN/Inf points instead of failing
+};
+
+/// Reads a KITTI .bin scan. Throws carat::Error naming the file for a missing or empty file, a
+/// size that is not a whole number of records, or (unless dropped) a non-finite point.
+PointCloud read_kitti_bin(const std::filesystem::path& path, KittiFormat format, const ReadOptions& options = {});
+
+}  // namespace carat

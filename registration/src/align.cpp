@@ -1,0 +1,103 @@
+#include "carat/registration/align.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <tbb/info.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include "carat/residuals/gicp_block.hpp"
+#include "carat/solver/error.hpp"
+#include "carat/solver/problem.hpp"
+#include "carat/solver/solve.hpp"
+
+namespace carat {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+/// Nearest target point of every transformed source point within the distance, in source order.
+std::vector<GicpCorrespondence> find_correspondences(const PointCloud& target, const KdTree& tree,
+                                                     const PointCloud& source, const Eigen::Isometry3d& T,
+                                                     double max_distance) {
+  const float max_sq = static_cast<float>(max_distance * max_distance);
+  std::vector<std::int64_t> match(source.size(), -1);
+  const Eigen::Isometry3f Tf = T.cast<float>();
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, source.size(), 512), [&](const auto& range) {
+    for (std::size_t i = range.begin(); i != range.end(); ++i) {
+      std::uint32_t index = 0;
+      float sq = 0.0f;
+      if (tree.nearest(Tf * source.points[i], &index, &sq) && sq <= max_sq) match[i] = index;
+    }
+  });
+  std::vector<GicpCorrespondence> out;
+  out.reserve(source.size());
+  for (std::size_t i = 0; i < source.size(); ++i) {
+    if (match[i] < 0) continue;
+    const auto t = static_cast<std::size_t>(match[i]);
+    out.push_back({target.point(t), target.covariance(t), source.point(i), source.covariance(i)});
+  }
+  return out;
+}
+
+}  // namespace
+
+AlignResult align(const PointCloud& target, const KdTree& target_tree, const PointCloud& source,
+                  const Eigen::Isometry3d& T_target_source_init, const AlignSettings& settings) {
+  if (!target.has_covariances()) throw Error("align: the target cloud has no covariances (run estimate_covariances)");
+  if (!source.has_covariances()) throw Error("align: the source cloud has no covariances (run estimate_covariances)");
+  AlignResult result;
+  result.T_target_source = T_target_source_init;
+  const int threads = std::clamp(settings.num_threads, 1, tbb::info::default_concurrency());
+  tbb::task_arena arena(threads);
+  arena.execute([&] {
+    SolverOptions options;
+    options.max_iterations = 1;
+    options.num_threads = threads;
+    options.record_iterations = false;
+    for (int iteration = 0; iteration < settings.max_iterations; ++iteration) {
+      auto t0 = Clock::now();
+      const std::vector<GicpCorrespondence> pairs = find_correspondences(
+          target, target_tree, source, result.T_target_source, settings.max_correspondence_distance);
+      result.search_s += std::chrono::duration<double>(Clock::now() - t0).count();
+      if (static_cast<int>(pairs.size()) < settings.min_correspondences) {
+        throw Error("align: only " + std::to_string(pairs.size()) + " correspondences within " +
+                    std::to_string(settings.max_correspondence_distance) + " m (need " +
+                    std::to_string(settings.min_correspondences) + "); the clouds do not overlap at this estimate");
+      }
+      t0 = Clock::now();
+      auto block = std::make_shared<GicpBlock>(pairs, result.T_target_source);
+      Problem problem;
+      const VariableId target_pose = problem.add_se3(Eigen::Isometry3d::Identity());
+      const VariableId source_pose = problem.add_se3(result.T_target_source);
+      problem.set_constant(target_pose);
+      problem.add_residual_block(block, {target_pose, source_pose});
+      const SolverSummary summary = solve(options, problem);
+      const Eigen::Isometry3d previous = result.T_target_source;
+      if (summary.termination != TerminationType::kFailure) result.T_target_source = problem.se3(source_pose);
+      result.optimize_s += std::chrono::duration<double>(Clock::now() - t0).count();
+      result.iterations = iteration + 1;
+      result.num_correspondences = static_cast<int>(pairs.size());
+      const se3::Vector6d step = se3::log(previous.inverse() * result.T_target_source);
+      if (step.head<3>().norm() < settings.rotation_tolerance && step.tail<3>().norm() < settings.translation_tolerance) {
+        result.converged = true;
+        break;
+      }
+    }
+    // The Hessian and error at the result, with its own correspondences.
+    const std::vector<GicpCorrespondence> pairs = find_correspondences(
+        target, target_tree, source, result.T_target_source, settings.max_correspondence_distance);
+    if (!pairs.empty()) {
+      const GicpBlock block(pairs, result.T_target_source);
+      Eigen::Matrix<double, 6, 1> b;
+      result.error = block.accumulate_at(result.T_target_source, &result.H, &b);
+    }
+  });
+  return result;
+}
+
+}  // namespace carat

@@ -1,0 +1,45 @@
+#include "carat/registration/kitti_io.hpp"
+
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "carat/solver/error.hpp"
+
+namespace carat {
+
+PointCloud read_kitti_bin(const std::filesystem::path& path, KittiFormat format, const ReadOptions& options) {
+  const std::string name = path.string();
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) throw Error(name + ": no such file");
+  const auto bytes = std::filesystem::file_size(path, ec);
+  if (ec) throw Error(name + ": cannot read the file size");
+  const std::size_t record = format == KittiFormat::kXyzi ? 16 : 12;
+  if (bytes == 0) throw Error(name + ": empty file");
+  if (bytes % record != 0) {
+    throw Error(name + ": " + std::to_string(bytes) + " bytes is not a whole number of " + std::to_string(record) +
+                "-byte records (truncated, or not " + (format == KittiFormat::kXyzi ? "x y z intensity" : "x y z") +
+                " float32 data)");
+  }
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw Error(name + ": cannot open for reading");
+  std::vector<char> buffer(bytes);
+  if (!in.read(buffer.data(), static_cast<std::streamsize>(bytes))) throw Error(name + ": read error");
+  const std::size_t n = bytes / record;
+  PointCloud cloud;
+  cloud.points.reserve(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    float xyz[3];
+    std::memcpy(xyz, buffer.data() + i * record, sizeof(xyz));
+    if (!std::isfinite(xyz[0]) || !std::isfinite(xyz[1]) || !std::isfinite(xyz[2])) {
+      if (options.drop_non_finite) continue;
+      throw Error(name + ": point " + std::to_string(i) + " is not finite");
+    }
+    cloud.points.emplace_back(xyz[0], xyz[1], xyz[2]);
+  }
+  return cloud;
+}
+
+}  // namespace carat

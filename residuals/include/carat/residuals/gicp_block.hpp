@@ -1,0 +1,72 @@
+#pragma once
+
+/// The GICP registration error over fixed correspondences (Koide et al. 2023, Sec. III): for
+/// correspondence k, three whitened rows r_k = W_k (mu_target_k - T_ij mu_source_k) with
+/// W_k^T W_k = (C_target_k + R C_source_k R^T)^-1. The fused covariance uses the rotation R of
+/// T_ij *when the block is built* (the estimate at which correspondences were found) and stays
+/// fixed afterwards, so rows are exact functions of T_ij with exact Jacobians; scan matching
+/// rebuilds blocks as its estimate moves. Variables: target pose T_world_i, source pose
+/// T_world_j. Memory: 12 doubles (96 bytes) per correspondence.
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include "carat/solver/residual_block.hpp"
+
+namespace carat {
+
+/// One GICP correspondence: a target point and a source point with their covariances.
+struct GicpCorrespondence {
+  Eigen::Vector3d mean_target;        ///< point in the target frame (metres)
+  Eigen::Matrix3d covariance_target;  ///< its covariance
+  Eigen::Vector3d mean_source;        ///< point in the source frame (metres)
+  Eigen::Matrix3d covariance_source;  ///< its covariance
+};
+
+/// Three rows per correspondence; reduced Jacobian w.r.t. the tangent of T_ij (6 columns).
+class GicpBlock final : public ResidualBlock {
+ public:
+  /// Builds the rows at the relative pose T_target_source (used only to fuse covariances).
+  /// Throws carat::Error if there are no correspondences, a value is not finite, or a fused
+  /// covariance is not positive definite.
+  GicpBlock(std::span<const GicpCorrespondence> correspondences, const Eigen::Isometry3d& T_target_source);
+
+  int num_rows() const override { return static_cast<int>(rows_.empty() ? 3 * points_.size() : rows_.size()); }
+  std::span<const int> tangent_dims() const override { return kDims; }
+  int reduced_dim() const override { return 6; }
+  void reduced_map(ParameterPointers params, double* A) const override;
+  void evaluate_rows(ParameterPointers params, std::span<const int> rows, double* residuals,
+                     double* jacobian) const override;
+  double accumulate(ParameterPointers params, Eigen::Ref<Eigen::MatrixXd> H_r,
+                    Eigen::Ref<Eigen::VectorXd> b_r) const override;
+  double squared_norm(ParameterPointers params) const override;
+  std::unique_ptr<ResidualBlock> extract_rows(std::span<const int> rows) const override;
+  std::size_t memory_bytes() const override;
+
+  /// Number of correspondences held.
+  int num_correspondences() const { return static_cast<int>(points_.size()); }
+
+  /// H_r, b_r, c of all rows at a relative pose (the fast path, deterministic chunked sums).
+  double accumulate_at(const Eigen::Isometry3d& T_target_source, Eigen::Matrix<double, 6, 6>* H_r,
+                       Eigen::Matrix<double, 6, 1>* b_r) const;
+
+ private:
+  /// Per correspondence: target mean, source mean, whitening W (upper-triangular, 6 entries).
+  struct Point {
+    std::array<double, 3> target;
+    std::array<double, 3> source;
+    std::array<double, 6> whitening;  // W = [w0 w1 w2; 0 w3 w4; 0 0 w5]
+  };
+  GicpBlock() = default;
+  static constexpr std::array<int, 2> kDims{6, 6};
+  std::vector<Point> points_;
+  std::vector<std::int32_t> rows_;  // empty: row 3k+c; else (correspondence << 2) | component
+};
+
+}  // namespace carat

@@ -1,0 +1,174 @@
+#include "carat/residuals/gicp_block.hpp"
+
+#include <string>
+#include <unordered_map>
+
+#include <Eigen/Cholesky>
+#include <tbb/parallel_for.h>
+
+#include "carat/residuals/registration_rows.hpp"
+#include "carat/solver/error.hpp"
+
+namespace carat {
+namespace {
+
+constexpr std::size_t kChunk = 512;
+
+struct Row {
+  std::size_t point;
+  int component;
+};
+
+}  // namespace
+
+GicpBlock::GicpBlock(std::span<const GicpCorrespondence> correspondences, const Eigen::Isometry3d& T_target_source) {
+  if (correspondences.empty()) throw Error("GicpBlock: no correspondences");
+  const Eigen::Matrix3d R = T_target_source.linear();
+  points_.reserve(correspondences.size());
+  for (std::size_t k = 0; k < correspondences.size(); ++k) {
+    const auto& c = correspondences[k];
+    if (!c.mean_target.allFinite() || !c.mean_source.allFinite() || !c.covariance_target.allFinite() ||
+        !c.covariance_source.allFinite()) {
+      throw Error("GicpBlock: correspondence " + std::to_string(k) + " has a non-finite value");
+    }
+    const Eigen::Matrix3d fused = c.covariance_target + R * c.covariance_source * R.transpose();
+    const Eigen::LLT<Eigen::Matrix3d> llt_fused(fused);
+    if (llt_fused.info() != Eigen::Success) {
+      throw Error("GicpBlock: correspondence " + std::to_string(k) + ": fused covariance is not positive definite");
+    }
+    const Eigen::Matrix3d information = llt_fused.solve(Eigen::Matrix3d::Identity());
+    const Eigen::LLT<Eigen::Matrix3d> llt(0.5 * (information + information.transpose()));
+    const Eigen::Matrix3d W = llt.matrixU();
+    Point p;
+    p.target = {c.mean_target.x(), c.mean_target.y(), c.mean_target.z()};
+    p.source = {c.mean_source.x(), c.mean_source.y(), c.mean_source.z()};
+    p.whitening = {W(0, 0), W(0, 1), W(0, 2), W(1, 1), W(1, 2), W(2, 2)};
+    points_.push_back(p);
+  }
+}
+
+void GicpBlock::reduced_map(ParameterPointers params, double* A) const { relative_pose_reduced_map(params, A); }
+
+void GicpBlock::evaluate_rows(ParameterPointers params, std::span<const int> rows, double* residuals,
+                              double* jacobian) const {
+  const Eigen::Isometry3d T = relative_pose(params);
+  const Eigen::Matrix3d R = T.linear();
+  for (std::size_t k = 0; k < rows.size(); ++k) {
+    const int row = rows[k];
+    const std::size_t index = rows_.empty() ? static_cast<std::size_t>(row / 3) : static_cast<std::size_t>(rows_[static_cast<std::size_t>(row)] >> 2);
+    const int c = rows_.empty() ? row % 3 : (rows_[static_cast<std::size_t>(row)] & 3);
+    const Point& p = points_[index];
+    const Eigen::Vector3d mu(p.source[0], p.source[1], p.source[2]);
+    const Eigen::Vector3d d = Eigen::Vector3d(p.target[0], p.target[1], p.target[2]) - T * mu;
+    Eigen::RowVector3d w_row;
+    if (c == 0) {
+      w_row << p.whitening[0], p.whitening[1], p.whitening[2];
+    } else if (c == 1) {
+      w_row << 0.0, p.whitening[3], p.whitening[4];
+    } else {
+      w_row << 0.0, 0.0, p.whitening[5];
+    }
+    residuals[k] = w_row.dot(d);
+    if (!jacobian) continue;
+    const Eigen::Vector3d w = (w_row * R).transpose();
+    const Eigen::Vector3d d_omega = w.cross(mu);
+    double* J = jacobian + 6 * k;
+    for (int i = 0; i < 3; ++i) {
+      J[i] = d_omega[i];
+      J[3 + i] = -w[i];
+    }
+  }
+}
+
+double GicpBlock::accumulate_at(const Eigen::Isometry3d& T, Eigen::Matrix<double, 6, 6>* H_out,
+                                Eigen::Matrix<double, 6, 1>* b_out) const {
+  const Eigen::Matrix3d R = T.linear();
+  const std::size_t n = points_.size();
+  const std::size_t chunks = (n + kChunk - 1) / kChunk;
+  struct Partial {
+    Eigen::Matrix<double, 6, 6> H = Eigen::Matrix<double, 6, 6>::Zero();
+    Eigen::Matrix<double, 6, 1> b = Eigen::Matrix<double, 6, 1>::Zero();
+    double c = 0.0;
+  };
+  std::vector<Partial> partial(chunks);
+  const auto work = [&](std::size_t chunk) {
+    Partial& out = partial[chunk];
+    const std::size_t end = std::min(n, (chunk + 1) * kChunk);
+    for (std::size_t k = chunk * kChunk; k < end; ++k) {
+      const Point& p = points_[k];
+      Eigen::Matrix3d W;
+      W << p.whitening[0], p.whitening[1], p.whitening[2], 0.0, p.whitening[3], p.whitening[4], 0.0, 0.0,
+          p.whitening[5];
+      const Eigen::Vector3d mu(p.source[0], p.source[1], p.source[2]);
+      const Eigen::Vector3d r = W * (Eigen::Vector3d(p.target[0], p.target[1], p.target[2]) - T * mu);
+      const Eigen::Matrix3d WR = W * R;
+      Eigen::Matrix<double, 3, 6> J;
+      for (int c = 0; c < 3; ++c) {
+        const Eigen::Vector3d w = WR.row(c).transpose();
+        J.block<1, 3>(c, 0) = w.cross(mu).transpose();
+        J.block<1, 3>(c, 3) = -w.transpose();
+      }
+      out.H.noalias() += J.transpose() * J;
+      out.b.noalias() += J.transpose() * r;
+      out.c += r.squaredNorm();
+    }
+  };
+  if (chunks > 1) {
+    tbb::parallel_for(std::size_t{0}, chunks, work);
+  } else {
+    work(0);
+  }
+  // Sum the chunks in a fixed order: the same result with any number of threads.
+  Partial total;
+  for (const Partial& p : partial) {
+    total.H += p.H;
+    total.b += p.b;
+    total.c += p.c;
+  }
+  *H_out = total.H;
+  *b_out = total.b;
+  return total.c;
+}
+
+double GicpBlock::accumulate(ParameterPointers params, Eigen::Ref<Eigen::MatrixXd> H_r,
+                             Eigen::Ref<Eigen::VectorXd> b_r) const {
+  if (!rows_.empty()) return ResidualBlock::accumulate(params, H_r, b_r);  // an extract: few rows
+  Eigen::Matrix<double, 6, 6> H;
+  Eigen::Matrix<double, 6, 1> b;
+  const double c = accumulate_at(relative_pose(params), &H, &b);
+  H_r += H;
+  b_r += b;
+  return c;
+}
+
+double GicpBlock::squared_norm(ParameterPointers params) const {
+  if (!rows_.empty()) return ResidualBlock::squared_norm(params);
+  const Eigen::Isometry3d T = relative_pose(params);
+  double c = 0.0;
+  for (const Point& p : points_) {
+    Eigen::Matrix3d W;
+    W << p.whitening[0], p.whitening[1], p.whitening[2], 0.0, p.whitening[3], p.whitening[4], 0.0, 0.0, p.whitening[5];
+    const Eigen::Vector3d mu(p.source[0], p.source[1], p.source[2]);
+    c += (W * (Eigen::Vector3d(p.target[0], p.target[1], p.target[2]) - T * mu)).squaredNorm();
+  }
+  return c;
+}
+
+std::unique_ptr<ResidualBlock> GicpBlock::extract_rows(std::span<const int> rows) const {
+  auto out = std::unique_ptr<GicpBlock>(new GicpBlock());
+  std::unordered_map<std::size_t, std::int32_t> local;
+  for (int row : rows) {
+    const std::size_t index = rows_.empty() ? static_cast<std::size_t>(row / 3) : static_cast<std::size_t>(rows_[static_cast<std::size_t>(row)] >> 2);
+    const int c = rows_.empty() ? row % 3 : (rows_[static_cast<std::size_t>(row)] & 3);
+    auto [it, inserted] = local.emplace(index, static_cast<std::int32_t>(out->points_.size()));
+    if (inserted) out->points_.push_back(points_[index]);
+    out->rows_.push_back((it->second << 2) | c);
+  }
+  return out;
+}
+
+std::size_t GicpBlock::memory_bytes() const {
+  return points_.size() * sizeof(Point) + rows_.size() * sizeof(std::int32_t);
+}
+
+}  // namespace carat

@@ -1,0 +1,295 @@
+// Registration: the GICP block (numeric Jacobians for both poses, row extraction, fast path),
+// KITTI reading, voxel grid, covariances, scan matching on synthetic and real scans, and the
+// exact compression of a real GICP factor.
+#include <cmath>
+#include <fstream>
+#include <numeric>
+#include <random>
+
+#include <gtest/gtest.h>
+
+#include "carat/coreset/compress.hpp"
+#include "carat/registration/align.hpp"
+#include "carat/registration/covariance.hpp"
+#include "carat/registration/kdtree.hpp"
+#include "carat/registration/kitti_io.hpp"
+#include "carat/registration/voxel_grid.hpp"
+#include "carat/residuals/gicp_block.hpp"
+#include "carat/solver/error.hpp"
+#include "carat/solver/jacobian_checker.hpp"
+#include "carat/solver/manifold.hpp"
+#include "test_support.hpp"
+
+namespace carat {
+namespace {
+
+/// A synthetic scene: a floor, two walls and a box, sampled with noise, plus clutter.
+PointCloud make_scene(std::uint64_t seed, int n = 20000) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<float> u(-10.0f, 10.0f);
+  std::normal_distribution<float> noise(0.0f, 0.01f);
+  PointCloud cloud;
+  for (int i = 0; i < n; ++i) {
+    const int kind = i % 5;
+    Eigen::Vector3f p;
+    if (kind == 0 || kind == 1) p = {u(rng), u(rng), -1.5f};                      // floor
+    if (kind == 2) p = {8.0f, u(rng), 0.25f * std::abs(u(rng)) - 1.5f};            // wall x = 8
+    if (kind == 3) p = {u(rng), -7.0f, 0.25f * std::abs(u(rng)) - 1.5f};           // wall y = -7
+    if (kind == 4) p = {2.0f + 0.1f * u(rng), 3.0f + 0.05f * u(rng), 0.1f * std::abs(u(rng)) - 1.5f};  // box
+    cloud.points.push_back(p + Eigen::Vector3f(noise(rng), noise(rng), noise(rng)));
+  }
+  return cloud;
+}
+
+PointCloud transformed(const PointCloud& cloud, const Eigen::Isometry3d& T) {
+  PointCloud out;
+  for (const auto& p : cloud.points) out.points.push_back((T.cast<float>() * p));
+  return out;
+}
+
+std::vector<GicpCorrespondence> random_correspondences(int n, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> normal;
+  std::vector<GicpCorrespondence> out;
+  for (int k = 0; k < n; ++k) {
+    Eigen::Matrix3d A, B;
+    for (int i = 0; i < 9; ++i) {
+      A.data()[i] = normal(rng);
+      B.data()[i] = normal(rng);
+    }
+    out.push_back({Eigen::Vector3d(normal(rng), normal(rng), normal(rng)) * 5, A * A.transpose() + 0.01 * Eigen::Matrix3d::Identity(),
+                   Eigen::Vector3d(normal(rng), normal(rng), normal(rng)) * 5, B * B.transpose() + 0.01 * Eigen::Matrix3d::Identity()});
+  }
+  return out;
+}
+
+TEST(GicpBlockTest, JacobiansMatchNumericForBothPoses) {
+  std::mt19937_64 rng(3);
+  std::normal_distribution<double> normal;
+  const Manifold* manifolds[2] = {se3_manifold().get(), se3_manifold().get()};
+  for (int trial = 0; trial < 5; ++trial) {
+    se3::Vector6d a, b;
+    for (int i = 0; i < 6; ++i) {
+      a[i] = (trial == 0 ? 0.0 : 0.5) * normal(rng);
+      b[i] = (trial == 0 ? 0.0 : 0.5) * normal(rng);
+    }
+    double pose_i[7], pose_j[7];
+    se3::to_storage(se3::exp(a), pose_i);
+    se3::to_storage(se3::exp(b), pose_j);
+    const double* params[2] = {pose_i, pose_j};
+    const GicpBlock block(random_correspondences(20, static_cast<std::uint64_t>(trial)),
+                          se3::exp(a).inverse() * se3::exp(b));
+    const JacobianCheckResult result = check_jacobians(block, manifolds, params);
+    EXPECT_TRUE(result.ok) << result.message;
+  }
+}
+
+TEST(GicpBlockTest, FastPathAndExtractedRowsAgree) {
+  const auto pairs = random_correspondences(2000, 9);
+  double pose_i[7], pose_j[7];
+  se3::Vector6d xi;
+  xi << 0.1, -0.05, 0.2, 1.0, 0.5, -0.3;
+  se3::to_storage(Eigen::Isometry3d::Identity(), pose_i);
+  se3::to_storage(se3::exp(xi), pose_j);
+  const double* params[2] = {pose_i, pose_j};
+  const GicpBlock block(pairs, se3::exp(xi));
+  ASSERT_EQ(block.num_rows(), 6000);
+  Eigen::MatrixXd H_fast = Eigen::MatrixXd::Zero(6, 6), H_rows = Eigen::MatrixXd::Zero(6, 6);
+  Eigen::VectorXd b_fast = Eigen::VectorXd::Zero(6), b_rows = Eigen::VectorXd::Zero(6);
+  const double c_fast = block.accumulate(params, H_fast, b_fast);
+  const double c_rows = block.ResidualBlock::accumulate(params, H_rows, b_rows);
+  EXPECT_LT((H_fast - H_rows).norm(), 1e-9 * H_rows.norm());
+  EXPECT_LT((b_fast - b_rows).norm(), 1e-9 * b_rows.norm());
+  EXPECT_NEAR(c_fast, c_rows, 1e-9 * c_rows);
+  EXPECT_NEAR(block.squared_norm(params), c_rows, 1e-9 * c_rows);
+  // Extract rows that split correspondences (1 or 2 of their 3 rows) and compare row by row.
+  const std::vector<int> rows = {5, 0, 4, 3000, 5999, 1234, 1235};
+  const auto extracted = block.extract_rows(rows);
+  ASSERT_EQ(extracted->num_rows(), 7);
+  EXPECT_LT(extracted->memory_bytes(), block.memory_bytes() / 100);
+  Eigen::VectorXd r1(7), r2(7);
+  Eigen::Matrix<double, 7, 6, Eigen::RowMajor> J1, J2;
+  block.evaluate_rows(params, rows, r1.data(), J1.data());
+  std::vector<int> local(7);
+  std::iota(local.begin(), local.end(), 0);
+  extracted->evaluate_rows(params, local, r2.data(), J2.data());
+  EXPECT_EQ(r1, r2);
+  EXPECT_EQ(J1, J2);
+}
+
+TEST(GicpBlockTest, RejectsBadInput) {
+  EXPECT_THROW(GicpBlock({}, Eigen::Isometry3d::Identity()), Error);
+  auto pairs = random_correspondences(3, 1);
+  pairs[1].mean_source.x() = std::nan("");
+  try {
+    GicpBlock block(pairs, Eigen::Isometry3d::Identity());
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_STREQ(e.what(), "GicpBlock: correspondence 1 has a non-finite value");
+  }
+}
+
+TEST(KittiTest, ReadsAndRejectsMalformedFiles) {
+  const auto dir = test::scratch_dir("kitti");
+  const std::vector<float> xyzi = {1, 2, 3, 0.5f, 4, 5, 6, 0.25f};
+  {
+    std::ofstream out(dir / "ok.bin", std::ios::binary);
+    out.write(reinterpret_cast<const char*>(xyzi.data()), static_cast<std::streamsize>(xyzi.size() * sizeof(float)));
+  }
+  const PointCloud cloud = read_kitti_bin(dir / "ok.bin", KittiFormat::kXyzi);
+  ASSERT_EQ(cloud.size(), 2u);
+  EXPECT_EQ(cloud.points[1], Eigen::Vector3f(4, 5, 6));
+  // 32 bytes are also a whole number of... no: 32 is not a multiple of 12.
+  try {
+    read_kitti_bin(dir / "ok.bin", KittiFormat::kXyz);
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("32 bytes is not a whole number of 12-byte records"), std::string::npos);
+  }
+  { std::ofstream out(dir / "empty.bin", std::ios::binary); }
+  EXPECT_THROW(read_kitti_bin(dir / "empty.bin", KittiFormat::kXyz), Error);
+  EXPECT_THROW(read_kitti_bin(dir / "missing.bin", KittiFormat::kXyz), Error);
+  const std::vector<float> bad = {1, 2, 3, std::nanf(""), 5, 6};
+  {
+    std::ofstream out(dir / "nan.bin", std::ios::binary);
+    out.write(reinterpret_cast<const char*>(bad.data()), static_cast<std::streamsize>(bad.size() * sizeof(float)));
+  }
+  try {
+    read_kitti_bin(dir / "nan.bin", KittiFormat::kXyz);
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()), (dir / "nan.bin").string() + ": point 1 is not finite");
+  }
+  ReadOptions drop;
+  drop.drop_non_finite = true;
+  EXPECT_EQ(read_kitti_bin(dir / "nan.bin", KittiFormat::kXyz, drop).size(), 1u);
+}
+
+TEST(VoxelGridTest, CentroidsPerVoxel) {
+  PointCloud cloud;
+  cloud.points = {{0.1f, 0.1f, 0.1f}, {0.3f, 0.3f, 0.3f}, {1.5f, 0.2f, 0.2f}, {-0.2f, 0.1f, 0.1f}};
+  const PointCloud down = voxel_downsample(cloud, 1.0);
+  ASSERT_EQ(down.size(), 3u);
+  EXPECT_TRUE(down.points[0].isApprox(Eigen::Vector3f(-0.2f, 0.1f, 0.1f)));
+  EXPECT_TRUE(down.points[1].isApprox(Eigen::Vector3f(0.2f, 0.2f, 0.2f)));
+  EXPECT_TRUE(down.points[2].isApprox(Eigen::Vector3f(1.5f, 0.2f, 0.2f)));
+  EXPECT_THROW(voxel_downsample(cloud, 0.0), Error);
+}
+
+TEST(CovarianceTest, PlaneGetsTheRegularizedShape) {
+  PointCloud cloud;
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  for (int i = 0; i < 500; ++i) cloud.points.emplace_back(u(rng), u(rng), 0.0f);
+  const KdTree tree(cloud);
+  estimate_covariances(cloud, tree);
+  ASSERT_TRUE(cloud.has_covariances());
+  for (std::size_t i = 0; i < cloud.size(); i += 50) {
+    const Eigen::Matrix3d C = cloud.covariance(i);
+    EXPECT_NEAR(C(2, 2), 1e-3, 1e-6);
+    EXPECT_NEAR(C(0, 0), 1.0, 1e-6);
+    EXPECT_NEAR(C(1, 1), 1.0, 1e-6);
+  }
+  // Fewer points than k: every neighbourhood is the whole cloud.
+  PointCloud small;
+  small.points = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {1, 1, 0}, {0.5f, 0.5f, 0.0f}};
+  const KdTree small_tree(small);
+  estimate_covariances(small, small_tree);
+  EXPECT_NEAR(small.covariance(0)(2, 2), 1e-3, 1e-6);
+  PointCloud tiny;
+  tiny.points = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+  const KdTree tiny_tree(tiny);
+  try {
+    estimate_covariances(tiny, tiny_tree);
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_STREQ(e.what(), "estimate_covariances: a cloud of 3 points is too small (at least 4 are needed)");
+  }
+}
+
+struct Prepared {
+  PointCloud cloud;
+  std::unique_ptr<KdTree> tree;
+};
+
+Prepared prepare(const PointCloud& raw, double voxel) {
+  Prepared p{voxel_downsample(raw, voxel), nullptr};
+  p.tree = std::make_unique<KdTree>(p.cloud);
+  estimate_covariances(p.cloud, *p.tree);
+  return p;
+}
+
+TEST(AlignTest, RecoversASyntheticMotion) {
+  const PointCloud scene = make_scene(11);
+  se3::Vector6d xi;
+  xi << 0.02, -0.01, 0.05, 0.4, -0.2, 0.05;
+  const Eigen::Isometry3d T_target_source = se3::exp(xi);
+  const Prepared target = prepare(scene, 0.2);
+  const Prepared source = prepare(transformed(scene, T_target_source.inverse()), 0.2);
+  const AlignResult result = align(target.cloud, *target.tree, source.cloud, Eigen::Isometry3d::Identity());
+  EXPECT_TRUE(result.converged);
+  const se3::Vector6d err = se3::log(T_target_source.inverse() * result.T_target_source);
+  EXPECT_LT(err.tail<3>().norm(), 0.01);
+  EXPECT_LT(err.head<3>().norm(), 0.1 * M_PI / 180.0);
+  EXPECT_GT(result.H.trace(), 0.0);
+}
+
+TEST(AlignTest, MissingCovariancesAndNoOverlapAreErrors) {
+  const PointCloud scene = make_scene(12, 2000);
+  const KdTree tree(scene);
+  EXPECT_THROW(align(scene, tree, scene, Eigen::Isometry3d::Identity()), Error);
+  const Prepared target = prepare(scene, 0.2);
+  Eigen::Isometry3d far = Eigen::Isometry3d::Identity();
+  far.translation() = Eigen::Vector3d(1000, 0, 0);
+  EXPECT_THROW(align(target.cloud, *target.tree, target.cloud, far), Error);
+}
+
+TEST(AlignTest, Kitti00PairMatchesTheReference) {
+  CARAT_REQUIRE_DATA("kitti00_pair/000000.bin");
+  const Prepared target = prepare(read_kitti_bin(test::data_dir() / "kitti00_pair/000000.bin", KittiFormat::kXyz), 0.25);
+  const Prepared source = prepare(read_kitti_bin(test::data_dir() / "kitti00_pair/000001.bin", KittiFormat::kXyz), 0.25);
+  AlignSettings settings;
+  settings.num_threads = 2;
+  const AlignResult forward = align(target.cloud, *target.tree, source.cloud, Eigen::Isometry3d::Identity(), settings);
+  EXPECT_TRUE(forward.converged);
+  // small_gicp at the same settings: t ~= (0.690, 0.004, 0.007) m, rotation ~0.2 deg.
+  const Eigen::Vector3d t = forward.T_target_source.translation();
+  EXPECT_LT((t - Eigen::Vector3d(0.690, 0.004, 0.007)).norm(), 0.01) << t.transpose();
+  const double angle_deg = Eigen::AngleAxisd(forward.T_target_source.linear()).angle() * 180.0 / M_PI;
+  EXPECT_NEAR(angle_deg, 0.2, 0.1);
+  const AlignResult inverse = align(source.cloud, *source.tree, target.cloud, Eigen::Isometry3d::Identity(), settings);
+  const se3::Vector6d loop = se3::log(forward.T_target_source * inverse.T_target_source);
+  EXPECT_LT(loop.tail<3>().norm(), 0.005);
+  EXPECT_LT(loop.head<3>().norm() * 180.0 / M_PI, 0.05);
+
+  // The full GICP factor of the pair at the result, compressed to 29 rows: exact H, b, c for
+  // both poses (12 x 12).
+  std::vector<GicpCorrespondence> pairs;
+  for (std::size_t i = 0; i < source.cloud.size(); ++i) {
+    std::uint32_t index;
+    float sq;
+    const Eigen::Vector3f q = forward.T_target_source.cast<float>() * source.cloud.points[i];
+    if (target.tree->nearest(q, &index, &sq) && sq <= 1.0f) {
+      pairs.push_back({target.cloud.point(index), target.cloud.covariance(index), source.cloud.point(i), source.cloud.covariance(i)});
+    }
+  }
+  auto block = std::make_shared<GicpBlock>(pairs, forward.T_target_source);
+  double pose_i[7], pose_j[7];
+  se3::to_storage(Eigen::Isometry3d::Identity(), pose_i);
+  se3::to_storage(forward.T_target_source * se3::exp((se3::Vector6d() << 0.01, 0.0, -0.01, 0.05, 0.02, 0.0).finished()), pose_j);
+  const double* params[2] = {pose_i, pose_j};
+  const auto compressed = compress(block, params);
+  EXPECT_EQ(compressed->num_rows(), 29);
+  Eigen::VectorXd r, rc;
+  Eigen::MatrixXd J, Jc;
+  evaluate_full_jacobian(*block, params, &r, &J);
+  evaluate_full_jacobian(*compressed, params, &rc, &Jc);
+  const Eigen::MatrixXd H = J.transpose() * J, Hc = Jc.transpose() * Jc;
+  const Eigen::VectorXd b = J.transpose() * r, bc = Jc.transpose() * rc;
+  EXPECT_LE((H - Hc).norm() / H.norm(), 1e-12);
+  EXPECT_LE((b - bc).norm() / b.norm(), 1e-12);
+  EXPECT_LE(std::abs(r.squaredNorm() - rc.squaredNorm()) / r.squaredNorm(), 1e-12);
+}
+
+}  // namespace
+}  // namespace carat
