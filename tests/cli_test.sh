@@ -98,6 +98,15 @@ else pass=$((pass + 1)); fi
 check coreset_target_too_small 1 "coreset: target of 10 rows is below the minimum of 29" -- "$CARAT" coreset-check --rows 100 --target 10
 check coreset_bad_rows 2 "" -- "$CARAT" coreset-check --rows 0
 
+# align: bad input.
+check align_missing 1 "missing.bin: no such file" -- "$CARAT" align --target "$scratch/missing.bin" --source "$scratch/missing.bin"
+printf 'abcdefghij' >"$scratch/ten.bin"
+check align_truncated 1 "ten.bin: 10 bytes is not a whole number of 16-byte records" -- "$CARAT" align --target "$scratch/ten.bin" --source "$scratch/ten.bin"
+python3 -c "import struct,sys; open(sys.argv[1],'wb').write(struct.pack('<12f', *[0.0]*12))" "$scratch/few.bin"
+check align_too_few_points 1 "few.bin: only 1 points after downsampling (at least 29 are needed)" -- "$CARAT" align --target "$scratch/few.bin" --source "$scratch/few.bin"
+check align_wrong_type 1 "unsupported file type" -- "$CARAT" align --target "$scratch/tiny.g2o" --source "$scratch/tiny.g2o"
+check align_bad_voxel 2 "" -- "$CARAT" align --target a.bin --source b.bin --voxel -1
+
 # Real data, when present.
 if [[ -f "${CARAT_DATA_DIR:-}/posegraph/sphere2500.g2o" ]]; then
   check sphere2500 0 "" -- "$CARAT" solve-g2o "$CARAT_DATA_DIR/posegraph/sphere2500.g2o" --json
@@ -105,6 +114,11 @@ if [[ -f "${CARAT_DATA_DIR:-}/posegraph/sphere2500.g2o" ]]; then
   # Ceres 2.1 reaches 675.608 on this file with the same cost function.
   if [[ $(json_field "$scratch/sphere.json" "abs(j['final_cost'] - 675.6078) < 1e-2 and j['termination'] == 'CONVERGENCE'") != "True" ]]; then
     echo "FAIL sphere2500 final cost $(json_field "$scratch/sphere.json" "j['final_cost']")"; fail=$((fail + 1))
+  else pass=$((pass + 1)); fi
+  check align_kitti00 0 "" -- "$CARAT" align --target "$CARAT_DATA_DIR/kitti00_pair/000000.bin" --source "$CARAT_DATA_DIR/kitti00_pair/000001.bin" --bin-format xyz --json
+  cp "$scratch/out" "$scratch/align.json"
+  if [[ $(json_field "$scratch/align.json" "j['converged'] and abs(j['T_target_source'][0][3] - 0.690) < 0.01") != "True" ]]; then
+    echo "FAIL align on kitti00_pair"; fail=$((fail + 1))
   else pass=$((pass + 1)); fi
   check cubicle_indefinite 1 "cubicle.g2o:5753: information matrix" -- "$CARAT" solve-g2o "$CARAT_DATA_DIR/posegraph/cubicle.g2o"
 else

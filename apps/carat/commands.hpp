@@ -32,6 +32,8 @@ class CommandRegistry {
 void register_demo(CLI::App& app, CommandRegistry& registry);
 /// `carat solve-g2o`: optimize a g2o pose graph.
 void register_solve_g2o(CLI::App& app, CommandRegistry& registry);
+/// `carat align`: GICP scan matching of two scans.
+void register_align(CLI::App& app, CommandRegistry& registry);
 /// `carat coreset-check`: exactness and speed of the coreset on random rows.
 void register_coreset_check(CLI::App& app, CommandRegistry& registry);
 
