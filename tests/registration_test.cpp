@@ -234,6 +234,24 @@ TEST(AlignTest, RecoversASyntheticMotion) {
   EXPECT_GT(result.H.trace(), 0.0);
 }
 
+TEST(AlignTest, PointToPlaneAndPointToPointAlsoRecoverIt) {
+  const PointCloud scene = make_scene(13);
+  se3::Vector6d xi;
+  xi << 0.01, 0.02, -0.03, 0.3, 0.1, -0.05;
+  const Eigen::Isometry3d T_target_source = se3::exp(xi);
+  const Prepared target = prepare(scene, 0.2);
+  const Prepared source = prepare(transformed(scene, T_target_source.inverse()), 0.2);
+  for (RegistrationMethod method : {RegistrationMethod::kPointToPlane, RegistrationMethod::kPointToPoint}) {
+    AlignSettings settings;
+    settings.method = method;
+    settings.max_iterations = 60;
+    const AlignResult result = align(target.cloud, *target.tree, source.cloud, Eigen::Isometry3d::Identity(), settings);
+    const se3::Vector6d err = se3::log(T_target_source.inverse() * result.T_target_source);
+    EXPECT_LT(err.tail<3>().norm(), 0.02) << static_cast<int>(method);
+    EXPECT_LT(err.head<3>().norm(), 0.2 * M_PI / 180.0) << static_cast<int>(method);
+  }
+}
+
 TEST(AlignTest, MissingCovariancesAndNoOverlapAreErrors) {
   const PointCloud scene = make_scene(12, 2000);
   const KdTree tree(scene);

@@ -1,4 +1,5 @@
-// carat align --target FILE --source FILE [--voxel 0.25] [--max-distance 1.0] [--bin-format xyz|xyzi]
+// carat align --target FILE --source FILE [--voxel 0.25] [--method gicp|point-to-plane|point-to-point]
+//             [--max-distance 1.0] [--bin-format xyz|xyzi]
 //             [--threads T] [--json]
 // GICP scan matching of two KITTI .bin scans: prints T_target_source (4 x 4), iterations,
 // error, convergence and a time breakdown.
@@ -26,6 +27,7 @@ struct AlignArgs {
   double voxel = 0.25;
   double max_distance = 1.0;
   std::string bin_format = "xyzi";
+  std::string method = "gicp";
   int threads = 1;
   bool json = false;
 };
@@ -62,6 +64,9 @@ int run_align(const AlignArgs& args) {
   AlignSettings settings;
   settings.max_correspondence_distance = args.max_distance;
   settings.num_threads = args.threads;
+  settings.method = args.method == "point-to-plane"   ? RegistrationMethod::kPointToPlane
+                    : args.method == "point-to-point" ? RegistrationMethod::kPointToPoint
+                                                      : RegistrationMethod::kGicp;
   t0 = Clock::now();
   const AlignResult result = align(target, target_tree, source, Eigen::Isometry3d::Identity(), settings);
   const double align_s = seconds(t0);
@@ -107,6 +112,8 @@ void register_align(CLI::App& app, CommandRegistry& registry) {
   cmd->add_option("--voxel", args->voxel, "voxel size (m)")->check(CLI::PositiveNumber)->capture_default_str();
   cmd->add_option("--max-distance", args->max_distance, "max correspondence distance (m)")
       ->check(CLI::PositiveNumber)->capture_default_str();
+  cmd->add_option("--method", args->method, "registration error")
+      ->check(CLI::IsMember({"gicp", "point-to-plane", "point-to-point"}))->capture_default_str();
   cmd->add_option("--bin-format", args->bin_format, "xyzi (16 bytes/point, KITTI) or xyz (12 bytes/point)")
       ->check(CLI::IsMember({"xyz", "xyzi"}))->capture_default_str();
   cmd->add_option("--threads", args->threads, "threads")->check(CLI::Range(1, 1024))->capture_default_str();

@@ -10,7 +10,11 @@
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
+#include <Eigen/Eigenvalues>
+
 #include "carat/residuals/gicp_block.hpp"
+#include "carat/residuals/point_to_plane_block.hpp"
+#include "carat/residuals/point_to_point_block.hpp"
 #include "carat/solver/error.hpp"
 #include "carat/solver/problem.hpp"
 #include "carat/solver/solve.hpp"
@@ -44,6 +48,23 @@ std::vector<GicpCorrespondence> find_correspondences(const PointCloud& target, c
   return out;
 }
 
+/// The residual block of `method` over the correspondences, built at T.
+std::shared_ptr<const ResidualBlock> make_block(RegistrationMethod method, const std::vector<GicpCorrespondence>& pairs,
+                                                const Eigen::Isometry3d& T) {
+  if (method == RegistrationMethod::kGicp) return std::make_shared<GicpBlock>(pairs, T);
+  std::vector<Eigen::Vector3d> target, source, normal;
+  for (const auto& p : pairs) {
+    target.push_back(p.mean_target);
+    source.push_back(p.mean_source);
+    if (method == RegistrationMethod::kPointToPlane) {
+      const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(p.covariance_target);
+      normal.push_back(eig.eigenvectors().col(0));
+    }
+  }
+  if (method == RegistrationMethod::kPointToPlane) return std::make_shared<PointToPlaneBlock>(target, normal, source);
+  return std::make_shared<PointToPointBlock>(target, source);
+}
+
 }  // namespace
 
 AlignResult align(const PointCloud& target, const KdTree& target_tree, const PointCloud& source,
@@ -70,7 +91,7 @@ AlignResult align(const PointCloud& target, const KdTree& target_tree, const Poi
                     std::to_string(settings.min_correspondences) + "); the clouds do not overlap at this estimate");
       }
       t0 = Clock::now();
-      auto block = std::make_shared<GicpBlock>(pairs, result.T_target_source);
+      const auto block = make_block(settings.method, pairs, result.T_target_source);
       Problem problem;
       const VariableId target_pose = problem.add_se3(Eigen::Isometry3d::Identity());
       const VariableId source_pose = problem.add_se3(result.T_target_source);
@@ -92,9 +113,15 @@ AlignResult align(const PointCloud& target, const KdTree& target_tree, const Poi
     const std::vector<GicpCorrespondence> pairs = find_correspondences(
         target, target_tree, source, result.T_target_source, settings.max_correspondence_distance);
     if (!pairs.empty()) {
-      const GicpBlock block(pairs, result.T_target_source);
-      Eigen::Matrix<double, 6, 1> b;
-      result.error = block.accumulate_at(result.T_target_source, &result.H, &b);
+      const auto block = make_block(settings.method, pairs, result.T_target_source);
+      double identity[7], pose[7];
+      se3::to_storage(Eigen::Isometry3d::Identity(), identity);
+      se3::to_storage(result.T_target_source, pose);
+      const double* params[2] = {identity, pose};
+      Eigen::MatrixXd H = Eigen::MatrixXd::Zero(6, 6);
+      Eigen::VectorXd b = Eigen::VectorXd::Zero(6);
+      result.error = block->accumulate(params, H, b);
+      result.H = H;
     }
   });
   return result;

@@ -1,7 +1,8 @@
 #pragma once
 
-/// Scan matching: align a source cloud to a target cloud with GICP, re-searching
-/// correspondences at every iteration and taking each step with carat's solver on a GicpBlock.
+/// Scan matching: align a source cloud to a target cloud with GICP (or point-to-plane /
+/// point-to-point ICP), re-searching correspondences at every iteration and taking each step
+/// with carat's solver on the matching residual block.
 
 #include <Eigen/Geometry>
 
@@ -11,8 +12,16 @@
 
 namespace carat {
 
+/// The registration error align() minimizes.
+enum class RegistrationMethod {
+  kGicp,          ///< GICP: Mahalanobis distance with fused plane-like covariances
+  kPointToPlane,  ///< distance along the target normal (smallest eigenvector of its covariance)
+  kPointToPoint,  ///< Euclidean distance
+};
+
 /// Settings of align().
 struct AlignSettings {
+  RegistrationMethod method = RegistrationMethod::kGicp;  ///< error to minimize
   double max_correspondence_distance = 1.0;  ///< metres; farther pairs are not used
   int max_iterations = 30;                   ///< outer iterations (correspondence searches)
   double translation_tolerance = 1e-4;       ///< converged when a step moves less (metres) ...
@@ -24,8 +33,8 @@ struct AlignSettings {
 /// What align() found.
 struct AlignResult {
   Eigen::Isometry3d T_target_source = Eigen::Isometry3d::Identity();  ///< maps source into target
-  se3::Matrix6d H = se3::Matrix6d::Zero();  ///< GICP Hessian J^T J at the result (right tangent of T)
-  double error = 0.0;           ///< sum of squared whitened residuals at the result
+  se3::Matrix6d H = se3::Matrix6d::Zero();  ///< J^T J of the method's rows at the result (right tangent of T)
+  double error = 0.0;           ///< sum of squared residuals of the method's rows at the result
   int iterations = 0;           ///< outer iterations run
   int num_correspondences = 0;  ///< pairs used in the last iteration
   bool converged = false;       ///< the last step was below both tolerances
