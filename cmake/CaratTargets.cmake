@@ -41,7 +41,7 @@ function(carat_set_warnings target)
     target_compile_options(${target} PRIVATE -march=native)
   endif()
   if(CARAT_BUILD_FUZZERS)
-    target_compile_options(${target} PRIVATE -fsanitize=fuzzer-no-link,address,undefined)
+    target_compile_options(${target} PRIVATE -fsanitize=fuzzer-no-link,address,undefined -fno-sanitize-recover=all)
   endif()
   if(CARAT_SANITIZE)
     target_compile_options(${target} PRIVATE -fsanitize=address,undefined -fno-omit-frame-pointer

@@ -28,8 +28,9 @@ for target in "${targets[@]}"; do
   echo "== $target: ${seconds}s"
   ./build-fuzz/fuzz/"$target" "$work" "fuzz/corpus/$name" -max_total_time="$seconds" -timeout=1 \
     -rss_limit_mb=2048 -max_len=65536 -print_final_stats=1 -artifact_prefix=build-fuzz/artifacts/"$name"- \
-    2>&1 | grep -E "^(stat::number_of_executed_units|stat::peak_rss_mb|#[0-9]+ +DONE)|ERROR|SUMMARY" || true
-  if ls build-fuzz/artifacts/"$name"-* >/dev/null 2>&1; then
+    >build-fuzz/"$name".log 2>&1 || true
+  grep -E "^(stat::number_of_executed_units|stat::peak_rss_mb)|ERROR|SUMMARY" build-fuzz/"$name".log || true
+  if ls build-fuzz/artifacts/"$name"-* >/dev/null 2>&1 || grep -q "SUMMARY:" build-fuzz/"$name".log; then
     echo "FAIL $target: see build-fuzz/artifacts/"; exit 1
   fi
 done

@@ -174,6 +174,10 @@ TEST(VoxelGridTest, CentroidsPerVoxel) {
   EXPECT_TRUE(down.points[1].isApprox(Eigen::Vector3f(0.2f, 0.2f, 0.2f)));
   EXPECT_TRUE(down.points[2].isApprox(Eigen::Vector3f(1.5f, 0.2f, 0.2f)));
   EXPECT_THROW(voxel_downsample(cloud, 0.0), Error);
+  // Regression (found by the KITTI fuzzer): coordinates far outside the grid are an error, not
+  // an undefined float-to-integer conversion.
+  cloud.points.push_back({3e38f, 0.0f, 0.0f});
+  EXPECT_THROW(voxel_downsample(cloud, 0.5), Error);
 }
 
 TEST(CovarianceTest, PlaneGetsTheRegularizedShape) {

@@ -22,12 +22,13 @@ PointCloud voxel_downsample(const PointCloud& cloud, double voxel_size) {
   for (std::size_t i = 0; i < cloud.size(); ++i) {
     std::uint64_t key = 0;
     for (int a = 0; a < 3; ++a) {
-      const auto v = static_cast<std::int64_t>(std::floor(static_cast<double>(cloud.points[i][a]) * inv)) + kOffset;
-      if (v < 0 || v >= 2 * kOffset) {
+      const double cell = std::floor(static_cast<double>(cloud.points[i][a]) * inv);
+      // Range-check in floating point first: casting a huge or non-finite value is undefined.
+      if (!(cell >= -static_cast<double>(kOffset) && cell < static_cast<double>(kOffset))) {
         throw Error("voxel_downsample: point " + std::to_string(i) + " is too far from the origin for voxels of " +
                     std::to_string(voxel_size) + " m");
       }
-      key = (key << 21) | static_cast<std::uint64_t>(v);
+      key = (key << 21) | static_cast<std::uint64_t>(static_cast<std::int64_t>(cell) + kOffset);
     }
     keys.emplace_back(key, static_cast<std::uint32_t>(i));
   }
