@@ -80,6 +80,7 @@ AlignResult align(const PointCloud& target, const KdTree& target_tree, const Poi
     options.max_iterations = 1;
     options.num_threads = threads;
     options.record_iterations = false;
+    std::shared_ptr<const ResidualBlock> last_block;
     for (int iteration = 0; iteration < settings.max_iterations; ++iteration) {
       auto t0 = Clock::now();
       const std::vector<GicpCorrespondence> pairs = find_correspondences(
@@ -92,6 +93,7 @@ AlignResult align(const PointCloud& target, const KdTree& target_tree, const Poi
       }
       t0 = Clock::now();
       const auto block = make_block(settings.method, pairs, result.T_target_source);
+      last_block = block;
       Problem problem;
       const VariableId target_pose = problem.add_se3(Eigen::Isometry3d::Identity());
       const VariableId source_pose = problem.add_se3(result.T_target_source);
@@ -109,11 +111,15 @@ AlignResult align(const PointCloud& target, const KdTree& target_tree, const Poi
         break;
       }
     }
-    // The Hessian and error at the result, with its own correspondences.
-    const std::vector<GicpCorrespondence> pairs = find_correspondences(
-        target, target_tree, source, result.T_target_source, settings.max_correspondence_distance);
-    if (!pairs.empty()) {
-      const auto block = make_block(settings.method, pairs, result.T_target_source);
+    // The Hessian and error at the result: with the last correspondences when the last step was
+    // below tolerance (they are those of the result), else with a fresh search.
+    std::shared_ptr<const ResidualBlock> block = result.converged ? last_block : nullptr;
+    if (!block) {
+      const std::vector<GicpCorrespondence> pairs = find_correspondences(
+          target, target_tree, source, result.T_target_source, settings.max_correspondence_distance);
+      if (!pairs.empty()) block = make_block(settings.method, pairs, result.T_target_source);
+    }
+    if (block) {
       double identity[7], pose[7];
       se3::to_storage(Eigen::Isometry3d::Identity(), identity);
       se3::to_storage(result.T_target_source, pose);
