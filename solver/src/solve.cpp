@@ -122,7 +122,6 @@ void Solver::run() {
 
   auto t0 = Clock::now();
   system_ = std::make_unique<internal::SparseSystem>(problem_, options_.ordering);
-  system_->set_num_threads(options_.num_threads);
   summary_.time.symbolic_s += seconds_since(t0);
   summary_.num_tangent_parameters = system_->size();
   summary_.hessian_nonzeros = system_->hessian_nonzeros();

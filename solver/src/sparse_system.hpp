@@ -63,13 +63,9 @@ class SparseSystem {
   /// Solves (H + diag(damping)) x = rhs with the last successful factorization.
   void solve(const Eigen::VectorXd& rhs, Eigen::VectorXd* x);
 
-  /// Number of threads used by assemble().
-  void set_num_threads(int threads) { threads_ = threads; }
-
  private:
   struct Impl;
   int n_ = 0;
-  int threads_ = 1;
   std::size_t factor_nnz_ = 0;
   double factor_flops_ = 0.0;
   std::string ordering_name_;
