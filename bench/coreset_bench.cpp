@@ -3,9 +3,9 @@
 //
 //   ./build/bench/coreset_bench
 // Compare BM_Coreset/N/M with BM_EigenHbc/N in the same run (same data, same machine state).
-#include <random>
-
 #include <benchmark/benchmark.h>
+
+#include <random>
 
 #include "carat/coreset/row_coreset.hpp"
 

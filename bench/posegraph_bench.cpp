@@ -3,10 +3,10 @@
 //
 //   ./build/bench/posegraph_bench [--benchmark_filter=sphere]
 // Counters: final_cost, iterations, numeric_s (factorization time per solve), factor_nnz.
+#include <benchmark/benchmark.h>
+
 #include <filesystem>
 #include <string>
-
-#include <benchmark/benchmark.h>
 
 #include "carat/residuals/g2o_io.hpp"
 #include "carat/residuals/pose_graph.hpp"
@@ -33,14 +33,17 @@ void solve_graph(benchmark::State& state, const carat::PoseGraph& graph, carat::
 }
 
 void register_file(const std::string& name) {
-  const std::filesystem::path path = std::filesystem::path(CARAT_DATA_DIR) / "posegraph" / (name + ".g2o");
+  const std::filesystem::path path =
+      std::filesystem::path(CARAT_DATA_DIR) / "posegraph" / (name + ".g2o");
   if (!std::filesystem::exists(path)) return;  // real data absent: skip cleanly
   const auto graph = std::make_shared<carat::PoseGraph>(carat::read_g2o(path));
-  for (const auto& [label, ordering] : {std::pair{"auto", carat::Ordering::kAuto},
-                                        std::pair{"amd", carat::Ordering::kAmd},
-                                        std::pair{"metis", carat::Ordering::kMetis}}) {
+  for (const auto& [label, ordering] :
+       {std::pair{"auto", carat::Ordering::kAuto}, std::pair{"amd", carat::Ordering::kAmd},
+        std::pair{"metis", carat::Ordering::kMetis}}) {
     benchmark::RegisterBenchmark(("posegraph/" + name + "/" + label).c_str(),
-                                 [graph, ordering = ordering](benchmark::State& state) { solve_graph(state, *graph, ordering); })
+                                 [graph, ordering = ordering](benchmark::State& state) {
+                                   solve_graph(state, *graph, ordering);
+                                 })
         ->Unit(benchmark::kMillisecond)
         ->UseRealTime();
   }
@@ -51,9 +54,12 @@ void register_file(const std::string& name) {
 int main(int argc, char** argv) {
   carat::SyntheticPoseGraphOptions options;
   options.poses_per_lap = 1000;
-  const auto synthetic = std::make_shared<carat::PoseGraph>(carat::make_synthetic_pose_graph(options).graph);
+  const auto synthetic =
+      std::make_shared<carat::PoseGraph>(carat::make_synthetic_pose_graph(options).graph);
   benchmark::RegisterBenchmark("posegraph/synthetic_city_2000/auto",
-                               [synthetic](benchmark::State& state) { solve_graph(state, *synthetic, carat::Ordering::kAuto); })
+                               [synthetic](benchmark::State& state) {
+                                 solve_graph(state, *synthetic, carat::Ordering::kAuto);
+                               })
       ->Unit(benchmark::kMillisecond)
       ->UseRealTime();
   for (const char* name : {"sphere2500", "parking-garage", "torus3D"}) register_file(name);

@@ -2,10 +2,10 @@
 // preprocess one scan (0.25 m voxels, k-d tree, k = 10 covariances), align 000001 onto 000000
 // (GICP, 1 m), and both, with 1 and 2 threads. Anchor (small_gicp on this kind of machine,
 // same settings): preprocess ~39 ms, align ~44 ms, ~83 ms per scan with 1 thread, ~50 ms with 2.
+#include <benchmark/benchmark.h>
+
 #include <filesystem>
 #include <memory>
-
-#include <benchmark/benchmark.h>
 
 #include "carat/registration/align.hpp"
 #include "carat/registration/covariance.hpp"
@@ -41,25 +41,30 @@ void BM_Preprocess(benchmark::State& state) {
 
 void BM_Align(benchmark::State& state) {
   const int threads = static_cast<int>(state.range(0));
-  const Scan target = preprocess(carat::read_kitti_bin(kDir / "000000.bin", carat::KittiFormat::kXyz), threads);
-  const Scan source = preprocess(carat::read_kitti_bin(kDir / "000001.bin", carat::KittiFormat::kXyz), threads);
+  const Scan target =
+      preprocess(carat::read_kitti_bin(kDir / "000000.bin", carat::KittiFormat::kXyz), threads);
+  const Scan source =
+      preprocess(carat::read_kitti_bin(kDir / "000001.bin", carat::KittiFormat::kXyz), threads);
   carat::AlignSettings settings;
   settings.num_threads = threads;
   for (auto _ : state) {
-    const auto result = carat::align(*target.cloud, *target.tree, *source.cloud, Eigen::Isometry3d::Identity(), settings);
+    const auto result = carat::align(*target.cloud, *target.tree, *source.cloud,
+                                     Eigen::Isometry3d::Identity(), settings);
     benchmark::DoNotOptimize(result.error);
   }
 }
 
 void BM_PerScan(benchmark::State& state) {
   const int threads = static_cast<int>(state.range(0));
-  const Scan target = preprocess(carat::read_kitti_bin(kDir / "000000.bin", carat::KittiFormat::kXyz), threads);
+  const Scan target =
+      preprocess(carat::read_kitti_bin(kDir / "000000.bin", carat::KittiFormat::kXyz), threads);
   const auto raw = carat::read_kitti_bin(kDir / "000001.bin", carat::KittiFormat::kXyz);
   carat::AlignSettings settings;
   settings.num_threads = threads;
   for (auto _ : state) {
     const Scan source = preprocess(raw, threads);
-    const auto result = carat::align(*target.cloud, *target.tree, *source.cloud, Eigen::Isometry3d::Identity(), settings);
+    const auto result = carat::align(*target.cloud, *target.tree, *source.cloud,
+                                     Eigen::Isometry3d::Identity(), settings);
     benchmark::DoNotOptimize(result.error);
   }
 }
@@ -69,8 +74,14 @@ void BM_PerScan(benchmark::State& state) {
 int main(int argc, char** argv) {
   if (std::filesystem::exists(kDir / "000000.bin")) {
     for (auto* fn : {&BM_Preprocess, &BM_Align, &BM_PerScan}) {
-      const char* name = fn == &BM_Preprocess ? "BM_Preprocess" : fn == &BM_Align ? "BM_Align" : "BM_PerScan";
-      benchmark::RegisterBenchmark(name, fn)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+      const char* name = fn == &BM_Preprocess ? "BM_Preprocess"
+                         : fn == &BM_Align    ? "BM_Align"
+                                              : "BM_PerScan";
+      benchmark::RegisterBenchmark(name, fn)
+          ->Arg(1)
+          ->Arg(2)
+          ->Unit(benchmark::kMillisecond)
+          ->UseRealTime();
     }
   }
   benchmark::Initialize(&argc, argv);

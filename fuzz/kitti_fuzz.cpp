@@ -1,11 +1,12 @@
 // Fuzzes the KITTI .bin reader (both record layouts) through a scratch file: any input must
 // read or throw carat::Error.
+#include <unistd.h>
+
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
 #include <string>
-#include <unistd.h>
 
 #include "carat/registration/kitti_io.hpp"
 #include "carat/registration/voxel_grid.hpp"
@@ -13,7 +14,8 @@
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   static const std::filesystem::path path =
-      std::filesystem::temp_directory_path() / ("carat_kitti_fuzz_" + std::to_string(getpid()) + ".bin");
+      std::filesystem::temp_directory_path() /
+      ("carat_kitti_fuzz_" + std::to_string(getpid()) + ".bin");
   {
     std::ofstream out(path, std::ios::binary | std::ios::trunc);
     out.write(reinterpret_cast<const char*>(data), static_cast<std::streamsize>(size));

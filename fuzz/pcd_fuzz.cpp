@@ -1,17 +1,18 @@
 // Fuzzes the PCD reader through a scratch file: any input must read or throw carat::Error.
+#include <unistd.h>
+
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
 #include <string>
-#include <unistd.h>
 
 #include "carat/registration/point_cloud_io.hpp"
 #include "carat/solver/error.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
-  static const std::filesystem::path path =
-      std::filesystem::temp_directory_path() / ("carat_pcd_fuzz_" + std::to_string(getpid()) + ".pcd");
+  static const std::filesystem::path path = std::filesystem::temp_directory_path() /
+                                            ("carat_pcd_fuzz_" + std::to_string(getpid()) + ".pcd");
   {
     std::ofstream out(path, std::ios::binary | std::ios::trunc);
     out.write(reinterpret_cast<const char*>(data), static_cast<std::streamsize>(size));

@@ -1,12 +1,12 @@
 // The exact coreset: exactness (relative error) over sizes, dimensions, scales and degenerate
 // data; output sizes; determinism; the generic Caratheodory; compressed blocks (both poses of
 // a binary block exact with 29 rows, re-evaluation at a moved point); random sampling; errors.
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <numeric>
 #include <random>
 #include <tuple>
-
-#include <gtest/gtest.h>
 
 #include "carat/coreset/caratheodory.hpp"
 #include "carat/coreset/compress.hpp"
@@ -37,7 +37,8 @@ Rows random_rows(long n, int d, double scale, std::uint64_t seed) {
 }
 
 QuadraticModelError coreset_error(const Rows& rows, const RowCoreset& coreset) {
-  return relative_error(quadratic_model(rows.J, rows.e), quadratic_model(rows.J, rows.e, coreset.rows, coreset.weights));
+  return relative_error(quadratic_model(rows.J, rows.e),
+                        quadratic_model(rows.J, rows.e, coreset.rows, coreset.weights));
 }
 
 // (N, M (0 = minimum), K, D, scale, seed)
@@ -67,13 +68,14 @@ TEST_P(CoresetProperty, ExactAndOfTheRequestedSize) {
 
 INSTANTIATE_TEST_SUITE_P(
     Sizes, CoresetProperty,
-    ::testing::Values(Case{29, 0, 64, 6, 1.0, 1}, Case{30, 0, 64, 6, 1.0, 2}, Case{100, 0, 64, 6, 1.0, 3},
-                      Case{1000, 0, 64, 6, 1.0, 4}, Case{30000, 0, 64, 6, 1.0, 5},
-                      Case{30000, 64, 64, 6, 1.0, 6}, Case{30000, 256, 64, 6, 1.0, 7},
-                      Case{30000, 1024, 64, 6, 1.0, 8}, Case{20000, 0, 40, 6, 1.0, 9},
-                      Case{30000, 0, 64, 6, 1e-6, 10}, Case{30000, 0, 64, 6, 1e6, 11},
-                      Case{5000, 0, 128, 12, 1.0, 12}, Case{5000, 200, 128, 12, 1e3, 13},
-                      Case{3000, 0, 16, 2, 1.0, 14}, Case{1000000, 0, 64, 6, 1.0, 15}));
+    ::testing::Values(Case{29, 0, 64, 6, 1.0, 1}, Case{30, 0, 64, 6, 1.0, 2},
+                      Case{100, 0, 64, 6, 1.0, 3}, Case{1000, 0, 64, 6, 1.0, 4},
+                      Case{30000, 0, 64, 6, 1.0, 5}, Case{30000, 64, 64, 6, 1.0, 6},
+                      Case{30000, 256, 64, 6, 1.0, 7}, Case{30000, 1024, 64, 6, 1.0, 8},
+                      Case{20000, 0, 40, 6, 1.0, 9}, Case{30000, 0, 64, 6, 1e-6, 10},
+                      Case{30000, 0, 64, 6, 1e6, 11}, Case{5000, 0, 128, 12, 1.0, 12},
+                      Case{5000, 200, 128, 12, 1e3, 13}, Case{3000, 0, 16, 2, 1.0, 14},
+                      Case{1000000, 0, 64, 6, 1.0, 15}));
 
 TEST(CoresetTest, DegenerateData) {
   // Rank-deficient J (a repeated column and a zero column), e = 0, and outliers.
@@ -145,7 +147,8 @@ TEST(CoresetTest, BadInputIsAClearError) {
   options = {};
   options.clusters = 20;
   expect_error([&] { select_coreset_rows(rows.J, rows.e, options); },
-               "coreset: 20 clusters cannot make progress for reduced dimension 6 (lifted dimension 28); use at least 30");
+               "coreset: 20 clusters cannot make progress for reduced dimension 6 (lifted "
+               "dimension 28); use at least 30");
   rows.J(123, 2) = std::nan("");
   expect_error([&] { select_coreset_rows(rows.J, rows.e); },
                "coreset: row 123 has a non-finite residual or Jacobian entry");
@@ -154,7 +157,8 @@ TEST(CoresetTest, BadInputIsAClearError) {
   expect_error([&] { select_coreset_rows(rows.J, rows.e); },
                "coreset: row 400 has a non-finite residual or Jacobian entry");
   const Eigen::VectorXd short_e = Eigen::VectorXd::Zero(10);
-  expect_error([&] { select_coreset_rows(rows.J, short_e); }, "coreset: 500 Jacobian rows but 10 residuals");
+  expect_error([&] { select_coreset_rows(rows.J, short_e); },
+               "coreset: 500 Jacobian rows but 10 residuals");
 }
 
 TEST(CaratheodoryTest, KeepsTheWeightedSumWithAtMostLPlusOnePoints) {
@@ -183,12 +187,18 @@ TEST(CaratheodoryTest, KeepsTheWeightedSumWithAtMostLPlusOnePoints) {
     EXPECT_NEAR(mass, wv.sum(), 1e-12 * wv.sum());
   }
   Eigen::MatrixXd P = Eigen::MatrixXd::Ones(3, 4);
-  expect_error([&] { caratheodory(P, std::vector<double>{1, -1, 1, 1}); },
-               "caratheodory: weight 1 is -1.000000; weights must be finite and > 0");
+  expect_error(
+      [&] {
+        caratheodory(P, std::vector<double>{1, -1, 1, 1});
+      },
+      "caratheodory: weight 1 is -1.000000; weights must be finite and > 0");
   CaratheodoryOptions few;
   few.clusters = 4;
-  expect_error([&] { fast_caratheodory(P, std::vector<double>{1, 1, 1, 1}, few); },
-               "fast_caratheodory: 4 clusters cannot make progress in dimension 3; use at least 5");
+  expect_error(
+      [&] {
+        fast_caratheodory(P, std::vector<double>{1, 1, 1, 1}, few);
+      },
+      "fast_caratheodory: 4 clusters cannot make progress in dimension 3; use at least 5");
 }
 
 /// A random point-to-plane block between two poses and its values.
@@ -275,8 +285,10 @@ TEST(CompressTest, ReevaluationAtAMovedPointIsTheWeightedSubset) {
   evaluate_full_jacobian(*problem.block, moved_params, &r_direct, &J_direct);
   for (std::size_t k = 0; k < reference.rows.size(); ++k) {
     const double s = std::sqrt(reference.weights[k]);
-    EXPECT_NEAR(r[static_cast<Eigen::Index>(k)], s * r_direct[reference.rows[k]], 1e-12 * (1 + std::abs(r[static_cast<Eigen::Index>(k)])));
-    EXPECT_LT((J.row(static_cast<Eigen::Index>(k)) - s * J_direct.row(reference.rows[k])).norm(), 1e-11 * (1 + J.row(static_cast<Eigen::Index>(k)).norm()));
+    EXPECT_NEAR(r[static_cast<Eigen::Index>(k)], s * r_direct[reference.rows[k]],
+                1e-12 * (1 + std::abs(r[static_cast<Eigen::Index>(k)])));
+    EXPECT_LT((J.row(static_cast<Eigen::Index>(k)) - s * J_direct.row(reference.rows[k])).norm(),
+              1e-11 * (1 + J.row(static_cast<Eigen::Index>(k)).norm()));
   }
 }
 
@@ -292,8 +304,9 @@ TEST(CompressTest, RandomSamplingKeepsWholeGroups) {
   EXPECT_EQ(std::vector<double>(sampled->weights().begin(), sampled->weights().end()),
             std::vector<double>(again->weights().begin(), again->weights().end()));
   options.target_rows = 31;
-  expect_error([&] { compress_random(problem.block, options); },
-               "compress_random: target of 31 rows must be a positive multiple of the group size 3");
+  expect_error(
+      [&] { compress_random(problem.block, options); },
+      "compress_random: target of 31 rows must be a positive multiple of the group size 3");
   options.target_rows = 30;
   options.group_size = 7;
   expect_error([&] { compress_random(problem.block, options); },
@@ -302,10 +315,16 @@ TEST(CompressTest, RandomSamplingKeepsWholeGroups) {
 
 TEST(CompressTest, CompressedBlockValidatesItsRows) {
   PlaneProblem problem = make_plane_problem(10, 61);
-  expect_error([&] { CompressedBlock(problem.block, {0, 11}, {1.0, 1.0}); },
-               "CompressedBlock: row 11 is out of range (block has 10 rows)");
-  expect_error([&] { CompressedBlock(problem.block, {0, 1}, {1.0, 0.0}); },
-               "CompressedBlock: weight 1 is 0.000000; weights must be finite and > 0");
+  expect_error(
+      [&] {
+        CompressedBlock(problem.block, {0, 11}, {1.0, 1.0});
+      },
+      "CompressedBlock: row 11 is out of range (block has 10 rows)");
+  expect_error(
+      [&] {
+        CompressedBlock(problem.block, {0, 1}, {1.0, 0.0});
+      },
+      "CompressedBlock: weight 1 is 0.000000; weights must be finite and > 0");
 }
 
 }  // namespace

@@ -3,11 +3,10 @@
 // A binary registration-style block for the coreset tests: point-to-plane rows
 // r_k = n_k . (T_ij p_k - q_k) with T_ij = T_i^-1 T_j, reduced to the 6-D tangent of T_ij.
 
+#include <Eigen/Geometry>
 #include <array>
 #include <memory>
 #include <vector>
-
-#include <Eigen/Geometry>
 
 #include "carat/solver/residual_block.hpp"
 #include "carat/solver/se3.hpp"
@@ -17,7 +16,8 @@ namespace carat::test {
 
 class PlaneBlock final : public ResidualBlock {
  public:
-  PlaneBlock(std::vector<Eigen::Vector3d> p, std::vector<Eigen::Vector3d> q, std::vector<Eigen::Vector3d> n)
+  PlaneBlock(std::vector<Eigen::Vector3d> p, std::vector<Eigen::Vector3d> q,
+             std::vector<Eigen::Vector3d> n)
       : p_(std::move(p)), q_(std::move(q)), n_(std::move(n)) {}
 
   int num_rows() const override { return static_cast<int>(p_.size()); }

@@ -1,9 +1,9 @@
 // Point-to-point and point-to-plane blocks: numeric Jacobians for both poses, row extraction,
 // exact compression, bad input.
+#include <gtest/gtest.h>
+
 #include <numeric>
 #include <random>
-
-#include <gtest/gtest.h>
 
 #include "carat/coreset/compress.hpp"
 #include "carat/residuals/point_to_plane_block.hpp"
@@ -28,7 +28,8 @@ Data make_data(int n, std::uint64_t seed, double motion) {
   Data d;
   for (int k = 0; k < n; ++k) {
     d.source.emplace_back(10 * normal(rng), 10 * normal(rng), normal(rng));
-    d.target.push_back(d.source.back() + 0.2 * Eigen::Vector3d(normal(rng), normal(rng), normal(rng)));
+    d.target.push_back(d.source.back() +
+                       0.2 * Eigen::Vector3d(normal(rng), normal(rng), normal(rng)));
     d.normal.emplace_back(normal(rng), normal(rng), normal(rng));
   }
   se3::Vector6d a, b;
@@ -63,7 +64,8 @@ TEST(PointBlocksTest, ExtractedRowsAndExactCompression) {
   const double* params[2] = {d.pose_i, d.pose_j};
   auto p2p = std::make_shared<PointToPointBlock>(d.target, d.source);
   auto p2l = std::make_shared<PointToPlaneBlock>(d.target, d.normal, d.source);
-  for (const std::shared_ptr<const ResidualBlock>& block : {std::shared_ptr<const ResidualBlock>(p2p), std::shared_ptr<const ResidualBlock>(p2l)}) {
+  for (const std::shared_ptr<const ResidualBlock>& block :
+       {std::shared_ptr<const ResidualBlock>(p2p), std::shared_ptr<const ResidualBlock>(p2l)}) {
     const std::vector<int> rows = {7, 1, 2, 999};
     const auto extracted = block->extract_rows(rows);
     Eigen::VectorXd r1(4), r2(4);

@@ -1,11 +1,11 @@
 // Pose-graph residuals and g2o I/O: analytic Jacobians against numeric ones, parser errors,
 // round trips, and end-to-end solves (synthetic city-block graph always, smallGrid3D when the
 // real data is present).
+#include <gtest/gtest.h>
+
 #include <fstream>
 #include <random>
 #include <sstream>
-
-#include <gtest/gtest.h>
 
 #include "carat/residuals/g2o_io.hpp"
 #include "carat/residuals/pose_graph.hpp"
@@ -61,7 +61,8 @@ TEST(RelativePoseBlockTest, ZeroAtTheMeasurementAndMatchesWhitening) {
   se3::to_storage(T_i * T_i_j, xj);
   const double* params[2] = {xi, xj};
   EXPECT_LT(block.squared_norm(params), 1e-24);
-  EXPECT_LT((block.sqrt_information().transpose() * block.sqrt_information() - info).norm(), 1e-9 * info.norm());
+  EXPECT_LT((block.sqrt_information().transpose() * block.sqrt_information() - info).norm(),
+            1e-9 * info.norm());
 }
 
 TEST(PosePriorBlockTest, JacobianMatchesNumeric) {
@@ -94,7 +95,8 @@ TEST(JacobianCheckerTest, CatchesAWrongJacobian) {
    public:
     int num_rows() const override { return 1; }
     std::span<const int> tangent_dims() const override { return dims_; }
-    void evaluate_rows(ParameterPointers p, std::span<const int> rows, double* r, double* J) const override {
+    void evaluate_rows(ParameterPointers p, std::span<const int> rows, double* r,
+                       double* J) const override {
       for (std::size_t k = 0; k < rows.size(); ++k) {
         r[k] = p[0][0] * p[0][0] + p[0][1];
         if (J) {
@@ -138,18 +140,28 @@ TEST(G2oTest, MalformedFilesNameTheLineAndTheProblem) {
   const std::string v0 = "VERTEX_SE3:QUAT 0 0 0 0 0 0 0 1\n";
   const std::string v1 = "VERTEX_SE3:QUAT 1 1 0 0 0 0 0 1\n";
   expect_parse_error("", "graph.g2o: no VERTEX_SE3:QUAT records (empty or not a 3D g2o file)");
-  expect_parse_error(v0 + edge_line("0 2", kIdentityInfo), "graph.g2o:2: edge names vertex 2, which is not defined");
-  expect_parse_error(v0 + "VERTEX_SE3:QUAT 1 0 0 0 0 0 1\n", "graph.g2o:2: VERTEX_SE3:QUAT needs 8 numbers, found 7");
+  expect_parse_error(v0 + edge_line("0 2", kIdentityInfo),
+                     "graph.g2o:2: edge names vertex 2, which is not defined");
+  expect_parse_error(v0 + "VERTEX_SE3:QUAT 1 0 0 0 0 0 1\n",
+                     "graph.g2o:2: VERTEX_SE3:QUAT needs 8 numbers, found 7");
   expect_parse_error(v0 + "VERTEX_SE3:QUAT 1 0 nan 0 0 0 0 1\n", "graph.g2o:2: y is not finite");
-  expect_parse_error(v0 + "VERTEX_SE3:QUAT 1 0 abc 0 0 0 0 1\n", "graph.g2o:2: cannot read y from 'abc'");
-  expect_parse_error(v0 + "VERTEX_SE3:QUAT 1 0 0 0 0 0 0 0\n", "graph.g2o:2: quaternion has zero length");
+  expect_parse_error(v0 + "VERTEX_SE3:QUAT 1 0 abc 0 0 0 0 1\n",
+                     "graph.g2o:2: cannot read y from 'abc'");
+  expect_parse_error(v0 + "VERTEX_SE3:QUAT 1 0 0 0 0 0 0 0\n",
+                     "graph.g2o:2: quaternion has zero length");
   expect_parse_error(v0 + v0, "graph.g2o:2: vertex 0 was already defined on line 1");
-  expect_parse_error(v0 + v1 + edge_line("0 1", "1 0 0 0 0 0 1 0 0 0 0 1 0 0 0 -1 0 0 1 0 1"),
-                     "graph.g2o:3: information matrix: information matrix is not positive definite");
-  expect_parse_error(v0 + v1 + "EDGE_SE3:QUAT 0 1 1 0 0 0 0 0 1 1 0 0\n", "graph.g2o:3: EDGE_SE3:QUAT needs 30 numbers, found 12");
-  expect_parse_error(v0 + "PARAMS_SE3OFFSET 0 0 0 0 0 0 0 1\n", "graph.g2o:2: unknown record 'PARAMS_SE3OFFSET'");
-  expect_parse_error("VERTEX_SE2 0 0 0 0\n", "graph.g2o:1: 2D records (VERTEX_SE2) are not supported; carat reads 3D graphs (VERTEX_SE3:QUAT / EDGE_SE3:QUAT)");
-  expect_parse_error(v0 + v1 + edge_line("1 1", kIdentityInfo), "graph.g2o:3: edge joins vertex 1 to itself");
+  expect_parse_error(
+      v0 + v1 + edge_line("0 1", "1 0 0 0 0 0 1 0 0 0 0 1 0 0 0 -1 0 0 1 0 1"),
+      "graph.g2o:3: information matrix: information matrix is not positive definite");
+  expect_parse_error(v0 + v1 + "EDGE_SE3:QUAT 0 1 1 0 0 0 0 0 1 1 0 0\n",
+                     "graph.g2o:3: EDGE_SE3:QUAT needs 30 numbers, found 12");
+  expect_parse_error(v0 + "PARAMS_SE3OFFSET 0 0 0 0 0 0 0 1\n",
+                     "graph.g2o:2: unknown record 'PARAMS_SE3OFFSET'");
+  expect_parse_error("VERTEX_SE2 0 0 0 0\n",
+                     "graph.g2o:1: 2D records (VERTEX_SE2) are not supported; carat reads 3D "
+                     "graphs (VERTEX_SE3:QUAT / EDGE_SE3:QUAT)");
+  expect_parse_error(v0 + v1 + edge_line("1 1", kIdentityInfo),
+                     "graph.g2o:3: edge joins vertex 1 to itself");
   expect_parse_error(v0 + "FIX 3\n", "graph.g2o: FIX names vertex 3, which is not defined");
 }
 
@@ -175,14 +187,18 @@ TEST(G2oTest, WriteReadRoundTripIsExact) {
   ASSERT_EQ(back.edges.size(), synthetic.graph.edges.size());
   EXPECT_EQ(back.fixed, synthetic.graph.fixed);
   for (std::size_t i = 0; i < back.vertices.size(); ++i) {
-    EXPECT_LT((back.vertices[i].T_world_vertex.matrix() - synthetic.graph.vertices[i].T_world_vertex.matrix()).norm(), 1e-14);
+    EXPECT_LT((back.vertices[i].T_world_vertex.matrix() -
+               synthetic.graph.vertices[i].T_world_vertex.matrix())
+                  .norm(),
+              1e-14);
   }
   for (std::size_t i = 0; i < back.edges.size(); ++i) {
     EXPECT_EQ(back.edges[i].information, synthetic.graph.edges[i].information);
   }
   // No temporary file is left next to the output.
   int files = 0;
-  for ([[maybe_unused]] const auto& entry : std::filesystem::directory_iterator(path.parent_path())) ++files;
+  for ([[maybe_unused]] const auto& entry : std::filesystem::directory_iterator(path.parent_path()))
+    ++files;
   EXPECT_EQ(files, 1);
 }
 
@@ -200,7 +216,8 @@ TEST(PoseGraphTest, SyntheticCityBlockIsRecovered) {
   const double after = position_rmse(synthetic.graph, synthetic.T_world_truth);
   EXPECT_LT(after, 0.5 * before);
   // At the optimum the cost is about half the chi-square degrees of freedom.
-  const double dof = static_cast<double>(summary.num_residual_rows) - summary.num_tangent_parameters;
+  const double dof =
+      static_cast<double>(summary.num_residual_rows) - summary.num_tangent_parameters;
   EXPECT_NEAR(summary.final_cost, 0.5 * dof, 0.2 * 0.5 * dof);
 }
 

@@ -1,7 +1,7 @@
 // Property tests for SO(3)/SE(3) and the manifolds (manif/Sophus style).
-#include <random>
-
 #include <gtest/gtest.h>
+
+#include <random>
 
 #include "carat/solver/error.hpp"
 #include "carat/solver/manifold.hpp"
@@ -21,7 +21,8 @@ class LieTest : public ::testing::TestWithParam<double> {
   se3::Vector6d random_tangent() {
     se3::Vector6d xi;
     xi.head<3>() = random_rotation_vector();
-    xi.tail<3>() = Eigen::Vector3d(normal_(rng_), normal_(rng_), normal_(rng_)) * (1.0 + GetParam());
+    xi.tail<3>() =
+        Eigen::Vector3d(normal_(rng_), normal_(rng_), normal_(rng_)) * (1.0 + GetParam());
     return xi;
   }
   std::mt19937_64 rng_{42};
@@ -65,7 +66,10 @@ TEST_P(LieTest, RightJacobianMatchesCentralDifferences) {
       numeric.col(k) = (plus - minus) / (2 * h);
     }
     EXPECT_LT((so3::right_jacobian(w) - numeric).norm(), 1e-8);
-    EXPECT_LT((so3::right_jacobian_inverse(w) * so3::right_jacobian(w) - Eigen::Matrix3d::Identity()).norm(), 1e-12);
+    EXPECT_LT(
+        (so3::right_jacobian_inverse(w) * so3::right_jacobian(w) - Eigen::Matrix3d::Identity())
+            .norm(),
+        1e-12);
   }
 }
 
@@ -100,7 +104,8 @@ TEST_P(LieTest, Se3ManifoldPlusMinusInverse) {
 TEST_P(LieTest, So3ManifoldPlusMinusInverse) {
   const SO3Manifold m;
   for (int trial = 0; trial < 30; ++trial) {
-    const Eigen::Quaterniond q = so3::exp(random_rotation_vector() + Eigen::Vector3d(0.3, -0.2, 0.1));
+    const Eigen::Quaterniond q =
+        so3::exp(random_rotation_vector() + Eigen::Vector3d(0.3, -0.2, 0.1));
     double x[4] = {q.x(), q.y(), q.z(), q.w()};
     const Eigen::Vector3d w = random_rotation_vector();
     if (w.norm() >= M_PI - 1e-6) continue;

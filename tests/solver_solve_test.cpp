@@ -1,17 +1,18 @@
 // The solver: problem validation, LM/GN on problems with known optima, robust losses,
 // constant variables, determinism across thread counts, indefinite systems, the sparse
 // assembly against a dense reference.
+#include "carat/solver/solve.hpp"
+
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <memory>
 #include <random>
-
-#include <gtest/gtest.h>
 
 #include "../solver/src/block_evaluator.hpp"
 #include "../solver/src/sparse_system.hpp"
 #include "carat/solver/error.hpp"
 #include "carat/solver/problem.hpp"
-#include "carat/solver/solve.hpp"
 #include "solver_test_blocks.hpp"
 
 namespace carat {
@@ -81,7 +82,8 @@ RandomLinear make_random_linear(int n, std::uint64_t seed) {
 
 TEST(SolveTest, LinearLeastSquaresReachesTheDenseSolution) {
   RandomLinear lin = make_random_linear(40, 7);
-  const Eigen::VectorXd expected = (lin.J.transpose() * lin.J).ldlt().solve(lin.J.transpose() * lin.y);
+  const Eigen::VectorXd expected =
+      (lin.J.transpose() * lin.J).ldlt().solve(lin.J.transpose() * lin.y);
   for (Method method : {Method::kLevenbergMarquardt, Method::kGaussNewton}) {
     Problem problem = lin.problem;
     SolverOptions options;
@@ -93,7 +95,8 @@ TEST(SolveTest, LinearLeastSquaresReachesTheDenseSolution) {
     const auto x = problem.all_values();
     const Eigen::Map<const Eigen::VectorXd> xv(x.data(), static_cast<Eigen::Index>(x.size()));
     EXPECT_LT((xv - expected).norm() / expected.norm(), 1e-8) << summary.full_report();
-    EXPECT_NEAR(summary.final_cost, 0.5 * (lin.J * expected - lin.y).squaredNorm(), 1e-9 * summary.final_cost);
+    EXPECT_NEAR(summary.final_cost, 0.5 * (lin.J * expected - lin.y).squaredNorm(),
+                1e-9 * summary.final_cost);
   }
 }
 
@@ -114,7 +117,8 @@ TEST(SolveTest, AssemblyMatchesDenseNormalEquations) {
     ASSERT_TRUE(system.factorize(Eigen::VectorXd::Zero(system.size())));
     Eigen::VectorXd delta;
     system.solve(-gradient, &delta);
-    const Eigen::VectorXd expected = (lin.J.transpose() * lin.J).ldlt().solve(lin.J.transpose() * lin.y);
+    const Eigen::VectorXd expected =
+        (lin.J.transpose() * lin.J).ldlt().solve(lin.J.transpose() * lin.y);
     Eigen::VectorXd x(expected.size());
     Eigen::VectorXd g_dense = -lin.J.transpose() * lin.y;  // gradient J^T r at x = 0
     Eigen::VectorXd g_perm(expected.size());
@@ -153,7 +157,8 @@ TEST(SolveTest, ConstantVariablesDoNotMove) {
   const VariableId a = problem.add_euclidean(Eigen::Vector2d(1.0, 2.0));
   const VariableId b = problem.add_euclidean(Eigen::Vector2d(0.0, 0.0));
   // r = b - a - (3, 4): with a fixed, b must become a + (3, 4).
-  std::vector<Eigen::MatrixXd> A = {-Eigen::MatrixXd::Identity(2, 2), Eigen::MatrixXd::Identity(2, 2)};
+  std::vector<Eigen::MatrixXd> A = {-Eigen::MatrixXd::Identity(2, 2),
+                                    Eigen::MatrixXd::Identity(2, 2)};
   problem.add_residual_block(std::make_shared<LinearBlock>(A, Eigen::Vector2d(3.0, 4.0)), {a, b});
   problem.set_constant(a);
   SolverOptions options;
@@ -185,13 +190,15 @@ TEST(SolveTest, RobustLossesDownweightAnOutlier) {
     Problem problem;
     const VariableId m = problem.add_euclidean(Eigen::VectorXd::Constant(1, 0.0));
     for (int i = 0; i < 10; ++i) {
-      problem.add_residual_block(std::make_shared<LinearBlock>(std::vector<Eigen::MatrixXd>{Eigen::MatrixXd::Ones(1, 1)},
-                                                               Eigen::VectorXd::Constant(1, 1.0 + 0.01 * (i - 4.5))),
-                                 {m}, loss);
+      problem.add_residual_block(
+          std::make_shared<LinearBlock>(std::vector<Eigen::MatrixXd>{Eigen::MatrixXd::Ones(1, 1)},
+                                        Eigen::VectorXd::Constant(1, 1.0 + 0.01 * (i - 4.5))),
+          {m}, loss);
     }
-    problem.add_residual_block(std::make_shared<LinearBlock>(std::vector<Eigen::MatrixXd>{Eigen::MatrixXd::Ones(1, 1)},
-                                                             Eigen::VectorXd::Constant(1, 100.0)),
-                               {m}, loss);
+    problem.add_residual_block(
+        std::make_shared<LinearBlock>(std::vector<Eigen::MatrixXd>{Eigen::MatrixXd::Ones(1, 1)},
+                                      Eigen::VectorXd::Constant(1, 100.0)),
+        {m}, loss);
     SolverOptions options;
     options.max_iterations = 200;
     options.function_tolerance = 1e-15;
@@ -208,7 +215,8 @@ TEST(SolveTest, RobustLossesDownweightAnOutlier) {
 TEST(LossTest, DerivativesMatchFiniteDifferences) {
   const HuberLoss huber(0.7);
   const CauchyLoss cauchy(1.3);
-  for (const LossFunction* loss : {static_cast<const LossFunction*>(&huber), static_cast<const LossFunction*>(&cauchy)}) {
+  for (const LossFunction* loss :
+       {static_cast<const LossFunction*>(&huber), static_cast<const LossFunction*>(&cauchy)}) {
     for (double s : {0.01, 0.3, 0.45, 0.6, 2.0, 50.0}) {  // away from Huber's kink at 0.49
       const double h = 1e-6 * std::max(1.0, s);
       const LossValue v = loss->evaluate(s);
@@ -246,7 +254,8 @@ TEST(SolveTest, BitIdenticalAcrossThreadCounts) {
     }
     EXPECT_EQ(summary.final_cost, reference_cost) << threads << " threads";
     ASSERT_EQ(values.size(), reference.size());
-    for (std::size_t i = 0; i < values.size(); ++i) ASSERT_EQ(values[i], reference[i]) << "value " << i << ", " << threads << " threads";
+    for (std::size_t i = 0; i < values.size(); ++i)
+      ASSERT_EQ(values[i], reference[i]) << "value " << i << ", " << threads << " threads";
   }
 }
 
@@ -256,8 +265,10 @@ TEST(SolveTest, SingularSystemIsHandledAndReported) {
     Problem problem;
     const VariableId a = problem.add_euclidean(Eigen::Vector2d(0.0, 0.0));
     const VariableId b = problem.add_euclidean(Eigen::Vector2d(0.0, 0.0));
-    std::vector<Eigen::MatrixXd> A = {-Eigen::MatrixXd::Identity(2, 2), Eigen::MatrixXd::Identity(2, 2)};
-    problem.add_residual_block(std::make_shared<LinearBlock>(A, Eigen::Vector2d(1.0, -1.0)), {a, b});
+    std::vector<Eigen::MatrixXd> A = {-Eigen::MatrixXd::Identity(2, 2),
+                                      Eigen::MatrixXd::Identity(2, 2)};
+    problem.add_residual_block(std::make_shared<LinearBlock>(A, Eigen::Vector2d(1.0, -1.0)),
+                               {a, b});
     return problem;
   };
   {
@@ -285,9 +296,10 @@ TEST(SolveTest, SingularSystemIsHandledAndReported) {
 TEST(SolveTest, CauchyTailKeepsTheSystemUsable) {
   Problem problem;
   const VariableId m = problem.add_euclidean(Eigen::VectorXd::Constant(1, 50.0));
-  problem.add_residual_block(std::make_shared<LinearBlock>(std::vector<Eigen::MatrixXd>{Eigen::MatrixXd::Ones(1, 1)},
-                                                           Eigen::VectorXd::Constant(1, 0.0)),
-                             {m}, std::make_shared<CauchyLoss>(1.0));
+  problem.add_residual_block(
+      std::make_shared<LinearBlock>(std::vector<Eigen::MatrixXd>{Eigen::MatrixXd::Ones(1, 1)},
+                                    Eigen::VectorXd::Constant(1, 0.0)),
+      {m}, std::make_shared<CauchyLoss>(1.0));
   SolverOptions options;
   options.max_iterations = 500;
   const SolverSummary summary = solve(options, problem);
@@ -300,7 +312,8 @@ TEST(SolveTest, NonFiniteInitialCostIsAFailureThatKeepsTheValues) {
    public:
     int num_rows() const override { return 1; }
     std::span<const int> tangent_dims() const override { return dims_; }
-    void evaluate_rows(ParameterPointers, std::span<const int> rows, double* r, double* J) const override {
+    void evaluate_rows(ParameterPointers, std::span<const int> rows, double* r,
+                       double* J) const override {
       for (std::size_t k = 0; k < rows.size(); ++k) {
         r[k] = std::nan("");
         if (J) J[k] = 1.0;
@@ -339,7 +352,8 @@ TEST(SolverOptionsTest, ValidateNamesTheBadSetting) {
   problem.add_euclidean(Eigen::VectorXd::Zero(1));
   const SolverSummary summary = solve(options, problem);
   EXPECT_EQ(summary.termination, TerminationType::kFailure);
-  EXPECT_NE(summary.message.find("invalid options: initial_trust_region_radius"), std::string::npos);
+  EXPECT_NE(summary.message.find("invalid options: initial_trust_region_radius"),
+            std::string::npos);
 }
 
 TEST(ProblemTest, RejectsMismatchedBlocksWithClearMessages) {
@@ -351,13 +365,16 @@ TEST(ProblemTest, RejectsMismatchedBlocksWithClearMessages) {
     problem.add_residual_block(rosen, {a});
     FAIL() << "expected an error";
   } catch (const Error& e) {
-    EXPECT_STREQ(e.what(), "Problem::add_residual_block (block 0): variable 0 has tangent size 3 but the block expects 2");
+    EXPECT_STREQ(e.what(),
+                 "Problem::add_residual_block (block 0): variable 0 has tangent size 3 but the "
+                 "block expects 2");
   }
   try {
     problem.add_residual_block(rosen, {a, b});
     FAIL() << "expected an error";
   } catch (const Error& e) {
-    EXPECT_STREQ(e.what(), "Problem::add_residual_block (block 0): the block expects 1 variables, got 2");
+    EXPECT_STREQ(e.what(),
+                 "Problem::add_residual_block (block 0): the block expects 1 variables, got 2");
   }
   try {
     problem.add_residual_block(rosen, {VariableId{7}});
@@ -381,7 +398,8 @@ TEST(SummaryTest, ReportsContainTheTableAndTheBreakdown) {
   EXPECT_NE(full.find("Termination: CONVERGENCE"), std::string::npos);
   EXPECT_EQ(summary.iterations.size(), static_cast<std::size_t>(summary.num_iterations) + 1);
   const std::string json = summary.to_json();
-  for (const char* key : {"\"initial_cost\"", "\"final_cost\"", "\"iterations\"", "\"termination\"", "\"time_s\"", "\"time_breakdown\""}) {
+  for (const char* key : {"\"initial_cost\"", "\"final_cost\"", "\"iterations\"", "\"termination\"",
+                          "\"time_s\"", "\"time_breakdown\""}) {
     EXPECT_NE(json.find(key), std::string::npos) << key;
   }
 }

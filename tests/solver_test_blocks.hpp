@@ -2,10 +2,9 @@
 
 // Small residual blocks used by the solver tests.
 
+#include <Eigen/Core>
 #include <array>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "carat/solver/residual_block.hpp"
 
@@ -15,7 +14,8 @@ namespace carat::test {
 class LinearBlock final : public ResidualBlock {
  public:
   /// One matrix per variable (rows x dim_v), and the target y.
-  LinearBlock(std::vector<Eigen::MatrixXd> A, Eigen::VectorXd y) : A_(std::move(A)), y_(std::move(y)) {
+  LinearBlock(std::vector<Eigen::MatrixXd> A, Eigen::VectorXd y)
+      : A_(std::move(A)), y_(std::move(y)) {
     for (const auto& a : A_) dims_.push_back(static_cast<int>(a.cols()));
   }
   int num_rows() const override { return static_cast<int>(y_.size()); }
@@ -32,7 +32,9 @@ class LinearBlock final : public ResidualBlock {
       if (!jacobian) continue;
       int col = 0;
       for (const auto& a : A_) {
-        for (int c = 0; c < a.cols(); ++c) jacobian[k * static_cast<std::size_t>(D) + static_cast<std::size_t>(col++)] = a(rows[k], c);
+        for (int c = 0; c < a.cols(); ++c)
+          jacobian[k * static_cast<std::size_t>(D) + static_cast<std::size_t>(col++)] =
+              a(rows[k], c);
       }
     }
   }

@@ -19,10 +19,10 @@ std::filesystem::path scratch_dir(const std::string& name);
 }  // namespace carat::test
 
 /// Skips the current test when a real-data file or folder is absent.
-#define CARAT_REQUIRE_DATA(relative)                                              \
-  do {                                                                            \
-    if (!::carat::test::has_data(relative)) {                                     \
-      GTEST_SKIP() << "real data " << (relative) << " not found under "           \
-                   << ::carat::test::data_dir();                                  \
-    }                                                                             \
+#define CARAT_REQUIRE_DATA(relative)                                    \
+  do {                                                                  \
+    if (!::carat::test::has_data(relative)) {                           \
+      GTEST_SKIP() << "real data " << (relative) << " not found under " \
+                   << ::carat::test::data_dir();                        \
+    }                                                                   \
   } while (0)

@@ -1,4 +1,5 @@
-// carat align --target FILE --source FILE [--voxel 0.25] [--method gicp|point-to-plane|point-to-point]
+// carat align --target FILE --source FILE [--voxel 0.25] [--method
+// gicp|point-to-plane|point-to-point]
 //             [--max-distance 1.0] [--bin-format xyz|xyzi]
 //             [--threads T] [--json]
 // GICP scan matching of two KITTI .bin scans: prints T_target_source (4 x 4), iterations,
@@ -6,9 +7,8 @@
 #include <chrono>
 #include <cstdio>
 #include <memory>
-#include <string>
-
 #include <nlohmann/json.hpp>
+#include <string>
 
 #include "carat/registration/align.hpp"
 #include "carat/registration/covariance.hpp"
@@ -34,7 +34,9 @@ struct AlignArgs {
 
 int run_align(const AlignArgs& args) {
   using Clock = std::chrono::steady_clock;
-  const auto seconds = [](Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); };
+  const auto seconds = [](Clock::time_point t0) {
+    return std::chrono::duration<double>(Clock::now() - t0).count();
+  };
   for (const std::string& file : {args.target, args.source}) {
     if (file.size() < 4 || file.substr(file.size() - 4) != ".bin") {
       throw Error(file + ": unsupported file type (carat align reads KITTI .bin scans)");
@@ -52,7 +54,8 @@ int run_align(const AlignArgs& args) {
   PointCloud source = voxel_downsample(source_raw, args.voxel);
   for (const auto* cloud : {&target, &source}) {
     if (cloud->size() < 29) {
-      throw Error((cloud == &target ? args.target : args.source) + ": only " + std::to_string(cloud->size()) +
+      throw Error((cloud == &target ? args.target : args.source) + ": only " +
+                  std::to_string(cloud->size()) +
                   " points after downsampling (at least 29 are needed)");
     }
   }
@@ -68,7 +71,8 @@ int run_align(const AlignArgs& args) {
                     : args.method == "point-to-point" ? RegistrationMethod::kPointToPoint
                                                       : RegistrationMethod::kGicp;
   t0 = Clock::now();
-  const AlignResult result = align(target, target_tree, source, Eigen::Isometry3d::Identity(), settings);
+  const AlignResult result =
+      align(target, target_tree, source, Eigen::Isometry3d::Identity(), settings);
   const double align_s = seconds(t0);
   const Eigen::Matrix4d T = result.T_target_source.matrix();
   if (args.json) {
@@ -76,7 +80,8 @@ int run_align(const AlignArgs& args) {
     j["target"] = args.target;
     j["source"] = args.source;
     j["T_target_source"] = nlohmann::json::array();
-    for (int r = 0; r < 4; ++r) j["T_target_source"].push_back({T(r, 0), T(r, 1), T(r, 2), T(r, 3)});
+    for (int r = 0; r < 4; ++r)
+      j["T_target_source"].push_back({T(r, 0), T(r, 1), T(r, 2), T(r, 3)});
     j["iterations"] = result.iterations;
     j["error"] = result.error;
     j["converged"] = result.converged;
@@ -93,12 +98,16 @@ int run_align(const AlignArgs& args) {
     return 0;
   }
   std::printf("T_target_source =\n");
-  for (int r = 0; r < 4; ++r) std::printf("  % .9f % .9f % .9f % .9f\n", T(r, 0), T(r, 1), T(r, 2), T(r, 3));
+  for (int r = 0; r < 4; ++r)
+    std::printf("  % .9f % .9f % .9f % .9f\n", T(r, 0), T(r, 1), T(r, 2), T(r, 3));
   std::printf("iterations %d (%s), error %.6e, %d correspondences\n", result.iterations,
-              result.converged ? "converged" : "NOT converged", result.error, result.num_correspondences);
-  std::printf("points after %.2f m voxels: target %zu, source %zu\n", args.voxel, target.size(), source.size());
-  std::printf("time: read %.3f s, preprocess %.3f s, align %.3f s (search %.3f s, optimize %.3f s)\n", read_s,
-              preprocess_s, align_s, result.search_s, result.optimize_s);
+              result.converged ? "converged" : "NOT converged", result.error,
+              result.num_correspondences);
+  std::printf("points after %.2f m voxels: target %zu, source %zu\n", args.voxel, target.size(),
+              source.size());
+  std::printf(
+      "time: read %.3f s, preprocess %.3f s, align %.3f s (search %.3f s, optimize %.3f s)\n",
+      read_s, preprocess_s, align_s, result.search_s, result.optimize_s);
   return 0;
 }
 
@@ -109,14 +118,22 @@ void register_align(CLI::App& app, CommandRegistry& registry) {
   CLI::App* cmd = app.add_subcommand("align", "GICP scan matching of two KITTI .bin scans");
   cmd->add_option("--target", args->target, "target scan (.bin)")->required();
   cmd->add_option("--source", args->source, "source scan (.bin)")->required();
-  cmd->add_option("--voxel", args->voxel, "voxel size (m)")->check(CLI::PositiveNumber)->capture_default_str();
+  cmd->add_option("--voxel", args->voxel, "voxel size (m)")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
   cmd->add_option("--max-distance", args->max_distance, "max correspondence distance (m)")
-      ->check(CLI::PositiveNumber)->capture_default_str();
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
   cmd->add_option("--method", args->method, "registration error")
-      ->check(CLI::IsMember({"gicp", "point-to-plane", "point-to-point"}))->capture_default_str();
-  cmd->add_option("--bin-format", args->bin_format, "xyzi (16 bytes/point, KITTI) or xyz (12 bytes/point)")
-      ->check(CLI::IsMember({"xyz", "xyzi"}))->capture_default_str();
-  cmd->add_option("--threads", args->threads, "threads")->check(CLI::Range(1, 1024))->capture_default_str();
+      ->check(CLI::IsMember({"gicp", "point-to-plane", "point-to-point"}))
+      ->capture_default_str();
+  cmd->add_option("--bin-format", args->bin_format,
+                  "xyzi (16 bytes/point, KITTI) or xyz (12 bytes/point)")
+      ->check(CLI::IsMember({"xyz", "xyzi"}))
+      ->capture_default_str();
+  cmd->add_option("--threads", args->threads, "threads")
+      ->check(CLI::Range(1, 1024))
+      ->capture_default_str();
   cmd->add_flag("--json", args->json, "print one JSON object");
   registry.add(cmd, [args] { return run_align(*args); });
 }

@@ -7,11 +7,10 @@
 #include <chrono>
 #include <cstdio>
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <random>
 #include <string>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "carat/coreset/quadratic_model.hpp"
 #include "carat/coreset/row_coreset.hpp"
@@ -103,12 +102,12 @@ int run_coreset_check(const CoresetCheckArgs& args) {
     j["ratio_to_reference"] = ms / reference_ms;
     std::printf("%s\n", j.dump(2).c_str());
   } else {
-    std::printf("coreset of %ld x %d rows -> target %d (K = %d), %d trials\n", args.rows, args.dim, target,
-                args.clusters, args.trials);
+    std::printf("coreset of %ld x %d rows -> target %d (K = %d), %d trials\n", args.rows, args.dim,
+                target, args.clusters, args.trials);
     std::printf("  rows out           %ld .. %ld\n", rows_min, rows_max);
     std::printf("  max rel. error     H %.3e   b %.3e   c %.3e\n", worst.H, worst.b, worst.c);
-    std::printf("  median time        %.3f ms (Eigen H, b, c once: %.3f ms; ratio %.2f)\n", ms, reference_ms,
-                ms / reference_ms);
+    std::printf("  median time        %.3f ms (Eigen H, b, c once: %.3f ms; ratio %.2f)\n", ms,
+                reference_ms, ms / reference_ms);
   }
   return sink == 0.123456789 ? 3 : 0;  // keeps the reference from being optimized away
 }
@@ -117,15 +116,27 @@ int run_coreset_check(const CoresetCheckArgs& args) {
 
 void register_coreset_check(CLI::App& app, CommandRegistry& registry) {
   auto args = std::make_shared<CoresetCheckArgs>();
-  CLI::App* cmd = app.add_subcommand("coreset-check", "Check exactness and speed of the coreset on random rows");
-  cmd->add_option("--rows", args->rows, "rows N")->check(CLI::Range(1L, 100000000L))->capture_default_str();
+  CLI::App* cmd = app.add_subcommand("coreset-check",
+                                     "Check exactness and speed of the coreset on random rows");
+  cmd->add_option("--rows", args->rows, "rows N")
+      ->check(CLI::Range(1L, 100000000L))
+      ->capture_default_str();
   cmd->add_option("--target", args->target, "target rows M (0: the minimum, D(D+1)/2 + D + 2)")
-      ->check(CLI::Range(0, 100000000))->capture_default_str();
-  cmd->add_option("--clusters", args->clusters, "clusters K per level")->check(CLI::Range(2, 100000))->capture_default_str();
-  cmd->add_option("--dim", args->dim, "Jacobian columns D")->check(CLI::Range(1, 64))->capture_default_str();
-  cmd->add_option("--trials", args->trials, "random trials")->check(CLI::Range(1, 100000))->capture_default_str();
+      ->check(CLI::Range(0, 100000000))
+      ->capture_default_str();
+  cmd->add_option("--clusters", args->clusters, "clusters K per level")
+      ->check(CLI::Range(2, 100000))
+      ->capture_default_str();
+  cmd->add_option("--dim", args->dim, "Jacobian columns D")
+      ->check(CLI::Range(1, 64))
+      ->capture_default_str();
+  cmd->add_option("--trials", args->trials, "random trials")
+      ->check(CLI::Range(1, 100000))
+      ->capture_default_str();
   cmd->add_option("--seed", args->seed, "random seed")->capture_default_str();
-  cmd->add_option("--scale", args->scale, "scale of the random data")->check(CLI::PositiveNumber)->capture_default_str();
+  cmd->add_option("--scale", args->scale, "scale of the random data")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
   cmd->add_flag("--inexact-size", args->inexact_size, "allow fewer than --target rows");
   cmd->add_flag("--json", args->json, "print one JSON object");
   registry.add(cmd, [args] { return run_coreset_check(*args); });

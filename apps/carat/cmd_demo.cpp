@@ -2,9 +2,8 @@
 // closures), optimizes it and reports the solve and the trajectory error before and after.
 #include <cstdio>
 #include <memory>
-#include <string>
-
 #include <nlohmann/json.hpp>
+#include <string>
 
 #include "carat/residuals/pose_graph.hpp"
 #include "carat/residuals/synthetic_pose_graph.hpp"
@@ -69,9 +68,12 @@ void register_demo(CLI::App& app, CommandRegistry& registry) {
   auto args = std::make_shared<DemoArgs>();
   CLI::App* cmd = app.add_subcommand("demo", "Run the main job on the built-in synthetic world");
   cmd->add_option("--frames", args->frames, "number of poses")
-      ->check(CLI::Range(16, 1000000))->capture_default_str();
+      ->check(CLI::Range(16, 1000000))
+      ->capture_default_str();
   cmd->add_option("--seed", args->seed, "random seed")->capture_default_str();
-  cmd->add_option("--threads", args->threads, "threads")->check(CLI::Range(1, 1024))->capture_default_str();
+  cmd->add_option("--threads", args->threads, "threads")
+      ->check(CLI::Range(1, 1024))
+      ->capture_default_str();
   cmd->add_flag("--json", args->json, "print one JSON object instead of the report");
   registry.add(cmd, [args] { return run_demo(*args); });
 }

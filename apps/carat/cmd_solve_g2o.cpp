@@ -2,9 +2,8 @@
 //                      [--loss none|huber|cauchy] [--loss-scale S] [--json]
 #include <cstdio>
 #include <memory>
-#include <string>
-
 #include <nlohmann/json.hpp>
+#include <string>
 
 #include "carat/residuals/g2o_io.hpp"
 #include "carat/residuals/pose_graph.hpp"
@@ -69,21 +68,28 @@ int run_solve_g2o(const SolveG2oArgs& args) {
 
 void register_solve_g2o(CLI::App& app, CommandRegistry& registry) {
   auto args = std::make_shared<SolveG2oArgs>();
-  CLI::App* cmd = app.add_subcommand("solve-g2o", "Optimize a 3D g2o pose graph (VERTEX_SE3:QUAT / EDGE_SE3:QUAT)");
+  CLI::App* cmd = app.add_subcommand(
+      "solve-g2o", "Optimize a 3D g2o pose graph (VERTEX_SE3:QUAT / EDGE_SE3:QUAT)");
   cmd->add_option("file", args->input, "g2o file to read")->required();
   cmd->add_option("--out", args->output, "write the optimized graph here (g2o)");
   cmd->add_option("--max-iterations", args->max_iterations, "iteration limit")
-      ->check(CLI::Range(0, 1000000))->capture_default_str();
+      ->check(CLI::Range(0, 1000000))
+      ->capture_default_str();
   cmd->add_option("--threads", args->threads, "threads for linearization")
-      ->check(CLI::Range(1, 1024))->capture_default_str();
+      ->check(CLI::Range(1, 1024))
+      ->capture_default_str();
   cmd->add_option("--method", args->method, "lm (Levenberg-Marquardt) or gn (Gauss-Newton)")
-      ->check(CLI::IsMember({"lm", "gn"}))->capture_default_str();
+      ->check(CLI::IsMember({"lm", "gn"}))
+      ->capture_default_str();
   cmd->add_option("--ordering", args->ordering, "fill-reducing ordering of the variables")
-      ->check(CLI::IsMember({"auto", "amd", "metis"}))->capture_default_str();
+      ->check(CLI::IsMember({"auto", "amd", "metis"}))
+      ->capture_default_str();
   cmd->add_option("--loss", args->loss, "robust loss on every edge")
-      ->check(CLI::IsMember({"none", "huber", "cauchy"}))->capture_default_str();
+      ->check(CLI::IsMember({"none", "huber", "cauchy"}))
+      ->capture_default_str();
   cmd->add_option("--loss-scale", args->loss_scale, "scale of the robust loss (whitened units)")
-      ->check(CLI::PositiveNumber)->capture_default_str();
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
   cmd->add_flag("--json", args->json, "print one JSON object instead of the report");
   registry.add(cmd, [args] { return run_solve_g2o(*args); });
 }

@@ -2,10 +2,9 @@
 
 // Subcommand registration for the carat CLI.
 
+#include <CLI/CLI.hpp>
 #include <functional>
 #include <vector>
-
-#include <CLI/CLI.hpp>
 
 namespace carat::cli {
 

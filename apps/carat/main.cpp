@@ -1,8 +1,7 @@
 // carat: the command-line tool. Each subcommand lives in its own cmd_*.cpp.
+#include <CLI/CLI.hpp>
 #include <cstdio>
 #include <exception>
-
-#include <CLI/CLI.hpp>
 
 #include "commands.hpp"
 

@@ -7,16 +7,16 @@
 // carat solves the identical cost function (RelativePoseBlock), 1 thread, same limits.
 //
 // Usage: ceres_compare [--repeat N] [FILE.g2o...]  (one JSON object per file and repeat)
-#include <chrono>
-#include <cstdio>
-#include <filesystem>
-#include <string>
-#include <vector>
-
 #include <ceres/ceres.h>
 #include <ceres/manifold.h>
 #include <ceres/product_manifold.h>
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
 #include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
 
 #include "carat/residuals/g2o_io.hpp"
 #include "carat/residuals/pose_graph.hpp"
@@ -53,12 +53,14 @@ struct PoseGraphError {
 };
 
 nlohmann::json run_ceres(const carat::PoseGraph& graph) {
-  using PoseManifold = ceres::ProductManifold<ceres::EuclideanManifold<3>, ceres::EigenQuaternionManifold>;
+  using PoseManifold =
+      ceres::ProductManifold<ceres::EuclideanManifold<3>, ceres::EigenQuaternionManifold>;
   std::vector<std::array<double, 7>> poses(graph.vertices.size());
   for (std::size_t i = 0; i < graph.vertices.size(); ++i) {
     const auto& T = graph.vertices[i].T_world_vertex;
     const Eigen::Quaterniond q(T.linear());
-    poses[i] = {T.translation().x(), T.translation().y(), T.translation().z(), q.x(), q.y(), q.z(), q.w()};
+    poses[i] = {
+        T.translation().x(), T.translation().y(), T.translation().z(), q.x(), q.y(), q.z(), q.w()};
   }
   ceres::Problem::Options problem_options;
   ceres::Problem problem(problem_options);
@@ -66,7 +68,8 @@ nlohmann::json run_ceres(const carat::PoseGraph& graph) {
     const Eigen::Matrix<double, 6, 6> sqrt_info = edge.information.llt().matrixU();
     auto* cost = new ceres::AutoDiffCostFunction<PoseGraphError, 6, 7, 7>(new PoseGraphError(
         edge.T_from_to.translation(), Eigen::Quaterniond(edge.T_from_to.linear()), sqrt_info));
-    problem.AddResidualBlock(cost, nullptr, poses[static_cast<std::size_t>(graph.index_of(edge.from))].data(),
+    problem.AddResidualBlock(cost, nullptr,
+                             poses[static_cast<std::size_t>(graph.index_of(edge.from))].data(),
                              poses[static_cast<std::size_t>(graph.index_of(edge.to))].data());
   }
   for (auto& pose : poses) problem.SetManifold(pose.data(), new PoseManifold);
@@ -101,7 +104,8 @@ nlohmann::json run_carat(const carat::PoseGraph& graph) {
           {"iterations", summary.num_iterations},
           {"termination", carat::to_string(summary.termination)},
           {"time_s", summary.time.total_s},
-          {"linear_solver_time_s", summary.time.numeric_s + summary.time.solve_s + summary.time.symbolic_s}};
+          {"linear_solver_time_s",
+           summary.time.numeric_s + summary.time.solve_s + summary.time.symbolic_s}};
 }
 
 }  // namespace
@@ -109,8 +113,8 @@ nlohmann::json run_carat(const carat::PoseGraph& graph) {
 /// Runs one solver in a child process (this program with --solver) and returns its JSON line.
 /// `preload` (may be empty) goes into LD_PRELOAD, which decides which BLAS CHOLMOD's dgemm_
 /// and friends resolve to in that process.
-nlohmann::json run_child(const std::string& self, const std::string& solver, const std::string& file,
-                         const std::string& preload) {
+nlohmann::json run_child(const std::string& self, const std::string& solver,
+                         const std::string& file, const std::string& preload) {
   std::string command;
   if (!preload.empty()) command += "LD_PRELOAD='" + preload + "' ";
   command += "'" + self + "' --solver " + solver + " '" + file + "'";
@@ -165,7 +169,7 @@ int main(int argc, char** argv) {
       j["file"] = file;
       j["vertices"] = graph.vertices.size();
       j["edges"] = graph.edges.size();
-      j["ceres"] = run_child(self, "ceres", file, "");                  // as Debian ships it
+      j["ceres"] = run_child(self, "ceres", file, "");                       // as Debian ships it
       j["ceres_system_blas"] = run_child(self, "ceres", file, system_blas);  // same BLAS as carat
       j["carat"] = run_child(self, "carat", file, system_blas);
       if (j["ceres"].contains("error") || j["carat"].contains("error") ||

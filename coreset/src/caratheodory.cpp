@@ -22,7 +22,8 @@ void validate(const Eigen::MatrixXd& points, std::span<const double> weights, co
   if (points.cols() == 0) throw Error(std::string(who) + ": the point set is empty");
   for (Eigen::Index i = 0; i < points.cols(); ++i) {
     if (!points.col(i).allFinite()) {
-      throw Error(std::string(who) + ": point " + std::to_string(i) + " has a non-finite coordinate");
+      throw Error(std::string(who) + ": point " + std::to_string(i) +
+                  " has a non-finite coordinate");
     }
     const double w = weights[static_cast<std::size_t>(i)];
     if (!std::isfinite(w) || !(w > 0.0)) {
@@ -51,7 +52,8 @@ WeightedSubset to_subset(const internal::Items& items) {
 WeightedSubset caratheodory(const Eigen::MatrixXd& points, std::span<const double> weights,
                             int min_points) {
   validate(points, weights, "caratheodory");
-  Eigen::VectorXd w = Eigen::Map<const Eigen::VectorXd>(weights.data(), static_cast<Eigen::Index>(weights.size()));
+  Eigen::VectorXd w =
+      Eigen::Map<const Eigen::VectorXd>(weights.data(), static_cast<Eigen::Index>(weights.size()));
   const std::vector<char> alive = internal::eliminate(points, w, {}, min_points);
   WeightedSubset out;
   for (std::size_t i = 0; i < alive.size(); ++i) {
@@ -80,7 +82,8 @@ WeightedSubset fast_caratheodory(const Eigen::MatrixXd& points, std::span<const 
   items.ids = order;
   for (int k = 0; k < n; ++k) {
     items.sums.col(k) = points.col(order[static_cast<std::size_t>(k)]);
-    items.weight[static_cast<std::size_t>(k)] = weights[static_cast<std::size_t>(order[static_cast<std::size_t>(k)])];
+    items.weight[static_cast<std::size_t>(k)] =
+        weights[static_cast<std::size_t>(order[static_cast<std::size_t>(k)])];
   }
   while (items.size() > options.clusters) {
     const int before = items.size();

@@ -12,25 +12,28 @@ namespace carat {
 namespace {
 
 /// Keeps only the selected rows' data when the block can extract them.
-std::shared_ptr<CompressedBlock> make_compressed(std::shared_ptr<const ResidualBlock> block, std::vector<int> rows,
+std::shared_ptr<CompressedBlock> make_compressed(std::shared_ptr<const ResidualBlock> block,
+                                                 std::vector<int> rows,
                                                  std::vector<double> weights) {
   if (std::unique_ptr<ResidualBlock> extracted = block->extract_rows(rows)) {
     std::vector<int> local(rows.size());
     std::iota(local.begin(), local.end(), 0);
-    return std::make_shared<CompressedBlock>(std::shared_ptr<const ResidualBlock>(std::move(extracted)),
-                                             std::move(local), std::move(weights));
+    return std::make_shared<CompressedBlock>(
+        std::shared_ptr<const ResidualBlock>(std::move(extracted)), std::move(local),
+        std::move(weights));
   }
   return std::make_shared<CompressedBlock>(std::move(block), std::move(rows), std::move(weights));
 }
 
 }  // namespace
 
-std::shared_ptr<CompressedBlock> compress(std::shared_ptr<const ResidualBlock> block, ParameterPointers values,
+std::shared_ptr<CompressedBlock> compress(std::shared_ptr<const ResidualBlock> block,
+                                          ParameterPointers values,
                                           const CompressionOptions& options) {
   if (!block) throw Error("compress: block is null");
   if (values.size() != block->tangent_dims().size()) {
-    throw Error("compress: the block has " + std::to_string(block->tangent_dims().size()) + " variables but " +
-                std::to_string(values.size()) + " values were given");
+    throw Error("compress: the block has " + std::to_string(block->tangent_dims().size()) +
+                " variables but " + std::to_string(values.size()) + " values were given");
   }
   const int n = block->num_rows();
   const int r = block->reduced_dim();
@@ -55,8 +58,8 @@ std::shared_ptr<CompressedBlock> compress_random(std::shared_ptr<const ResidualB
   const int g = options.group_size;
   if (g < 1) throw Error("compress_random: group size must be >= 1, got " + std::to_string(g));
   if (n % g != 0) {
-    throw Error("compress_random: the block's " + std::to_string(n) + " rows are not a whole number of groups of " +
-                std::to_string(g));
+    throw Error("compress_random: the block's " + std::to_string(n) +
+                " rows are not a whole number of groups of " + std::to_string(g));
   }
   if (options.target_rows < g || options.target_rows % g != 0) {
     throw Error("compress_random: target of " + std::to_string(options.target_rows) +

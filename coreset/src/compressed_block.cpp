@@ -20,21 +20,22 @@ CompressedBlock::CompressedBlock(std::shared_ptr<const ResidualBlock> inner, std
   sqrt_weights_.reserve(weights_.size());
   for (std::size_t k = 0; k < rows_.size(); ++k) {
     if (rows_[k] < 0 || rows_[k] >= n) {
-      throw Error("CompressedBlock: row " + std::to_string(rows_[k]) + " is out of range (block has " +
-                  std::to_string(n) + " rows)");
+      throw Error("CompressedBlock: row " + std::to_string(rows_[k]) +
+                  " is out of range (block has " + std::to_string(n) + " rows)");
     }
     if (!std::isfinite(weights_[k]) || !(weights_[k] > 0.0)) {
-      throw Error("CompressedBlock: weight " + std::to_string(k) + " is " + std::to_string(weights_[k]) +
-                  "; weights must be finite and > 0");
+      throw Error("CompressedBlock: weight " + std::to_string(k) + " is " +
+                  std::to_string(weights_[k]) + "; weights must be finite and > 0");
     }
     sqrt_weights_.push_back(std::sqrt(weights_[k]));
   }
 }
 
-void CompressedBlock::evaluate_rows(ParameterPointers params, std::span<const int> rows, double* residuals,
-                                    double* jacobian) const {
+void CompressedBlock::evaluate_rows(ParameterPointers params, std::span<const int> rows,
+                                    double* residuals, double* jacobian) const {
   std::vector<int> inner_rows(rows.size());
-  for (std::size_t k = 0; k < rows.size(); ++k) inner_rows[k] = rows_[static_cast<std::size_t>(rows[k])];
+  for (std::size_t k = 0; k < rows.size(); ++k)
+    inner_rows[k] = rows_[static_cast<std::size_t>(rows[k])];
   inner_->evaluate_rows(params, inner_rows, residuals, jacobian);
   const auto r = static_cast<std::size_t>(inner_->reduced_dim());
   for (std::size_t k = 0; k < rows.size(); ++k) {

@@ -2,10 +2,9 @@
 
 // Internal: Caratheodory elimination on a small weighted point set.
 
+#include <Eigen/Core>
 #include <span>
 #include <vector>
-
-#include <Eigen/Core>
 
 namespace carat::internal {
 

@@ -9,8 +9,9 @@ namespace {
 
 using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 
-QuadraticModel accumulate(const Eigen::Ref<const RowMatrix>& J, const Eigen::Ref<const Eigen::VectorXd>& e,
-                          std::span<const int> rows, std::span<const double> weights, bool all) {
+QuadraticModel accumulate(const Eigen::Ref<const RowMatrix>& J,
+                          const Eigen::Ref<const Eigen::VectorXd>& e, std::span<const int> rows,
+                          std::span<const double> weights, bool all) {
   const Eigen::Index r = J.cols();
   using LMatrix = Eigen::Matrix<long double, Eigen::Dynamic, Eigen::Dynamic>;
   using LVector = Eigen::Matrix<long double, Eigen::Dynamic, 1>;
@@ -20,7 +21,8 @@ QuadraticModel accumulate(const Eigen::Ref<const RowMatrix>& J, const Eigen::Ref
   const Eigen::Index n = all ? J.rows() : static_cast<Eigen::Index>(rows.size());
   for (Eigen::Index k = 0; k < n; ++k) {
     const Eigen::Index i = all ? k : rows[static_cast<std::size_t>(k)];
-    const long double w = all ? 1.0L : static_cast<long double>(weights[static_cast<std::size_t>(k)]);
+    const long double w =
+        all ? 1.0L : static_cast<long double>(weights[static_cast<std::size_t>(k)]);
     const auto a = J.row(i).cast<long double>();
     const long double ei = e[i];
     H.noalias() += w * a.transpose() * a;
@@ -36,17 +38,21 @@ double relative(double difference, double reference) {
 
 }  // namespace
 
-QuadraticModel quadratic_model(const Eigen::Ref<const RowMatrix>& J_r, const Eigen::Ref<const Eigen::VectorXd>& e) {
+QuadraticModel quadratic_model(const Eigen::Ref<const RowMatrix>& J_r,
+                               const Eigen::Ref<const Eigen::VectorXd>& e) {
   return accumulate(J_r, e, {}, {}, true);
 }
 
-QuadraticModel quadratic_model(const Eigen::Ref<const RowMatrix>& J_r, const Eigen::Ref<const Eigen::VectorXd>& e,
+QuadraticModel quadratic_model(const Eigen::Ref<const RowMatrix>& J_r,
+                               const Eigen::Ref<const Eigen::VectorXd>& e,
                                std::span<const int> rows, std::span<const double> weights) {
-  if (rows.size() != weights.size()) throw Error("quadratic_model: rows and weights differ in length");
+  if (rows.size() != weights.size())
+    throw Error("quadratic_model: rows and weights differ in length");
   return accumulate(J_r, e, rows, weights, false);
 }
 
-QuadraticModelError relative_error(const QuadraticModel& reference, const QuadraticModel& approximation) {
+QuadraticModelError relative_error(const QuadraticModel& reference,
+                                   const QuadraticModel& approximation) {
   QuadraticModelError out;
   out.H = relative((reference.H - approximation.H).norm(), reference.H.norm());
   out.b = relative((reference.b - approximation.b).norm(), reference.b.norm());

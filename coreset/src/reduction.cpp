@@ -48,7 +48,8 @@ void reduce_level(Items& items, int clusters, long min_rows) {
   }
   for (int c = 0; c < clusters; ++c) {
     auto mean = means.col(c);
-    for (int i = begin[static_cast<std::size_t>(c)]; i < begin[static_cast<std::size_t>(c) + 1]; ++i) {
+    for (int i = begin[static_cast<std::size_t>(c)]; i < begin[static_cast<std::size_t>(c) + 1];
+         ++i) {
       const double w = items.weight[static_cast<std::size_t>(i)];
       mean.noalias() += w * items.sums.col(i);
       cluster_weight[c] += w * static_cast<double>(items.counts[static_cast<std::size_t>(i)]);
@@ -62,7 +63,8 @@ void reduce_level(Items& items, int clusters, long min_rows) {
   for (int c = 0; c < clusters; ++c) {
     if (!alive[static_cast<std::size_t>(c)]) continue;
     const double scale = new_weight[c] / cluster_weight[c];
-    for (int i = begin[static_cast<std::size_t>(c)]; i < begin[static_cast<std::size_t>(c) + 1]; ++i) {
+    for (int i = begin[static_cast<std::size_t>(c)]; i < begin[static_cast<std::size_t>(c) + 1];
+         ++i) {
       keep[static_cast<std::size_t>(i)] = 1;
       items.weight[static_cast<std::size_t>(i)] *= scale;
     }
@@ -83,7 +85,8 @@ void reduce_final(Items& items, long min_rows) {
   const std::vector<char> alive = eliminate(means, new_total, items.counts, min_rows);
   for (int i = 0; i < n; ++i) {
     if (alive[static_cast<std::size_t>(i)]) {
-      items.weight[static_cast<std::size_t>(i)] = new_total[i] / static_cast<double>(items.counts[static_cast<std::size_t>(i)]);
+      items.weight[static_cast<std::size_t>(i)] =
+          new_total[i] / static_cast<double>(items.counts[static_cast<std::size_t>(i)]);
     }
   }
   items.filter(alive);

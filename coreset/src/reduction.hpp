@@ -3,9 +3,8 @@
 // Internal: the Fast-Caratheodory level loop over "items". An item stands for `count` rows that
 // share one weight per row; `sums` holds each item's unweighted sum of lifted rows.
 
-#include <vector>
-
 #include <Eigen/Core>
+#include <vector>
 
 namespace carat::internal {
 

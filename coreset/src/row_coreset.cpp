@@ -1,10 +1,9 @@
 #include "carat/coreset/row_coreset.hpp"
 
+#include <Eigen/Cholesky>
 #include <algorithm>
 #include <cmath>
 #include <numeric>
-
-#include <Eigen/Cholesky>
 #include <string>
 
 #include "carat/solver/error.hpp"
@@ -74,9 +73,11 @@ void lift_sum_dynamic(const double* J, const double* e, int r, long begin, long 
     x[static_cast<std::size_t>(r)] = e[i];
     int idx = 0;
     for (int j = 0; j < r; ++j) {
-      for (int k = j; k < r; ++k) out[idx++] += x[static_cast<std::size_t>(j)] * x[static_cast<std::size_t>(k)];
+      for (int k = j; k < r; ++k)
+        out[idx++] += x[static_cast<std::size_t>(j)] * x[static_cast<std::size_t>(k)];
     }
-    for (int j = 0; j < r; ++j) out[idx++] += x[static_cast<std::size_t>(j)] * x[static_cast<std::size_t>(r)];
+    for (int j = 0; j < r; ++j)
+      out[idx++] += x[static_cast<std::size_t>(j)] * x[static_cast<std::size_t>(r)];
     out[idx] += x[static_cast<std::size_t>(r)] * x[static_cast<std::size_t>(r)];
   }
 }
@@ -109,7 +110,8 @@ void lift_row(const double* J, const double* e, int r, long i, double* out) {
 /// Re-solves the final weights against the exact target sums (minimum-norm correction of the
 /// weights so that sum w_k [p_k; 1] = target), which removes the rounding the levels left
 /// behind. Kept only if every weight stays positive and the residual shrinks.
-void polish_weights(const double* J, const double* e, int r, const Eigen::VectorXd& target, internal::Items& rows) {
+void polish_weights(const double* J, const double* e, int r, const Eigen::VectorXd& target,
+                    internal::Items& rows) {
   const int m = rows.size();
   const Eigen::Index L = target.size() - 1;
   Eigen::MatrixXd P(L + 1, m);
@@ -154,7 +156,8 @@ internal::Items split_tail(internal::Items& items, int from) {
 
 void append(internal::Items& items, const internal::Items& tail) {
   const int n = items.size();
-  if (items.sums.cols() < n + tail.size()) items.sums.conservativeResize(Eigen::NoChange, n + tail.size());
+  if (items.sums.cols() < n + tail.size())
+    items.sums.conservativeResize(Eigen::NoChange, n + tail.size());
   items.sums.middleCols(n, tail.size()) = tail.sums.leftCols(tail.size());
   items.counts.insert(items.counts.end(), tail.counts.begin(), tail.counts.end());
   items.weight.insert(items.weight.end(), tail.weight.begin(), tail.weight.end());
@@ -185,15 +188,19 @@ void reduce_rows(internal::Items& items, long target, bool exact, int clusters, 
 
 }  // namespace
 
-int minimum_coreset_rows(int reduced_dim) { return reduced_dim * (reduced_dim + 1) / 2 + reduced_dim + 2; }
+int minimum_coreset_rows(int reduced_dim) {
+  return reduced_dim * (reduced_dim + 1) / 2 + reduced_dim + 2;
+}
 
 RowCoreset select_coreset_rows(
-    const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>& J_r,
+    const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>&
+        J_r,
     const Eigen::Ref<const Eigen::VectorXd>& e, const RowCoresetOptions& options) {
   const long N = J_r.rows();
   const int r = static_cast<int>(J_r.cols());
   if (e.size() != N) {
-    throw Error("coreset: " + std::to_string(N) + " Jacobian rows but " + std::to_string(e.size()) + " residuals");
+    throw Error("coreset: " + std::to_string(N) + " Jacobian rows but " + std::to_string(e.size()) +
+                " residuals");
   }
   if (r < 1) throw Error("coreset: the Jacobian has no columns");
   if (N < 1) throw Error("coreset: no rows to compress");
@@ -205,8 +212,10 @@ RowCoreset select_coreset_rows(
                 std::to_string(minimum) + " for reduced dimension " + std::to_string(r));
   }
   if (options.clusters < L + 2) {
-    throw Error("coreset: " + std::to_string(options.clusters) + " clusters cannot make progress for reduced dimension " +
-                std::to_string(r) + " (lifted dimension " + std::to_string(L) + "); use at least " + std::to_string(L + 2));
+    throw Error("coreset: " + std::to_string(options.clusters) +
+                " clusters cannot make progress for reduced dimension " + std::to_string(r) +
+                " (lifted dimension " + std::to_string(L) + "); use at least " +
+                std::to_string(L + 2));
   }
   RowCoreset out;
   if (N <= M) {  // nothing to compress: every row, weight 1
@@ -227,7 +236,8 @@ RowCoreset select_coreset_rows(
   const auto check_rows = [&](long begin, long end) {
     for (long i = begin; i < end; ++i) {
       if (!std::isfinite(E[i]) || !J_r.row(i).allFinite()) {
-        throw Error("coreset: row " + std::to_string(i) + " has a non-finite residual or Jacobian entry");
+        throw Error("coreset: row " + std::to_string(i) +
+                    " has a non-finite residual or Jacobian entry");
       }
     }
     throw Error("coreset: rows " + std::to_string(begin) + ".." + std::to_string(end - 1) +
@@ -237,7 +247,8 @@ RowCoreset select_coreset_rows(
   // Phase 1: chunks of kChunkRows consecutive rows, summed in one sequential pass, visited in
   // a seeded random order (clusters are contiguous runs of that order).
   const long chunks = (N + kChunkRows - 1) / kChunkRows;
-  const std::vector<int> chunk_order = internal::seeded_permutation(static_cast<int>(chunks), options.seed);
+  const std::vector<int> chunk_order =
+      internal::seeded_permutation(static_cast<int>(chunks), options.seed);
   thread_local internal::Items items;  // reused: fresh memory costs page faults every call
   items.reset(L, static_cast<int>(chunks));
   std::fill(items.weight.begin(), items.weight.end(), 1.0);
@@ -274,7 +285,8 @@ RowCoreset select_coreset_rows(
     }
   }
   const auto survivors = static_cast<long>(row_ids.size());
-  const std::vector<int> row_order = internal::seeded_permutation(static_cast<int>(survivors), options.seed + 1);
+  const std::vector<int> row_order =
+      internal::seeded_permutation(static_cast<int>(survivors), options.seed + 1);
   thread_local internal::Items rows;
   rows.reset(L, static_cast<int>(survivors));
   std::fill(rows.counts.begin(), rows.counts.end(), 1);
@@ -293,7 +305,9 @@ RowCoreset select_coreset_rows(
 
   std::vector<int> idx(static_cast<std::size_t>(rows.size()));
   std::iota(idx.begin(), idx.end(), 0);
-  std::sort(idx.begin(), idx.end(), [&](int a, int b) { return rows.ids[static_cast<std::size_t>(a)] < rows.ids[static_cast<std::size_t>(b)]; });
+  std::sort(idx.begin(), idx.end(), [&](int a, int b) {
+    return rows.ids[static_cast<std::size_t>(a)] < rows.ids[static_cast<std::size_t>(b)];
+  });
   for (int k : idx) {
     out.rows.push_back(rows.ids[static_cast<std::size_t>(k)]);
     out.weights.push_back(rows.weight[static_cast<std::size_t>(k)]);

@@ -1,11 +1,10 @@
 // Solves a tiny pose graph through the installed carat package.
-#include <cmath>
-#include <cstdio>
-#include <memory>
-
 #include <carat/residuals/relative_pose_block.hpp>
 #include <carat/solver/se3.hpp>
 #include <carat/solver/solve.hpp>
+#include <cmath>
+#include <cstdio>
+#include <memory>
 
 int main() {
   carat::Problem problem;
@@ -16,9 +15,9 @@ int main() {
   problem.set_constant(a);
   Eigen::Isometry3d measured = Eigen::Isometry3d::Identity();
   measured.translation() = Eigen::Vector3d(1.0, 2.0, 3.0);
-  problem.add_residual_block(std::make_shared<carat::RelativePoseBlock>(
-                                 measured, carat::se3::Matrix6d::Identity()),
-                             {a, b});
+  problem.add_residual_block(
+      std::make_shared<carat::RelativePoseBlock>(measured, carat::se3::Matrix6d::Identity()),
+      {a, b});
   carat::SolverOptions options;
   options.function_tolerance = 1e-14;
   options.parameter_tolerance = 1e-14;

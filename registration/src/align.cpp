@@ -1,16 +1,15 @@
 #include "carat/registration/align.hpp"
 
-#include <algorithm>
-#include <chrono>
-#include <memory>
-#include <string>
-#include <vector>
-
 #include <tbb/info.h>
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
 #include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <chrono>
+#include <memory>
+#include <string>
+#include <vector>
 
 #include "carat/residuals/gicp_block.hpp"
 #include "carat/residuals/point_to_plane_block.hpp"
@@ -26,7 +25,8 @@ using Clock = std::chrono::steady_clock;
 
 /// Nearest target point of every transformed source point within the distance, in source order.
 std::vector<GicpCorrespondence> find_correspondences(const PointCloud& target, const KdTree& tree,
-                                                     const PointCloud& source, const Eigen::Isometry3d& T,
+                                                     const PointCloud& source,
+                                                     const Eigen::Isometry3d& T,
                                                      double max_distance) {
   const float max_sq = static_cast<float>(max_distance * max_distance);
   std::vector<std::int64_t> match(source.size(), -1);
@@ -49,7 +49,8 @@ std::vector<GicpCorrespondence> find_correspondences(const PointCloud& target, c
 }
 
 /// The residual block of `method` over the correspondences, built at T.
-std::shared_ptr<const ResidualBlock> make_block(RegistrationMethod method, const std::vector<GicpCorrespondence>& pairs,
+std::shared_ptr<const ResidualBlock> make_block(RegistrationMethod method,
+                                                const std::vector<GicpCorrespondence>& pairs,
                                                 const Eigen::Isometry3d& T) {
   if (method == RegistrationMethod::kGicp) return std::make_shared<GicpBlock>(pairs, T);
   std::vector<Eigen::Vector3d> target, source, normal;
@@ -61,7 +62,8 @@ std::shared_ptr<const ResidualBlock> make_block(RegistrationMethod method, const
       normal.push_back(eig.eigenvectors().col(0));
     }
   }
-  if (method == RegistrationMethod::kPointToPlane) return std::make_shared<PointToPlaneBlock>(target, normal, source);
+  if (method == RegistrationMethod::kPointToPlane)
+    return std::make_shared<PointToPlaneBlock>(target, normal, source);
   return std::make_shared<PointToPointBlock>(target, source);
 }
 
@@ -69,8 +71,10 @@ std::shared_ptr<const ResidualBlock> make_block(RegistrationMethod method, const
 
 AlignResult align(const PointCloud& target, const KdTree& target_tree, const PointCloud& source,
                   const Eigen::Isometry3d& T_target_source_init, const AlignSettings& settings) {
-  if (!target.has_covariances()) throw Error("align: the target cloud has no covariances (run estimate_covariances)");
-  if (!source.has_covariances()) throw Error("align: the source cloud has no covariances (run estimate_covariances)");
+  if (!target.has_covariances())
+    throw Error("align: the target cloud has no covariances (run estimate_covariances)");
+  if (!source.has_covariances())
+    throw Error("align: the source cloud has no covariances (run estimate_covariances)");
   AlignResult result;
   result.T_target_source = T_target_source_init;
   const int threads = std::clamp(settings.num_threads, 1, tbb::info::default_concurrency());
@@ -83,13 +87,15 @@ AlignResult align(const PointCloud& target, const KdTree& target_tree, const Poi
     std::shared_ptr<const ResidualBlock> last_block;
     for (int iteration = 0; iteration < settings.max_iterations; ++iteration) {
       auto t0 = Clock::now();
-      const std::vector<GicpCorrespondence> pairs = find_correspondences(
-          target, target_tree, source, result.T_target_source, settings.max_correspondence_distance);
+      const std::vector<GicpCorrespondence> pairs =
+          find_correspondences(target, target_tree, source, result.T_target_source,
+                               settings.max_correspondence_distance);
       result.search_s += std::chrono::duration<double>(Clock::now() - t0).count();
       if (static_cast<int>(pairs.size()) < settings.min_correspondences) {
         throw Error("align: only " + std::to_string(pairs.size()) + " correspondences within " +
                     std::to_string(settings.max_correspondence_distance) + " m (need " +
-                    std::to_string(settings.min_correspondences) + "); the clouds do not overlap at this estimate");
+                    std::to_string(settings.min_correspondences) +
+                    "); the clouds do not overlap at this estimate");
       }
       t0 = Clock::now();
       const auto block = make_block(settings.method, pairs, result.T_target_source);
@@ -101,12 +107,14 @@ AlignResult align(const PointCloud& target, const KdTree& target_tree, const Poi
       problem.add_residual_block(block, {target_pose, source_pose});
       const SolverSummary summary = solve(options, problem);
       const Eigen::Isometry3d previous = result.T_target_source;
-      if (summary.termination != TerminationType::kFailure) result.T_target_source = problem.se3(source_pose);
+      if (summary.termination != TerminationType::kFailure)
+        result.T_target_source = problem.se3(source_pose);
       result.optimize_s += std::chrono::duration<double>(Clock::now() - t0).count();
       result.iterations = iteration + 1;
       result.num_correspondences = static_cast<int>(pairs.size());
       const se3::Vector6d step = se3::log(previous.inverse() * result.T_target_source);
-      if (step.head<3>().norm() < settings.rotation_tolerance && step.tail<3>().norm() < settings.translation_tolerance) {
+      if (step.head<3>().norm() < settings.rotation_tolerance &&
+          step.tail<3>().norm() < settings.translation_tolerance) {
         result.converged = true;
         break;
       }
@@ -115,8 +123,9 @@ AlignResult align(const PointCloud& target, const KdTree& target_tree, const Poi
     // below tolerance (they are those of the result), else with a fresh search.
     std::shared_ptr<const ResidualBlock> block = result.converged ? last_block : nullptr;
     if (!block) {
-      const std::vector<GicpCorrespondence> pairs = find_correspondences(
-          target, target_tree, source, result.T_target_source, settings.max_correspondence_distance);
+      const std::vector<GicpCorrespondence> pairs =
+          find_correspondences(target, target_tree, source, result.T_target_source,
+                               settings.max_correspondence_distance);
       if (!pairs.empty()) block = make_block(settings.method, pairs, result.T_target_source);
     }
     if (block) {

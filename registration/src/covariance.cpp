@@ -1,25 +1,28 @@
 #include "carat/registration/covariance.hpp"
 
+#include <tbb/info.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <string>
 #include <vector>
-
-#include <Eigen/Eigenvalues>
-#include <tbb/parallel_for.h>
-#include <tbb/info.h>
-#include <tbb/task_arena.h>
 
 #include "carat/solver/error.hpp"
 
 namespace carat {
 
 void estimate_covariances(PointCloud& cloud, const KdTree& tree, const CovarianceOptions& options) {
-  if (options.neighbors < 4) throw Error("estimate_covariances: neighbors must be >= 4, got " + std::to_string(options.neighbors));
+  if (options.neighbors < 4)
+    throw Error("estimate_covariances: neighbors must be >= 4, got " +
+                std::to_string(options.neighbors));
   if (cloud.size() < 4) {
     throw Error("estimate_covariances: a cloud of " + std::to_string(cloud.size()) +
                 " points is too small (at least 4 are needed)");
   }
-  const int k = static_cast<int>(std::min<std::size_t>(static_cast<std::size_t>(options.neighbors), cloud.size()));
+  const int k = static_cast<int>(
+      std::min<std::size_t>(static_cast<std::size_t>(options.neighbors), cloud.size()));
   cloud.covariances.resize(cloud.size());
   const auto work = [&](const tbb::blocked_range<std::size_t>& range) {
     std::vector<std::uint32_t> indices(static_cast<std::size_t>(k));
@@ -37,11 +40,13 @@ void estimate_covariances(PointCloud& cloud, const KdTree& tree, const Covarianc
       const Eigen::Matrix3d C = second / found - mean * mean.transpose();
       const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(C);
       const Eigen::Vector3d values(1e-3, 1.0, 1.0);  // ascending: the normal gets 1e-3
-      cloud.set_covariance(i, eig.eigenvectors() * values.asDiagonal() * eig.eigenvectors().transpose());
+      cloud.set_covariance(
+          i, eig.eigenvectors() * values.asDiagonal() * eig.eigenvectors().transpose());
     }
   };
   tbb::task_arena arena(std::clamp(options.num_threads, 1, tbb::info::default_concurrency()));
-  arena.execute([&] { tbb::parallel_for(tbb::blocked_range<std::size_t>(0, cloud.size(), 256), work); });
+  arena.execute(
+      [&] { tbb::parallel_for(tbb::blocked_range<std::size_t>(0, cloud.size(), 256), work); });
 }
 
 }  // namespace carat

@@ -9,20 +9,23 @@ namespace {
 struct CloudAdaptor {
   const PointCloud& cloud;
   std::size_t kdtree_get_point_count() const { return cloud.points.size(); }
-  float kdtree_get_pt(std::size_t i, std::size_t dim) const { return cloud.points[i][static_cast<Eigen::Index>(dim)]; }
+  float kdtree_get_pt(std::size_t i, std::size_t dim) const {
+    return cloud.points[i][static_cast<Eigen::Index>(dim)];
+  }
   template <class Box>
   bool kdtree_get_bbox(Box&) const {
     return false;
   }
 };
 
-using Tree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, CloudAdaptor>, CloudAdaptor, 3,
-                                                 std::uint32_t>;
+using Tree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, CloudAdaptor>,
+                                                 CloudAdaptor, 3, std::uint32_t>;
 
 }  // namespace
 
 struct KdTree::Impl {
-  explicit Impl(const PointCloud& cloud) : adaptor{cloud}, tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10)) {}
+  explicit Impl(const PointCloud& cloud)
+      : adaptor{cloud}, tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10)) {}
   CloudAdaptor adaptor;
   Tree tree;
 };
@@ -30,12 +33,15 @@ struct KdTree::Impl {
 KdTree::KdTree(const PointCloud& cloud) : impl_(std::make_unique<Impl>(cloud)) {}
 KdTree::~KdTree() = default;
 
-int KdTree::knn(const Eigen::Vector3f& query, int k, std::uint32_t* indices, float* squared_distances) const {
+int KdTree::knn(const Eigen::Vector3f& query, int k, std::uint32_t* indices,
+                float* squared_distances) const {
   if (impl_->adaptor.cloud.points.empty() || k <= 0) return 0;
-  return static_cast<int>(impl_->tree.knnSearch(query.data(), static_cast<std::size_t>(k), indices, squared_distances));
+  return static_cast<int>(
+      impl_->tree.knnSearch(query.data(), static_cast<std::size_t>(k), indices, squared_distances));
 }
 
-bool KdTree::nearest(const Eigen::Vector3f& query, std::uint32_t* index, float* squared_distance) const {
+bool KdTree::nearest(const Eigen::Vector3f& query, std::uint32_t* index,
+                     float* squared_distance) const {
   return knn(query, 1, index, squared_distance) == 1;
 }
 

@@ -10,7 +10,8 @@
 
 namespace carat {
 
-PointCloud read_kitti_bin(const std::filesystem::path& path, KittiFormat format, const ReadOptions& options) {
+PointCloud read_kitti_bin(const std::filesystem::path& path, KittiFormat format,
+                          const ReadOptions& options) {
   const std::string name = path.string();
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec)) throw Error(name + ": no such file");
@@ -19,14 +20,15 @@ PointCloud read_kitti_bin(const std::filesystem::path& path, KittiFormat format,
   const std::size_t record = format == KittiFormat::kXyzi ? 16 : 12;
   if (bytes == 0) throw Error(name + ": empty file");
   if (bytes % record != 0) {
-    throw Error(name + ": " + std::to_string(bytes) + " bytes is not a whole number of " + std::to_string(record) +
-                "-byte records (truncated, or not " + (format == KittiFormat::kXyzi ? "x y z intensity" : "x y z") +
-                " float32 data)");
+    throw Error(name + ": " + std::to_string(bytes) + " bytes is not a whole number of " +
+                std::to_string(record) + "-byte records (truncated, or not " +
+                (format == KittiFormat::kXyzi ? "x y z intensity" : "x y z") + " float32 data)");
   }
   std::ifstream in(path, std::ios::binary);
   if (!in) throw Error(name + ": cannot open for reading");
   std::vector<char> buffer(bytes);
-  if (!in.read(buffer.data(), static_cast<std::streamsize>(bytes))) throw Error(name + ": read error");
+  if (!in.read(buffer.data(), static_cast<std::streamsize>(bytes)))
+    throw Error(name + ": read error");
   const std::size_t n = bytes / record;
   PointCloud cloud;
   cloud.points.reserve(n);

@@ -10,12 +10,14 @@ Eigen::Matrix3d PointCloud::covariance(std::size_t i) const {
 }
 
 void PointCloud::set_covariance(std::size_t i, const Eigen::Matrix3d& C) {
-  covariances[i] << static_cast<float>(C(0, 0)), static_cast<float>(C(0, 1)), static_cast<float>(C(0, 2)),
-      static_cast<float>(C(1, 1)), static_cast<float>(C(1, 2)), static_cast<float>(C(2, 2));
+  covariances[i] << static_cast<float>(C(0, 0)), static_cast<float>(C(0, 1)),
+      static_cast<float>(C(0, 2)), static_cast<float>(C(1, 1)), static_cast<float>(C(1, 2)),
+      static_cast<float>(C(2, 2));
 }
 
 std::size_t PointCloud::memory_bytes() const {
-  return points.size() * sizeof(Eigen::Vector3f) + covariances.size() * sizeof(Eigen::Matrix<float, 6, 1>);
+  return points.size() * sizeof(Eigen::Vector3f) +
+         covariances.size() * sizeof(Eigen::Matrix<float, 6, 1>);
 }
 
 }  // namespace carat

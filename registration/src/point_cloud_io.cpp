@@ -2,8 +2,8 @@
 
 #include <array>
 #include <charconv>
-#include <cstdint>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 #include <fstream>
 #include <sstream>
@@ -70,30 +70,50 @@ double read_binary(const char* p, const Field& f, const std::string& name) {
       break;
     case 'I':
       if (f.size == 1) return static_cast<std::int8_t>(*p);
-      if (f.size == 2) { std::int16_t v; std::memcpy(&v, p, 2); return v; }
-      if (f.size == 4) { std::int32_t v; std::memcpy(&v, p, 4); return v; }
+      if (f.size == 2) {
+        std::int16_t v;
+        std::memcpy(&v, p, 2);
+        return v;
+      }
+      if (f.size == 4) {
+        std::int32_t v;
+        std::memcpy(&v, p, 4);
+        return v;
+      }
       break;
     case 'U':
       if (f.size == 1) return static_cast<std::uint8_t>(*p);
-      if (f.size == 2) { std::uint16_t v; std::memcpy(&v, p, 2); return v; }
-      if (f.size == 4) { std::uint32_t v; std::memcpy(&v, p, 4); return v; }
+      if (f.size == 2) {
+        std::uint16_t v;
+        std::memcpy(&v, p, 2);
+        return v;
+      }
+      if (f.size == 4) {
+        std::uint32_t v;
+        std::memcpy(&v, p, 4);
+        return v;
+      }
       break;
   }
-  throw Error(name + ": field '" + f.name + "' has an unsupported type " + f.kind + std::to_string(f.size));
+  throw Error(name + ": field '" + f.name + "' has an unsupported type " + f.kind +
+              std::to_string(f.size));
 }
 
-void add_point(PointCloud& cloud, const double xyz[3], std::size_t index, const std::string& name, const ReadOptions& options) {
+void add_point(PointCloud& cloud, const double xyz[3], std::size_t index, const std::string& name,
+               const ReadOptions& options) {
   if (!std::isfinite(xyz[0]) || !std::isfinite(xyz[1]) || !std::isfinite(xyz[2])) {
     if (options.drop_non_finite) return;
     throw Error(name + ": point " + std::to_string(index) + " is not finite");
   }
-  cloud.points.emplace_back(static_cast<float>(xyz[0]), static_cast<float>(xyz[1]), static_cast<float>(xyz[2]));
+  cloud.points.emplace_back(static_cast<float>(xyz[0]), static_cast<float>(xyz[1]),
+                            static_cast<float>(xyz[2]));
 }
 
 std::size_t parse_count(const std::string& text, const std::string& name, const char* what) {
   std::size_t value = 0;
   const auto [ptr, ec] = std::from_chars(text.data(), text.data() + text.size(), value);
-  if (ec != std::errc() || ptr != text.data() + text.size()) throw Error(name + ": cannot read " + what + " from '" + text + "'");
+  if (ec != std::errc() || ptr != text.data() + text.size())
+    throw Error(name + ": cannot read " + what + " from '" + text + "'");
   return value;
 }
 
@@ -104,7 +124,8 @@ double parse_number(const std::string& text, const std::string& name, std::size_
   const auto [ptr, ec] = std::from_chars(begin, text.data() + text.size(), value);
   if (ec != std::errc() || ptr != text.data() + text.size()) {
     if (text == "nan" || text == "-nan" || text == "NaN") return std::nan("");
-    throw Error(name + ": point " + std::to_string(point) + ": cannot read a number from '" + text + "'");
+    throw Error(name + ": point " + std::to_string(point) + ": cannot read a number from '" + text +
+                "'");
   }
   return value;
 }
@@ -128,8 +149,9 @@ std::array<int, 3> xyz_fields(const std::vector<Field>& fields, const std::strin
 }
 
 /// Reads `points` records of ascii text (one point per line, values in field order).
-void read_ascii_points(const std::vector<char>& data, std::size_t pos, std::size_t points, const std::vector<Field>& fields,
-                       const std::array<int, 3>& xyz, const std::string& name, const ReadOptions& options, PointCloud& cloud) {
+void read_ascii_points(const std::vector<char>& data, std::size_t pos, std::size_t points,
+                       const std::vector<Field>& fields, const std::array<int, 3>& xyz,
+                       const std::string& name, const ReadOptions& options, PointCloud& cloud) {
   std::size_t values_per_point = 0;
   std::vector<std::size_t> first_value(fields.size());
   for (std::size_t i = 0; i < fields.size(); ++i) {
@@ -142,26 +164,33 @@ void read_ascii_points(const std::vector<char>& data, std::size_t pos, std::size
     const auto values = words(line);
     if (values.empty()) continue;
     if (values.size() < values_per_point) {
-      throw Error(name + ": point " + std::to_string(read) + " has " + std::to_string(values.size()) + " values, expected " +
+      throw Error(name + ": point " + std::to_string(read) + " has " +
+                  std::to_string(values.size()) + " values, expected " +
                   std::to_string(values_per_point));
     }
     double p[3];
-    for (int a = 0; a < 3; ++a) p[a] = parse_number(values[first_value[static_cast<std::size_t>(xyz[static_cast<std::size_t>(a)])]], name, read);
+    for (int a = 0; a < 3; ++a)
+      p[a] = parse_number(
+          values[first_value[static_cast<std::size_t>(xyz[static_cast<std::size_t>(a)])]], name,
+          read);
     add_point(cloud, p, read, name, options);
     ++read;
   }
   if (read < points) {
-    throw Error(name + ": truncated: header announces " + std::to_string(points) + " points, found " + std::to_string(read));
+    throw Error(name + ": truncated: header announces " + std::to_string(points) +
+                " points, found " + std::to_string(read));
   }
 }
 
-void read_binary_points(const std::vector<char>& data, std::size_t pos, std::size_t points, const std::vector<Field>& fields,
-                        std::size_t record, const std::array<int, 3>& xyz, const std::string& name, const ReadOptions& options,
-                        PointCloud& cloud) {
+void read_binary_points(const std::vector<char>& data, std::size_t pos, std::size_t points,
+                        const std::vector<Field>& fields, std::size_t record,
+                        const std::array<int, 3>& xyz, const std::string& name,
+                        const ReadOptions& options, PointCloud& cloud) {
   if (record == 0) throw Error(name + ": empty point record");
   if ((data.size() - pos) / record < points) {
-    throw Error(name + ": truncated: header announces " + std::to_string(points) + " points of " + std::to_string(record) +
-                " bytes, the file holds " + std::to_string(data.size() - pos) + " bytes of data");
+    throw Error(name + ": truncated: header announces " + std::to_string(points) + " points of " +
+                std::to_string(record) + " bytes, the file holds " +
+                std::to_string(data.size() - pos) + " bytes of data");
   }
   cloud.points.reserve(points);
   for (std::size_t i = 0; i < points; ++i) {
@@ -201,7 +230,8 @@ PointCloud read_pcd(const std::filesystem::path& path, const ReadOptions& option
       for (std::size_t i = 1; i < w.size(); ++i) sizes.push_back(parse_count(w[i], name, "SIZE"));
     } else if (key == "TYPE") {
       for (std::size_t i = 1; i < w.size(); ++i) {
-        if (w[i].size() != 1 || (w[i][0] != 'F' && w[i][0] != 'I' && w[i][0] != 'U')) throw Error(name + ": unknown TYPE '" + w[i] + "'");
+        if (w[i].size() != 1 || (w[i][0] != 'F' && w[i][0] != 'I' && w[i][0] != 'U'))
+          throw Error(name + ": unknown TYPE '" + w[i] + "'");
         types.push_back(w[i][0]);
       }
     } else if (key == "COUNT") {
@@ -222,7 +252,8 @@ PointCloud read_pcd(const std::filesystem::path& path, const ReadOptions& option
   if (fields.empty()) throw Error(name + ": no FIELDS line");
   if (!have_points) throw Error(name + ": no POINTS line");
   if (counts.empty()) counts.assign(fields.size(), 1);
-  if (sizes.size() != fields.size() || types.size() != fields.size() || counts.size() != fields.size()) {
+  if (sizes.size() != fields.size() || types.size() != fields.size() ||
+      counts.size() != fields.size()) {
     throw Error(name + ": FIELDS, SIZE, TYPE and COUNT have different lengths");
   }
   std::size_t record = 0;
@@ -231,7 +262,8 @@ PointCloud read_pcd(const std::filesystem::path& path, const ReadOptions& option
     fields[i].size = sizes[i];
     fields[i].kind = types[i];
     fields[i].count = counts[i];
-    if (counts[i] == 0 || sizes[i] == 0 || sizes[i] > 8) throw Error(name + ": field '" + fields[i].name + "' has a bad SIZE or COUNT");
+    if (counts[i] == 0 || sizes[i] == 0 || sizes[i] > 8)
+      throw Error(name + ": field '" + fields[i].name + "' has a bad SIZE or COUNT");
     record += sizes[i] * counts[i];
   }
   const std::array<int, 3> xyz = xyz_fields(fields, name);
@@ -253,7 +285,8 @@ PointCloud read_ply(const std::filesystem::path& path, const ReadOptions& option
   const std::vector<char> data = read_all(path);
   std::size_t pos = 0;
   std::string line;
-  if (!next_line(data, pos, &line) || line != "ply") throw Error(name + ": not a PLY file (no 'ply' magic line)");
+  if (!next_line(data, pos, &line) || line != "ply")
+    throw Error(name + ": not a PLY file (no 'ply' magic line)");
   std::string format;
   std::vector<Field> fields;
   std::size_t vertices = 0;
@@ -281,19 +314,37 @@ PointCloud read_ply(const std::filesystem::path& path, const ReadOptions& option
       }
     } else if (w[0] == "property") {
       if (!in_vertex) continue;
-      if (w.size() >= 2 && w[1] == "list") throw Error(name + ": list properties on vertices are not supported");
+      if (w.size() >= 2 && w[1] == "list")
+        throw Error(name + ": list properties on vertices are not supported");
       if (w.size() != 3) throw Error(name + ": malformed property line '" + line + "'");
       const std::string& t = w[1];
       Field f{w[2]};
-      if (t == "float" || t == "float32") { f.kind = 'F'; f.size = 4; }
-      else if (t == "double" || t == "float64") { f.kind = 'F'; f.size = 8; }
-      else if (t == "char" || t == "int8") { f.kind = 'I'; f.size = 1; }
-      else if (t == "uchar" || t == "uint8") { f.kind = 'U'; f.size = 1; }
-      else if (t == "short" || t == "int16") { f.kind = 'I'; f.size = 2; }
-      else if (t == "ushort" || t == "uint16") { f.kind = 'U'; f.size = 2; }
-      else if (t == "int" || t == "int32") { f.kind = 'I'; f.size = 4; }
-      else if (t == "uint" || t == "uint32") { f.kind = 'U'; f.size = 4; }
-      else throw Error(name + ": unknown property type '" + t + "'");
+      if (t == "float" || t == "float32") {
+        f.kind = 'F';
+        f.size = 4;
+      } else if (t == "double" || t == "float64") {
+        f.kind = 'F';
+        f.size = 8;
+      } else if (t == "char" || t == "int8") {
+        f.kind = 'I';
+        f.size = 1;
+      } else if (t == "uchar" || t == "uint8") {
+        f.kind = 'U';
+        f.size = 1;
+      } else if (t == "short" || t == "int16") {
+        f.kind = 'I';
+        f.size = 2;
+      } else if (t == "ushort" || t == "uint16") {
+        f.kind = 'U';
+        f.size = 2;
+      } else if (t == "int" || t == "int32") {
+        f.kind = 'I';
+        f.size = 4;
+      } else if (t == "uint" || t == "uint32") {
+        f.kind = 'U';
+        f.size = 4;
+      } else
+        throw Error(name + ": unknown property type '" + t + "'");
       f.offset = record;
       record += f.size;
       fields.push_back(f);
@@ -319,9 +370,10 @@ PointCloud read_ply(const std::filesystem::path& path, const ReadOptions& option
 
 void write_pcd(const std::filesystem::path& path, const PointCloud& cloud, bool ascii) {
   write_file_atomically(path, [&](std::ostream& out) {
-    out << "# .PCD v0.7 - written by carat\nVERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\n"
-        << "WIDTH " << cloud.size() << "\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " << cloud.size() << "\nDATA "
-        << (ascii ? "ascii" : "binary") << "\n";
+    out << "# .PCD v0.7 - written by carat\nVERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F "
+           "F\nCOUNT 1 1 1\n"
+        << "WIDTH " << cloud.size() << "\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS "
+        << cloud.size() << "\nDATA " << (ascii ? "ascii" : "binary") << "\n";
     if (ascii) {
       out.precision(9);
       for (const auto& p : cloud.points) out << p.x() << ' ' << p.y() << ' ' << p.z() << '\n';
@@ -333,8 +385,9 @@ void write_pcd(const std::filesystem::path& path, const PointCloud& cloud, bool 
 
 void write_ply(const std::filesystem::path& path, const PointCloud& cloud, bool ascii) {
   write_file_atomically(path, [&](std::ostream& out) {
-    out << "ply\nformat " << (ascii ? "ascii" : "binary_little_endian") << " 1.0\ncomment written by carat\nelement vertex "
-        << cloud.size() << "\nproperty float x\nproperty float y\nproperty float z\nend_header\n";
+    out << "ply\nformat " << (ascii ? "ascii" : "binary_little_endian")
+        << " 1.0\ncomment written by carat\nelement vertex " << cloud.size()
+        << "\nproperty float x\nproperty float y\nproperty float z\nend_header\n";
     if (ascii) {
       out.precision(9);
       for (const auto& p : cloud.points) out << p.x() << ' ' << p.y() << ' ' << p.z() << '\n';
@@ -344,12 +397,14 @@ void write_ply(const std::filesystem::path& path, const PointCloud& cloud, bool 
   });
 }
 
-PointCloud read_point_cloud(const std::filesystem::path& path, KittiFormat kitti_format, const ReadOptions& options) {
+PointCloud read_point_cloud(const std::filesystem::path& path, KittiFormat kitti_format,
+                            const ReadOptions& options) {
   const std::string ext = path.extension().string();
   if (ext == ".pcd") return read_pcd(path, options);
   if (ext == ".ply") return read_ply(path, options);
   if (ext == ".bin") return read_kitti_bin(path, kitti_format, options);
-  throw Error(path.string() + ": unsupported file type '" + ext + "' (expected .pcd, .ply or .bin)");
+  throw Error(path.string() + ": unsupported file type '" + ext +
+              "' (expected .pcd, .ply or .bin)");
 }
 
 }  // namespace carat

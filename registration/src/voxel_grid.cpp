@@ -13,7 +13,8 @@ namespace carat {
 
 PointCloud voxel_downsample(const PointCloud& cloud, double voxel_size) {
   if (!(voxel_size > 0.0) || !std::isfinite(voxel_size)) {
-    throw Error("voxel_downsample: voxel size must be finite and > 0, got " + std::to_string(voxel_size));
+    throw Error("voxel_downsample: voxel size must be finite and > 0, got " +
+                std::to_string(voxel_size));
   }
   constexpr std::int64_t kOffset = std::int64_t{1} << 20;  // 21 bits per axis
   std::vector<std::pair<std::uint64_t, std::uint32_t>> keys;
@@ -25,8 +26,9 @@ PointCloud voxel_downsample(const PointCloud& cloud, double voxel_size) {
       const double cell = std::floor(static_cast<double>(cloud.points[i][a]) * inv);
       // Range-check in floating point first: casting a huge or non-finite value is undefined.
       if (!(cell >= -static_cast<double>(kOffset) && cell < static_cast<double>(kOffset))) {
-        throw Error("voxel_downsample: point " + std::to_string(i) + " is too far from the origin for voxels of " +
-                    std::to_string(voxel_size) + " m");
+        throw Error("voxel_downsample: point " + std::to_string(i) +
+                    " is too far from the origin for voxels of " + std::to_string(voxel_size) +
+                    " m");
       }
       key = (key << 21) | static_cast<std::uint64_t>(static_cast<std::int64_t>(cell) + kOffset);
     }
@@ -37,7 +39,8 @@ PointCloud voxel_downsample(const PointCloud& cloud, double voxel_size) {
   for (std::size_t i = 0; i < keys.size();) {
     std::size_t j = i;
     Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-    for (; j < keys.size() && keys[j].first == keys[i].first; ++j) sum += cloud.point(keys[j].second);
+    for (; j < keys.size() && keys[j].first == keys[i].first; ++j)
+      sum += cloud.point(keys[j].second);
     out.points.push_back((sum / static_cast<double>(j - i)).cast<float>());
     i = j;
   }

@@ -130,13 +130,15 @@ PoseGraph parse_g2o(std::istream& in, const std::string& name) {
       if (tokens.size() < 2) p.fail("FIX needs at least one vertex id");
       for (std::size_t k = 1; k < tokens.size(); ++k) graph.fixed.push_back(p.id(tokens[k]));
     } else if (tag == "VERTEX_SE2" || tag == "EDGE_SE2") {
-      p.fail("2D records (" + std::string(tag) + ") are not supported; carat reads 3D graphs (VERTEX_SE3:QUAT / EDGE_SE3:QUAT)");
+      p.fail("2D records (" + std::string(tag) +
+             ") are not supported; carat reads 3D graphs (VERTEX_SE3:QUAT / EDGE_SE3:QUAT)");
     } else {
       p.fail("unknown record '" + std::string(tag) + "'");
     }
   }
   if (in.bad()) throw Error(name + ": read error");
-  if (graph.vertices.empty()) throw Error(name + ": no VERTEX_SE3:QUAT records (empty or not a 3D g2o file)");
+  if (graph.vertices.empty())
+    throw Error(name + ": no VERTEX_SE3:QUAT records (empty or not a 3D g2o file)");
   for (std::size_t e = 0; e < graph.edges.size(); ++e) {
     for (std::int64_t id : {graph.edges[e].from, graph.edges[e].to}) {
       if (!vertex_line.count(id)) {
@@ -146,7 +148,8 @@ PoseGraph parse_g2o(std::istream& in, const std::string& name) {
     }
   }
   for (std::int64_t id : graph.fixed) {
-    if (!vertex_line.count(id)) throw Error(name + ": FIX names vertex " + std::to_string(id) + ", which is not defined");
+    if (!vertex_line.count(id))
+      throw Error(name + ": FIX names vertex " + std::to_string(id) + ", which is not defined");
   }
   return graph;
 }
@@ -154,7 +157,8 @@ PoseGraph parse_g2o(std::istream& in, const std::string& name) {
 PoseGraph read_g2o(const std::filesystem::path& path) {
   std::error_code ec;
   if (!std::filesystem::exists(path, ec)) throw Error(path.string() + ": no such file");
-  if (std::filesystem::is_directory(path, ec)) throw Error(path.string() + ": is a directory, not a g2o file");
+  if (std::filesystem::is_directory(path, ec))
+    throw Error(path.string() + ": is a directory, not a g2o file");
   std::ifstream in(path);
   if (!in) throw Error(path.string() + ": cannot open for reading");
   return parse_g2o(in, path.string());

@@ -1,10 +1,10 @@
 #include "carat/residuals/gicp_block.hpp"
 
-#include <string>
-#include <unordered_map>
+#include <tbb/parallel_for.h>
 
 #include <Eigen/Cholesky>
-#include <tbb/parallel_for.h>
+#include <string>
+#include <unordered_map>
 
 #include "carat/residuals/registration_rows.hpp"
 #include "carat/solver/error.hpp"
@@ -21,20 +21,22 @@ struct Row {
 
 }  // namespace
 
-GicpBlock::GicpBlock(std::span<const GicpCorrespondence> correspondences, const Eigen::Isometry3d& T_target_source) {
+GicpBlock::GicpBlock(std::span<const GicpCorrespondence> correspondences,
+                     const Eigen::Isometry3d& T_target_source) {
   if (correspondences.empty()) throw Error("GicpBlock: no correspondences");
   const Eigen::Matrix3d R = T_target_source.linear();
   points_.reserve(correspondences.size());
   for (std::size_t k = 0; k < correspondences.size(); ++k) {
     const auto& c = correspondences[k];
-    if (!c.mean_target.allFinite() || !c.mean_source.allFinite() || !c.covariance_target.allFinite() ||
-        !c.covariance_source.allFinite()) {
+    if (!c.mean_target.allFinite() || !c.mean_source.allFinite() ||
+        !c.covariance_target.allFinite() || !c.covariance_source.allFinite()) {
       throw Error("GicpBlock: correspondence " + std::to_string(k) + " has a non-finite value");
     }
     const Eigen::Matrix3d fused = c.covariance_target + R * c.covariance_source * R.transpose();
     const Eigen::LLT<Eigen::Matrix3d> llt_fused(fused);
     if (llt_fused.info() != Eigen::Success) {
-      throw Error("GicpBlock: correspondence " + std::to_string(k) + ": fused covariance is not positive definite");
+      throw Error("GicpBlock: correspondence " + std::to_string(k) +
+                  ": fused covariance is not positive definite");
     }
     const Eigen::Matrix3d information = llt_fused.solve(Eigen::Matrix3d::Identity());
     const Eigen::LLT<Eigen::Matrix3d> llt(0.5 * (information + information.transpose()));
@@ -47,15 +49,19 @@ GicpBlock::GicpBlock(std::span<const GicpCorrespondence> correspondences, const 
   }
 }
 
-void GicpBlock::reduced_map(ParameterPointers params, double* A) const { relative_pose_reduced_map(params, A); }
+void GicpBlock::reduced_map(ParameterPointers params, double* A) const {
+  relative_pose_reduced_map(params, A);
+}
 
-void GicpBlock::evaluate_rows(ParameterPointers params, std::span<const int> rows, double* residuals,
-                              double* jacobian) const {
+void GicpBlock::evaluate_rows(ParameterPointers params, std::span<const int> rows,
+                              double* residuals, double* jacobian) const {
   const Eigen::Isometry3d T = relative_pose(params);
   const Eigen::Matrix3d R = T.linear();
   for (std::size_t k = 0; k < rows.size(); ++k) {
     const int row = rows[k];
-    const std::size_t index = rows_.empty() ? static_cast<std::size_t>(row / 3) : static_cast<std::size_t>(rows_[static_cast<std::size_t>(row)] >> 2);
+    const std::size_t index =
+        rows_.empty() ? static_cast<std::size_t>(row / 3)
+                      : static_cast<std::size_t>(rows_[static_cast<std::size_t>(row)] >> 2);
     const int c = rows_.empty() ? row % 3 : (rows_[static_cast<std::size_t>(row)] & 3);
     const Point& p = points_[index];
     const Eigen::Vector3d mu(p.source[0], p.source[1], p.source[2]);
@@ -97,10 +103,11 @@ double GicpBlock::accumulate_at(const Eigen::Isometry3d& T, Eigen::Matrix<double
     for (std::size_t k = chunk * kChunk; k < end; ++k) {
       const Point& p = points_[k];
       Eigen::Matrix3d W;
-      W << p.whitening[0], p.whitening[1], p.whitening[2], 0.0, p.whitening[3], p.whitening[4], 0.0, 0.0,
-          p.whitening[5];
+      W << p.whitening[0], p.whitening[1], p.whitening[2], 0.0, p.whitening[3], p.whitening[4], 0.0,
+          0.0, p.whitening[5];
       const Eigen::Vector3d mu(p.source[0], p.source[1], p.source[2]);
-      const Eigen::Vector3d r = W * (Eigen::Vector3d(p.target[0], p.target[1], p.target[2]) - T * mu);
+      const Eigen::Vector3d r =
+          W * (Eigen::Vector3d(p.target[0], p.target[1], p.target[2]) - T * mu);
       const Eigen::Matrix3d WR = W * R;
       Eigen::Matrix<double, 3, 6> J;
       for (int c = 0; c < 3; ++c) {
@@ -147,7 +154,8 @@ double GicpBlock::squared_norm(ParameterPointers params) const {
   double c = 0.0;
   for (const Point& p : points_) {
     Eigen::Matrix3d W;
-    W << p.whitening[0], p.whitening[1], p.whitening[2], 0.0, p.whitening[3], p.whitening[4], 0.0, 0.0, p.whitening[5];
+    W << p.whitening[0], p.whitening[1], p.whitening[2], 0.0, p.whitening[3], p.whitening[4], 0.0,
+        0.0, p.whitening[5];
     const Eigen::Vector3d mu(p.source[0], p.source[1], p.source[2]);
     c += (W * (Eigen::Vector3d(p.target[0], p.target[1], p.target[2]) - T * mu)).squaredNorm();
   }
@@ -158,7 +166,9 @@ std::unique_ptr<ResidualBlock> GicpBlock::extract_rows(std::span<const int> rows
   auto out = std::unique_ptr<GicpBlock>(new GicpBlock());
   std::unordered_map<std::size_t, std::int32_t> local;
   for (int row : rows) {
-    const std::size_t index = rows_.empty() ? static_cast<std::size_t>(row / 3) : static_cast<std::size_t>(rows_[static_cast<std::size_t>(row)] >> 2);
+    const std::size_t index =
+        rows_.empty() ? static_cast<std::size_t>(row / 3)
+                      : static_cast<std::size_t>(rows_[static_cast<std::size_t>(row)] >> 2);
     const int c = rows_.empty() ? row % 3 : (rows_[static_cast<std::size_t>(row)] & 3);
     auto [it, inserted] = local.emplace(index, static_cast<std::int32_t>(out->points_.size()));
     if (inserted) out->points_.push_back(points_[index]);

@@ -9,8 +9,9 @@ namespace carat {
 namespace {
 
 /// Row value and reduced Jacobian of w . (target - T source): J = [(R^T w) x source, -R^T w].
-double weighted_row(const Eigen::Isometry3d& T, const Eigen::Vector3d& w, const Eigen::Vector3d& target,
-                    const Eigen::Vector3d& source, double* jacobian) {
+double weighted_row(const Eigen::Isometry3d& T, const Eigen::Vector3d& w,
+                    const Eigen::Vector3d& target, const Eigen::Vector3d& source,
+                    double* jacobian) {
   if (jacobian) {
     const Eigen::Vector3d wr = T.linear().transpose() * w;
     const Eigen::Vector3d d_omega = wr.cross(source);
@@ -24,39 +25,48 @@ double weighted_row(const Eigen::Isometry3d& T, const Eigen::Vector3d& w, const 
 
 void check_pairs(std::size_t a, std::size_t b, const char* who) {
   if (a == 0) throw Error(std::string(who) + ": no correspondences");
-  if (a != b) throw Error(std::string(who) + ": " + std::to_string(a) + " target points but " + std::to_string(b) + " source points");
+  if (a != b)
+    throw Error(std::string(who) + ": " + std::to_string(a) + " target points but " +
+                std::to_string(b) + " source points");
 }
 
 }  // namespace
 
 PointToPointBlock::PointToPointBlock(std::span<const Eigen::Vector3d> points_target,
                                      std::span<const Eigen::Vector3d> points_source)
-    : target_(points_target.begin(), points_target.end()), source_(points_source.begin(), points_source.end()) {
+    : target_(points_target.begin(), points_target.end()),
+      source_(points_source.begin(), points_source.end()) {
   check_pairs(target_.size(), source_.size(), "PointToPointBlock");
   for (std::size_t k = 0; k < target_.size(); ++k) {
     if (!target_[k].allFinite() || !source_[k].allFinite()) {
-      throw Error("PointToPointBlock: correspondence " + std::to_string(k) + " has a non-finite value");
+      throw Error("PointToPointBlock: correspondence " + std::to_string(k) +
+                  " has a non-finite value");
     }
   }
 }
 
-void PointToPointBlock::reduced_map(ParameterPointers params, double* A) const { relative_pose_reduced_map(params, A); }
+void PointToPointBlock::reduced_map(ParameterPointers params, double* A) const {
+  relative_pose_reduced_map(params, A);
+}
 
-void PointToPointBlock::evaluate_rows(ParameterPointers params, std::span<const int> rows, double* residuals,
-                                      double* jacobian) const {
+void PointToPointBlock::evaluate_rows(ParameterPointers params, std::span<const int> rows,
+                                      double* residuals, double* jacobian) const {
   const Eigen::Isometry3d T = relative_pose(params);
   for (std::size_t k = 0; k < rows.size(); ++k) {
     const int row = rows[k];
-    const auto pair = static_cast<std::size_t>(rows_.empty() ? row / 3 : rows_[static_cast<std::size_t>(row)] >> 2);
+    const auto pair = static_cast<std::size_t>(
+        rows_.empty() ? row / 3 : rows_[static_cast<std::size_t>(row)] >> 2);
     const int c = rows_.empty() ? row % 3 : (rows_[static_cast<std::size_t>(row)] & 3);
-    residuals[k] = weighted_row(T, Eigen::Vector3d::Unit(c), target_[pair], source_[pair], jacobian ? jacobian + 6 * k : nullptr);
+    residuals[k] = weighted_row(T, Eigen::Vector3d::Unit(c), target_[pair], source_[pair],
+                                jacobian ? jacobian + 6 * k : nullptr);
   }
 }
 
 std::unique_ptr<ResidualBlock> PointToPointBlock::extract_rows(std::span<const int> rows) const {
   auto out = std::unique_ptr<PointToPointBlock>(new PointToPointBlock());
   for (int row : rows) {
-    const auto pair = static_cast<std::size_t>(rows_.empty() ? row / 3 : rows_[static_cast<std::size_t>(row)] >> 2);
+    const auto pair = static_cast<std::size_t>(
+        rows_.empty() ? row / 3 : rows_[static_cast<std::size_t>(row)] >> 2);
     const int c = rows_.empty() ? row % 3 : (rows_[static_cast<std::size_t>(row)] & 3);
     out->rows_.push_back(static_cast<int>(out->target_.size() << 2) | c);
     out->target_.push_back(target_[pair]);
@@ -82,22 +92,27 @@ PointToPlaneBlock::PointToPlaneBlock(std::span<const Eigen::Vector3d> points_tar
   }
   for (std::size_t k = 0; k < target_.size(); ++k) {
     if (!target_[k].allFinite() || !source_[k].allFinite() || !normal_[k].allFinite()) {
-      throw Error("PointToPlaneBlock: correspondence " + std::to_string(k) + " has a non-finite value");
+      throw Error("PointToPlaneBlock: correspondence " + std::to_string(k) +
+                  " has a non-finite value");
     }
     const double n = normal_[k].norm();
-    if (!(n > 1e-12)) throw Error("PointToPlaneBlock: normal " + std::to_string(k) + " has zero length");
+    if (!(n > 1e-12))
+      throw Error("PointToPlaneBlock: normal " + std::to_string(k) + " has zero length");
     normal_[k] /= n;
   }
 }
 
-void PointToPlaneBlock::reduced_map(ParameterPointers params, double* A) const { relative_pose_reduced_map(params, A); }
+void PointToPlaneBlock::reduced_map(ParameterPointers params, double* A) const {
+  relative_pose_reduced_map(params, A);
+}
 
-void PointToPlaneBlock::evaluate_rows(ParameterPointers params, std::span<const int> rows, double* residuals,
-                                      double* jacobian) const {
+void PointToPlaneBlock::evaluate_rows(ParameterPointers params, std::span<const int> rows,
+                                      double* residuals, double* jacobian) const {
   const Eigen::Isometry3d T = relative_pose(params);
   for (std::size_t k = 0; k < rows.size(); ++k) {
     const auto pair = static_cast<std::size_t>(rows[k]);
-    residuals[k] = weighted_row(T, normal_[pair], target_[pair], source_[pair], jacobian ? jacobian + 6 * k : nullptr);
+    residuals[k] = weighted_row(T, normal_[pair], target_[pair], source_[pair],
+                                jacobian ? jacobian + 6 * k : nullptr);
   }
 }
 
@@ -112,6 +127,8 @@ std::unique_ptr<ResidualBlock> PointToPlaneBlock::extract_rows(std::span<const i
   return out;
 }
 
-std::size_t PointToPlaneBlock::memory_bytes() const { return 3 * target_.size() * sizeof(Eigen::Vector3d); }
+std::size_t PointToPlaneBlock::memory_bytes() const {
+  return 3 * target_.size() * sizeof(Eigen::Vector3d);
+}
 
 }  // namespace carat

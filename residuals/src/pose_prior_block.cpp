@@ -1,8 +1,7 @@
 #include "carat/residuals/pose_prior_block.hpp"
 
-#include <string>
-
 #include <Eigen/Cholesky>
+#include <string>
 
 #include "carat/solver/error.hpp"
 #include "carat/solver/so3.hpp"
@@ -18,7 +17,8 @@ se3::Matrix6d sqrt_information(const se3::Matrix6d& information, const char* wha
     throw Error(std::string(what) + ": information matrix is not symmetric");
   }
   const Eigen::LLT<se3::Matrix6d> llt(information);
-  if (llt.info() != Eigen::Success || !(llt.matrixL().toDenseMatrix().diagonal().minCoeff() > 0.0)) {
+  if (llt.info() != Eigen::Success ||
+      !(llt.matrixL().toDenseMatrix().diagonal().minCoeff() > 0.0)) {
     throw Error(std::string(what) + ": information matrix is not positive definite");
   }
   return llt.matrixU();

@@ -31,11 +31,12 @@ void RelativePoseBlock::evaluate(const double* pose_i, const double* pose_j,
   const double w = q_error.w();
   const Eigen::Matrix3d V = so3::hat(q_error.vec());
   Eigen::Matrix<double, 6, 12> de = Eigen::Matrix<double, 6, 12>::Zero();
-  de.block<3, 3>(0, 0) = so3::hat(t_ij_estimate);                      // d e_t / d omega_i
-  de.block<3, 3>(0, 3) = -Eigen::Matrix3d::Identity();                 // d e_t / d v_i
-  de.block<3, 3>(0, 9) = R_i_transpose * q_j.toRotationMatrix();       // d e_t / d v_j
-  de.block<3, 3>(3, 0) = -(w * Eigen::Matrix3d::Identity() - V) * R_ij_transpose_;  // d e_r / d omega_i
-  de.block<3, 3>(3, 6) = w * Eigen::Matrix3d::Identity() + V;          // d e_r / d omega_j
+  de.block<3, 3>(0, 0) = so3::hat(t_ij_estimate);                 // d e_t / d omega_i
+  de.block<3, 3>(0, 3) = -Eigen::Matrix3d::Identity();            // d e_t / d v_i
+  de.block<3, 3>(0, 9) = R_i_transpose * q_j.toRotationMatrix();  // d e_t / d v_j
+  de.block<3, 3>(3, 0) =
+      -(w * Eigen::Matrix3d::Identity() - V) * R_ij_transpose_;  // d e_r / d omega_i
+  de.block<3, 3>(3, 6) = w * Eigen::Matrix3d::Identity() + V;    // d e_r / d omega_j
   *J = sqrt_info_ * de;
 }
 

@@ -28,7 +28,8 @@ Eigen::Isometry3d circuit_pose(double s, double length, double width, double rad
       p += len * Eigen::Vector2d(std::cos(heading), std::sin(heading));
     } else {
       const double dtheta = len / radius;
-      const Eigen::Vector2d center = p + radius * Eigen::Vector2d(-std::sin(heading), std::cos(heading));
+      const Eigen::Vector2d center =
+          p + radius * Eigen::Vector2d(-std::sin(heading), std::cos(heading));
       heading += dtheta;
       p = center + radius * Eigen::Vector2d(std::sin(heading), -std::cos(heading));
     }
@@ -45,11 +46,17 @@ Eigen::Isometry3d circuit_pose(double s, double length, double width, double rad
 }  // namespace
 
 SyntheticPoseGraph make_synthetic_pose_graph(const SyntheticPoseGraphOptions& o) {
-  if (o.poses_per_lap < 8) throw Error("synthetic pose graph: poses_per_lap must be >= 8, got " + std::to_string(o.poses_per_lap));
-  if (o.laps < 1) throw Error("synthetic pose graph: laps must be >= 1, got " + std::to_string(o.laps));
-  if (!(o.block_length_m > 0.0) || !(o.block_width_m > 0.0)) throw Error("synthetic pose graph: block size must be > 0");
-  if (!(o.translation_sigma_m > 0.0) || !(o.rotation_sigma_rad > 0.0)) throw Error("synthetic pose graph: noise sigmas must be > 0");
-  if (o.loop_closure_stride < 1) throw Error("synthetic pose graph: loop_closure_stride must be >= 1");
+  if (o.poses_per_lap < 8)
+    throw Error("synthetic pose graph: poses_per_lap must be >= 8, got " +
+                std::to_string(o.poses_per_lap));
+  if (o.laps < 1)
+    throw Error("synthetic pose graph: laps must be >= 1, got " + std::to_string(o.laps));
+  if (!(o.block_length_m > 0.0) || !(o.block_width_m > 0.0))
+    throw Error("synthetic pose graph: block size must be > 0");
+  if (!(o.translation_sigma_m > 0.0) || !(o.rotation_sigma_rad > 0.0))
+    throw Error("synthetic pose graph: noise sigmas must be > 0");
+  if (o.loop_closure_stride < 1)
+    throw Error("synthetic pose graph: loop_closure_stride must be >= 1");
 
   SyntheticPoseGraph out;
   std::mt19937_64 rng(o.seed);
@@ -61,13 +68,15 @@ SyntheticPoseGraph make_synthetic_pose_graph(const SyntheticPoseGraphOptions& o)
   const int n = o.poses_per_lap * o.laps;
   for (int k = 0; k < n; ++k) {
     // Later laps drift sideways by up to 1 m so that revisits are near, not identical.
-    Eigen::Isometry3d T = circuit_pose(perimeter * k / o.poses_per_lap, o.block_length_m, o.block_width_m, radius);
+    Eigen::Isometry3d T =
+        circuit_pose(perimeter * k / o.poses_per_lap, o.block_length_m, o.block_width_m, radius);
     T.translation() += T.linear() * Eigen::Vector3d(0.0, 0.5 * (k / o.poses_per_lap), 0.0);
     out.T_world_truth.push_back(T);
   }
 
   se3::Matrix6d information = se3::Matrix6d::Zero();
-  information.diagonal().head<3>().setConstant(1.0 / (o.translation_sigma_m * o.translation_sigma_m));
+  information.diagonal().head<3>().setConstant(1.0 /
+                                               (o.translation_sigma_m * o.translation_sigma_m));
   information.diagonal().tail<3>().setConstant(1.0 / (o.rotation_sigma_rad * o.rotation_sigma_rad));
   const auto noisy = [&](const Eigen::Isometry3d& T) {
     se3::Vector6d xi;
@@ -79,7 +88,8 @@ SyntheticPoseGraph make_synthetic_pose_graph(const SyntheticPoseGraphOptions& o)
     PoseGraph::Edge e;
     e.from = i;
     e.to = j;
-    e.T_from_to = noisy(out.T_world_truth[static_cast<std::size_t>(i)].inverse() * out.T_world_truth[static_cast<std::size_t>(j)]);
+    e.T_from_to = noisy(out.T_world_truth[static_cast<std::size_t>(i)].inverse() *
+                        out.T_world_truth[static_cast<std::size_t>(j)]);
     e.information = information;
     out.graph.edges.push_back(e);
   };

@@ -1,10 +1,10 @@
 #include "block_evaluator.hpp"
 
-#include <cmath>
-
-#include <Eigen/Core>
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
+
+#include <Eigen/Core>
+#include <cmath>
 
 namespace carat::internal {
 namespace {
@@ -67,42 +67,43 @@ bool BlockEvaluator::linearize(int which, BlockLinearizations* out, std::string*
   tbb::enumerable_thread_specific<Scratch> scratch;
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, blocks.size(), 8),
                     [&](const tbb::blocked_range<std::size_t>& range) {
-    Scratch& s = scratch.local();
-    for (std::size_t i = range.begin(); i != range.end(); ++i) {
-      const auto& entry = blocks[i];
-      const ResidualBlock& block = *entry.block;
-      const ParameterPointers params(ptrs.data() + param_begin_[i], param_begin_[i + 1] - param_begin_[i]);
-      const int D = out->dim[i];
-      const int r = block.reduced_dim();
-      s.H_r.setZero(r, r);
-      s.b_r.setZero(r);
-      const double sq = block.accumulate(params, s.H_r, s.b_r);
-      Eigen::Map<Eigen::MatrixXd> H(out->h.data() + out->h_offset[i], D, D);
-      Eigen::Map<Eigen::VectorXd> b(out->b.data() + out->b_offset[i], D);
-      if (r == D) {
-        H = s.H_r;
-        b = s.b_r;
-      } else {
-        s.A.resize(r, D);
-        block.reduced_map(params, s.A.data());
-        H.noalias() = s.A.transpose() * s.H_r * s.A;
-        b.noalias() = s.A.transpose() * s.b_r;
-      }
-      if (entry.loss) {
-        const LossValue lv = entry.loss->evaluate(sq);
-        const double second = lv.rho1 + 2.0 * sq * lv.rho2;
-        if (lv.rho2 != 0.0 && second > 0.0) {
-          H = lv.rho1 * H + (2.0 * lv.rho2) * (b * b.transpose());
-        } else {
-          H *= lv.rho1;
-        }
-        b *= lv.rho1;
-        out->cost[i] = 0.5 * lv.rho;
-      } else {
-        out->cost[i] = 0.5 * sq;
-      }
-    }
-  });
+                      Scratch& s = scratch.local();
+                      for (std::size_t i = range.begin(); i != range.end(); ++i) {
+                        const auto& entry = blocks[i];
+                        const ResidualBlock& block = *entry.block;
+                        const ParameterPointers params(ptrs.data() + param_begin_[i],
+                                                       param_begin_[i + 1] - param_begin_[i]);
+                        const int D = out->dim[i];
+                        const int r = block.reduced_dim();
+                        s.H_r.setZero(r, r);
+                        s.b_r.setZero(r);
+                        const double sq = block.accumulate(params, s.H_r, s.b_r);
+                        Eigen::Map<Eigen::MatrixXd> H(out->h.data() + out->h_offset[i], D, D);
+                        Eigen::Map<Eigen::VectorXd> b(out->b.data() + out->b_offset[i], D);
+                        if (r == D) {
+                          H = s.H_r;
+                          b = s.b_r;
+                        } else {
+                          s.A.resize(r, D);
+                          block.reduced_map(params, s.A.data());
+                          H.noalias() = s.A.transpose() * s.H_r * s.A;
+                          b.noalias() = s.A.transpose() * s.b_r;
+                        }
+                        if (entry.loss) {
+                          const LossValue lv = entry.loss->evaluate(sq);
+                          const double second = lv.rho1 + 2.0 * sq * lv.rho2;
+                          if (lv.rho2 != 0.0 && second > 0.0) {
+                            H = lv.rho1 * H + (2.0 * lv.rho2) * (b * b.transpose());
+                          } else {
+                            H *= lv.rho1;
+                          }
+                          b *= lv.rho1;
+                          out->cost[i] = 0.5 * lv.rho;
+                        } else {
+                          out->cost[i] = 0.5 * sq;
+                        }
+                      }
+                    });
   for (std::size_t i = 0; i < blocks.size(); ++i) {
     const auto D = static_cast<std::size_t>(out->dim[i]);
     if (!std::isfinite(out->cost[i]) || !finite(out->b.data() + out->b_offset[i], D) ||
@@ -120,13 +121,14 @@ double BlockEvaluator::cost(int which) const {
   const auto& ptrs = pointers_[which];
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, blocks.size(), 16),
                     [&](const tbb::blocked_range<std::size_t>& range) {
-    for (std::size_t i = range.begin(); i != range.end(); ++i) {
-      const auto& entry = blocks[i];
-      const ParameterPointers params(ptrs.data() + param_begin_[i], param_begin_[i + 1] - param_begin_[i]);
-      const double sq = entry.block->squared_norm(params);
-      block_cost_[i] = 0.5 * (entry.loss ? entry.loss->evaluate(sq).rho : sq);
-    }
-  });
+                      for (std::size_t i = range.begin(); i != range.end(); ++i) {
+                        const auto& entry = blocks[i];
+                        const ParameterPointers params(ptrs.data() + param_begin_[i],
+                                                       param_begin_[i + 1] - param_begin_[i]);
+                        const double sq = entry.block->squared_norm(params);
+                        block_cost_[i] = 0.5 * (entry.loss ? entry.loss->evaluate(sq).rho : sq);
+                      }
+                    });
   double total = 0.0;
   for (double c : block_cost_) total += c;
   return total;

@@ -32,9 +32,9 @@ class BlockEvaluator {
 
  private:
   const Problem& problem_;
-  std::vector<std::size_t> param_begin_;     // per block, into param_offsets_
-  std::vector<std::size_t> param_offsets_;   // value offsets of each block's variables
-  std::vector<const double*> pointers_[2];   // resolved pointers per buffer
+  std::vector<std::size_t> param_begin_;    // per block, into param_offsets_
+  std::vector<std::size_t> param_offsets_;  // value offsets of each block's variables
+  std::vector<const double*> pointers_[2];  // resolved pointers per buffer
   mutable std::vector<double> block_cost_;
 };
 

@@ -31,8 +31,7 @@ void evaluate_full_jacobian(const ResidualBlock& block, ParameterPointers params
 
 JacobianCheckResult check_jacobians(const ResidualBlock& block,
                                     std::span<const Manifold* const> manifolds,
-                                    ParameterPointers params,
-                                    const JacobianCheckOptions& options) {
+                                    ParameterPointers params, const JacobianCheckOptions& options) {
   const auto dims = block.tangent_dims();
   if (manifolds.size() != dims.size() || params.size() != dims.size()) {
     throw Error("check_jacobians: the block has " + std::to_string(dims.size()) +
@@ -76,15 +75,16 @@ JacobianCheckResult check_jacobians(const ResidualBlock& block,
   result.worst_row = static_cast<int>(wr);
   result.worst_col = static_cast<int>(wc);
   result.max_rel_error = result.max_abs_error / scale;
-  const bool finite = result.analytic.allFinite() && result.numeric.allFinite() && residuals.allFinite();
+  const bool finite =
+      result.analytic.allFinite() && result.numeric.allFinite() && residuals.allFinite();
   result.ok = finite && result.max_abs_error <=
-                           options.absolute_tolerance + options.relative_tolerance * scale;
+                            options.absolute_tolerance + options.relative_tolerance * scale;
   char buffer[256];
   std::snprintf(buffer, sizeof(buffer),
                 "%s: max |J - J_numeric| = %.3e at row %d, column %d (analytic %.6e, numeric %.6e)",
                 result.ok ? "ok" : (finite ? "MISMATCH" : "NON-FINITE"), result.max_abs_error,
-                result.worst_row, result.worst_col,
-                diff.size() ? result.analytic(wr, wc) : 0.0, diff.size() ? result.numeric(wr, wc) : 0.0);
+                result.worst_row, result.worst_col, diff.size() ? result.analytic(wr, wc) : 0.0,
+                diff.size() ? result.numeric(wr, wc) : 0.0);
   result.message = buffer;
   return result;
 }

@@ -1,10 +1,9 @@
 #include "carat/solver/manifold.hpp"
 
-#include <cmath>
-#include <string>
-
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <cmath>
+#include <string>
 
 #include "carat/solver/error.hpp"
 #include "carat/solver/se3.hpp"
@@ -52,7 +51,8 @@ void EuclideanManifold::minus(const double* y, const double* x, double* delta) c
 bool EuclideanManifold::is_valid(const double* x) const { return all_finite(x, size_); }
 
 void SO3Manifold::plus(const double* x, const double* delta, double* out) const {
-  const Eigen::Quaterniond q = read_quaternion(x) * so3::exp(Eigen::Map<const Eigen::Vector3d>(delta));
+  const Eigen::Quaterniond q =
+      read_quaternion(x) * so3::exp(Eigen::Map<const Eigen::Vector3d>(delta));
   write_quaternion(q, out);
 }
 
@@ -62,12 +62,11 @@ void SO3Manifold::minus(const double* y, const double* x, double* delta) const {
   out = w;
 }
 
-bool SO3Manifold::is_valid(const double* x) const {
-  return all_finite(x, 4) && unit_quaternion(x);
-}
+bool SO3Manifold::is_valid(const double* x) const { return all_finite(x, 4) && unit_quaternion(x); }
 
 void SE3Manifold::plus(const double* x, const double* delta, double* out) const {
-  const Eigen::Isometry3d T = se3::from_storage(x) * se3::exp(Eigen::Map<const se3::Vector6d>(delta));
+  const Eigen::Isometry3d T =
+      se3::from_storage(x) * se3::exp(Eigen::Map<const se3::Vector6d>(delta));
   se3::to_storage(T, out);
 }
 
@@ -77,9 +76,7 @@ void SE3Manifold::minus(const double* y, const double* x, double* delta) const {
   out = xi;
 }
 
-bool SE3Manifold::is_valid(const double* x) const {
-  return all_finite(x, 7) && unit_quaternion(x);
-}
+bool SE3Manifold::is_valid(const double* x) const { return all_finite(x, 7) && unit_quaternion(x); }
 
 std::shared_ptr<const Manifold> se3_manifold() {
   static const auto instance = std::make_shared<const SE3Manifold>();

@@ -35,8 +35,9 @@ VariableId Problem::add_se3(const Eigen::Isometry3d& T_world_body) {
 }
 
 VariableId Problem::add_euclidean(const Eigen::VectorXd& initial) {
-  return add_variable(euclidean_manifold(static_cast<int>(initial.size())),
-                      std::span<const double>(initial.data(), static_cast<std::size_t>(initial.size())));
+  return add_variable(
+      euclidean_manifold(static_cast<int>(initial.size())),
+      std::span<const double>(initial.data(), static_cast<std::size_t>(initial.size())));
 }
 
 void Problem::check(VariableId id) const {
@@ -67,8 +68,8 @@ ResidualBlockId Problem::add_residual_block(std::shared_ptr<const ResidualBlock>
 ResidualBlockId Problem::add_residual_block(std::shared_ptr<const ResidualBlock> block,
                                             std::span<const VariableId> variables,
                                             std::shared_ptr<const LossFunction> loss) {
-  const std::string where = "Problem::add_residual_block (block " +
-                            std::to_string(blocks_.size()) + "): ";
+  const std::string where =
+      "Problem::add_residual_block (block " + std::to_string(blocks_.size()) + "): ";
   if (!block) throw Error(where + "block is null");
   const auto dims = block->tangent_dims();
   if (dims.size() != variables.size()) {
@@ -85,8 +86,7 @@ ResidualBlockId Problem::add_residual_block(std::shared_ptr<const ResidualBlock>
     }
     for (std::size_t j = 0; j < i; ++j) {
       if (variables[j] == variables[i]) {
-        throw Error(where + "variable " + std::to_string(variables[i].index) +
-                    " is listed twice");
+        throw Error(where + "variable " + std::to_string(variables[i].index) + " is listed twice");
       }
     }
   }
@@ -184,7 +184,8 @@ double Problem::evaluate_cost() const {
   std::vector<const double*> params;
   for (const auto& entry : blocks_) {
     params.clear();
-    for (VariableId v : entry.variables) params.push_back(values_.data() + offsets_[static_cast<std::size_t>(v.index)]);
+    for (VariableId v : entry.variables)
+      params.push_back(values_.data() + offsets_[static_cast<std::size_t>(v.index)]);
     const double s = entry.block->squared_norm(params);
     cost += 0.5 * (entry.loss ? entry.loss->evaluate(s).rho : s);
   }

@@ -55,7 +55,8 @@ double ResidualBlock::squared_norm(ParameterPointers params) const {
     std::iota(rows.begin(), rows.begin() + count, begin);
     evaluate_rows(params, std::span<const int>(rows.data(), static_cast<std::size_t>(count)),
                   residuals.data(), nullptr);
-    for (int k = 0; k < count; ++k) c += residuals[static_cast<std::size_t>(k)] * residuals[static_cast<std::size_t>(k)];
+    for (int k = 0; k < count; ++k)
+      c += residuals[static_cast<std::size_t>(k)] * residuals[static_cast<std::size_t>(k)];
   }
   return c;
 }

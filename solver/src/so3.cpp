@@ -70,8 +70,7 @@ Eigen::Matrix3d right_jacobian_inverse(const Eigen::Vector3d& omega) {
     return Eigen::Matrix3d::Identity() + 0.5 * W + W2 / 12.0;
   }
   const double theta = std::sqrt(theta2);
-  const double coeff =
-      1.0 / theta2 - (1.0 + std::cos(theta)) / (2.0 * theta * std::sin(theta));
+  const double coeff = 1.0 / theta2 - (1.0 + std::cos(theta)) / (2.0 * theta * std::sin(theta));
   return Eigen::Matrix3d::Identity() + 0.5 * W + coeff * W2;
 }
 

@@ -1,14 +1,14 @@
 #include "carat/solver/solve.hpp"
 
+#include <tbb/info.h>
+#include <tbb/task_arena.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <limits>
 #include <string>
 #include <vector>
-
-#include <tbb/info.h>
-#include <tbb/task_arena.h>
 
 #include "block_evaluator.hpp"
 #include "carat/solver/error.hpp"
@@ -111,7 +111,8 @@ bool Solver::linearize() {
 
 void Solver::run() {
   summary_.num_threads = options_.num_threads;
-  summary_.method = options_.method == Method::kLevenbergMarquardt ? "levenberg_marquardt" : "gauss_newton";
+  summary_.method =
+      options_.method == Method::kLevenbergMarquardt ? "levenberg_marquardt" : "gauss_newton";
   summary_.num_variables = problem_.num_variables();
   summary_.num_residual_blocks = problem_.num_residual_blocks();
   summary_.num_residual_rows = problem_.num_residual_rows();
@@ -166,13 +167,13 @@ void Solver::run() {
   for (int iteration = 1;; ++iteration) {
     const double gradient_max = gradient_.cwiseAbs().maxCoeff();
     if (gradient_max <= options_.gradient_tolerance) {
-      finish(TerminationType::kConvergence, "gradient tolerance reached: max |gradient| = " +
-                                                std::to_string(gradient_max));
+      finish(TerminationType::kConvergence,
+             "gradient tolerance reached: max |gradient| = " + std::to_string(gradient_max));
       break;
     }
     if (iteration > options_.max_iterations) {
-      finish(TerminationType::kNoConvergence,
-             "maximum number of iterations reached (" + std::to_string(options_.max_iterations) + ")");
+      finish(TerminationType::kNoConvergence, "maximum number of iterations reached (" +
+                                                  std::to_string(options_.max_iterations) + ")");
       break;
     }
     const auto iteration_start = Clock::now();
@@ -214,15 +215,17 @@ void Solver::run() {
         row.trust_region_radius = radius;
         record(row, iteration_start);
         if (radius < options_.min_trust_region_radius) {
-          finish(TerminationType::kNoConvergence,
-                 "trust region radius below min_trust_region_radius (system not positive definite)");
+          finish(
+              TerminationType::kNoConvergence,
+              "trust region radius below min_trust_region_radius (system not positive definite)");
           break;
         }
         continue;
       }
       record(row, iteration_start);
       finish(TerminationType::kFailure,
-             "Gauss-Newton: the system is not positive definite even with damping (gauge not fixed or rank-deficient H?)");
+             "Gauss-Newton: the system is not positive definite even with damping (gauge not fixed "
+             "or rank-deficient H?)");
       break;
     }
     auto ts = Clock::now();
@@ -290,9 +293,9 @@ void Solver::run() {
       ++summary_.num_unsuccessful_steps;
       if (!lm) {
         record(row, iteration_start);
-        finish(TerminationType::kNoConvergence,
-               std::isfinite(new_cost) ? "Gauss-Newton step did not decrease the cost"
-                                       : "Gauss-Newton step gave a non-finite cost");
+        finish(TerminationType::kNoConvergence, std::isfinite(new_cost)
+                                                    ? "Gauss-Newton step did not decrease the cost"
+                                                    : "Gauss-Newton step gave a non-finite cost");
         break;
       }
       radius /= decrease_factor;
@@ -300,7 +303,8 @@ void Solver::run() {
       row.trust_region_radius = radius;
       record(row, iteration_start);
       if (radius < options_.min_trust_region_radius) {
-        finish(TerminationType::kNoConvergence, "trust region radius below min_trust_region_radius");
+        finish(TerminationType::kNoConvergence,
+               "trust region radius below min_trust_region_radius");
         break;
       }
     }

@@ -13,8 +13,10 @@ bool fail(std::string* error, const std::string& message) {
 }  // namespace
 
 bool SolverOptions::validate(std::string* error) const {
-  if (max_iterations < 0) return fail(error, "max_iterations must be >= 0, got " + std::to_string(max_iterations));
-  if (num_threads < 1) return fail(error, "num_threads must be >= 1, got " + std::to_string(num_threads));
+  if (max_iterations < 0)
+    return fail(error, "max_iterations must be >= 0, got " + std::to_string(max_iterations));
+  if (num_threads < 1)
+    return fail(error, "num_threads must be >= 1, got " + std::to_string(num_threads));
   const struct {
     const char* name;
     double value;
@@ -26,7 +28,8 @@ bool SolverOptions::validate(std::string* error) const {
                       {"min_lm_diagonal", min_lm_diagonal}};
   for (const auto& item : non_negative) {
     if (!(item.value >= 0.0) || !std::isfinite(item.value)) {
-      return fail(error, std::string(item.name) + " must be finite and >= 0, got " + std::to_string(item.value));
+      return fail(error, std::string(item.name) + " must be finite and >= 0, got " +
+                             std::to_string(item.value));
     }
   }
   if (!(initial_trust_region_radius > 0.0) || !std::isfinite(initial_trust_region_radius)) {

@@ -1,9 +1,8 @@
 #include "carat/solver/solver_summary.hpp"
 
 #include <cstdio>
-#include <string>
-
 #include <nlohmann/json.hpp>
+#include <string>
 
 namespace carat {
 namespace {
@@ -36,14 +35,15 @@ std::string SolverSummary::brief_report() const {
 
 std::string SolverSummary::iteration_table() const {
   std::string out =
-      "iter      cost      cost_change  |gradient|   |step|    tr_ratio  tr_radius  iter_time  total_time\n";
+      "iter      cost      cost_change  |gradient|   |step|    tr_ratio  tr_radius  iter_time  "
+      "total_time\n";
   for (const auto& it : iterations) {
     out += format("%4d % 8.6e % 3.2e % 3.2e % 3.2e % 3.2e % 3.2e % 4.2e % 4.2e%s\n", it.iteration,
-                  it.cost, it.cost_change, it.gradient_max_norm, it.step_norm,
-                  it.relative_decrease, it.trust_region_radius, it.iteration_time_s,
-                  it.cumulative_time_s,
-                  it.linear_solver_failed ? "  (not positive definite)"
-                                          : (it.iteration > 0 && !it.step_is_successful ? "  (rejected)" : ""));
+                  it.cost, it.cost_change, it.gradient_max_norm, it.step_norm, it.relative_decrease,
+                  it.trust_region_radius, it.iteration_time_s, it.cumulative_time_s,
+                  it.linear_solver_failed
+                      ? "  (not positive definite)"
+                      : (it.iteration > 0 && !it.step_is_successful ? "  (rejected)" : ""));
   }
   return out;
 }
@@ -63,8 +63,8 @@ std::string SolverSummary::full_report() const {
   out += format("  %-28s %.9e\n", "initial cost", initial_cost);
   out += format("  %-28s %.9e\n", "final cost", final_cost);
   out += format("  %-28s %.9e\n", "change", initial_cost - final_cost);
-  out += format("  %-28s %d (%d accepted, %d rejected, %d not positive definite)\n",
-                "iterations", num_iterations, num_successful_steps, num_unsuccessful_steps,
+  out += format("  %-28s %d (%d accepted, %d rejected, %d not positive definite)\n", "iterations",
+                num_iterations, num_successful_steps, num_unsuccessful_steps,
                 num_linear_solver_failures);
   out += "\nTime (seconds)\n";
   out += format("  %-28s %.6f\n", "symbolic analysis", time.symbolic_s);

@@ -1,13 +1,13 @@
 #include "sparse_system.hpp"
 
+#include <cholmod.h>
+#include <omp.h>
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <cstring>
 #include <numeric>
 #include <tuple>
-
-#include <omp.h>
-#include <cholmod.h>
-#include <tbb/parallel_for.h>
 
 #include "carat/solver/error.hpp"
 
@@ -37,7 +37,8 @@ struct SparseSystem::Impl {
 
 SparseSystem::~SparseSystem() = default;
 
-SparseSystem::SparseSystem(const Problem& problem, Ordering ordering) : impl_(std::make_unique<Impl>()) {
+SparseSystem::SparseSystem(const Problem& problem, Ordering ordering)
+    : impl_(std::make_unique<Impl>()) {
   const int num_vars = problem.num_variables();
   var_offset_.assign(static_cast<std::size_t>(num_vars), -1);
   var_dim_.assign(static_cast<std::size_t>(num_vars), 0);
@@ -80,7 +81,8 @@ SparseSystem::SparseSystem(const Problem& problem, Ordering ordering) : impl_(st
     for (std::size_t bi = 0; bi < blocks.size(); ++bi) {
       for (std::size_t a = block_free_begin[bi]; a < block_free_begin[bi + 1]; ++a) {
         for (std::size_t b = block_free_begin[bi]; b < block_free_begin[bi + 1]; ++b) {
-          if (a != b) adjacency[static_cast<std::size_t>(block_free[a].first)].push_back(block_free[b].first);
+          if (a != b)
+            adjacency[static_cast<std::size_t>(block_free[a].first)].push_back(block_free[b].first);
         }
       }
     }
@@ -92,8 +94,11 @@ SparseSystem::SparseSystem(const Problem& problem, Ordering ordering) : impl_(st
       list.erase(std::unique(list.begin(), list.end()), list.end());
       nnz += list.size();
     }
-    cholmod_sparse* G = cholmod_l_allocate_sparse(nb, nb, nnz, 1, 1, 0, CHOLMOD_PATTERN, &im.common);
-    if (!G) throw Error("sparse system: out of memory while ordering " + std::to_string(nb) + " variables");
+    cholmod_sparse* G =
+        cholmod_l_allocate_sparse(nb, nb, nnz, 1, 1, 0, CHOLMOD_PATTERN, &im.common);
+    if (!G)
+      throw Error("sparse system: out of memory while ordering " + std::to_string(nb) +
+                  " variables");
     auto* Gp = static_cast<SuiteSparse_long*>(G->p);
     auto* Gi = static_cast<SuiteSparse_long*>(G->i);
     Gp[0] = 0;
@@ -118,11 +123,15 @@ SparseSystem::SparseSystem(const Problem& problem, Ordering ordering) : impl_(st
     }
     cholmod_factor* LG = cholmod_l_analyze(G, &im.common);
     cholmod_l_free_sparse(&G, &im.common);
-    if (!LG) throw Error("sparse system: ordering failed (CHOLMOD status " + std::to_string(im.common.status) + ")");
+    if (!LG)
+      throw Error("sparse system: ordering failed (CHOLMOD status " +
+                  std::to_string(im.common.status) + ")");
     const auto* perm = static_cast<const SuiteSparse_long*>(LG->Perm);
-    for (std::size_t k = 0; k < nb; ++k) position[static_cast<std::size_t>(perm[k])] = static_cast<int>(k);
+    for (std::size_t k = 0; k < nb; ++k)
+      position[static_cast<std::size_t>(perm[k])] = static_cast<int>(k);
     const int selected = im.common.method[im.common.selected].ordering;
-    ordering_name_ = selected == CHOLMOD_METIS ? "METIS" : (selected == CHOLMOD_AMD ? "AMD" : "natural");
+    ordering_name_ =
+        selected == CHOLMOD_METIS ? "METIS" : (selected == CHOLMOD_AMD ? "AMD" : "natural");
     cholmod_l_free_factor(&LG, &im.common);
   } else {
     ordering_name_ = "natural";
@@ -130,7 +139,8 @@ SparseSystem::SparseSystem(const Problem& problem, Ordering ordering) : impl_(st
 
   // 2. Variables and scalar offsets in elimination order.
   free_vars_.assign(nb, -1);
-  for (std::size_t r = 0; r < nb; ++r) free_vars_[static_cast<std::size_t>(position[r])] = free_in_id_order[r];
+  for (std::size_t r = 0; r < nb; ++r)
+    free_vars_[static_cast<std::size_t>(position[r])] = free_in_id_order[r];
   for (std::size_t k = 0; k < nb; ++k) {
     var_offset_[static_cast<std::size_t>(free_vars_[k])] = n_;
     n_ += var_dim_[static_cast<std::size_t>(free_vars_[k])];
@@ -149,7 +159,8 @@ SparseSystem::SparseSystem(const Problem& problem, Ordering ordering) : impl_(st
   for (std::size_t bi = 0; bi < blocks.size(); ++bi) {
     for (std::size_t a = block_free_begin[bi]; a < block_free_begin[bi + 1]; ++a) {
       const int pa = position[static_cast<std::size_t>(block_free[a].first)];
-      grad_raw.emplace_back(pa, static_cast<std::int32_t>(bi), static_cast<std::int16_t>(block_free[a].second));
+      grad_raw.emplace_back(pa, static_cast<std::int32_t>(bi),
+                            static_cast<std::int16_t>(block_free[a].second));
       for (std::size_t b = block_free_begin[bi]; b < block_free_begin[bi + 1]; ++b) {
         const int pb = position[static_cast<std::size_t>(block_free[b].first)];
         if (pa < pb) continue;  // keep row >= column
@@ -159,7 +170,8 @@ SparseSystem::SparseSystem(const Problem& problem, Ordering ordering) : impl_(st
       }
     }
   }
-  for (std::size_t k = 0; k < nb; ++k) raw.push_back({static_cast<int>(k), static_cast<int>(k), -1, 0, 0});
+  for (std::size_t k = 0; k < nb; ++k)
+    raw.push_back({static_cast<int>(k), static_cast<int>(k), -1, 0, 0});
   std::sort(raw.begin(), raw.end(), [](const Raw& x, const Raw& y) {
     return std::tie(x.col, x.row, x.block) < std::tie(y.col, y.row, y.block);
   });
@@ -168,7 +180,8 @@ SparseSystem::SparseSystem(const Problem& problem, Ordering ordering) : impl_(st
     std::size_t j = i;
     PairEntry pair{raw[i].row, 0, contributions_.size(), 0};
     for (; j < raw.size() && raw[j].col == raw[i].col && raw[j].row == raw[i].row; ++j) {
-      if (raw[j].block >= 0) contributions_.push_back({raw[j].block, raw[j].row_local, raw[j].col_local});
+      if (raw[j].block >= 0)
+        contributions_.push_back({raw[j].block, raw[j].row_local, raw[j].col_local});
     }
     pair.contrib_end = contributions_.size();
     pairs_.push_back(pair);
@@ -188,7 +201,8 @@ SparseSystem::SparseSystem(const Problem& problem, Ordering ordering) : impl_(st
     for (std::size_t p = column_pair_begin_[J]; p < column_pair_begin_[J + 1]; ++p) {
       if (static_cast<std::size_t>(pairs_[p].row_var) == J) continue;
       pairs_[p].row_in_column = below;
-      below += var_dim_[static_cast<std::size_t>(free_vars_[static_cast<std::size_t>(pairs_[p].row_var)])];
+      below += var_dim_[static_cast<std::size_t>(
+          free_vars_[static_cast<std::size_t>(pairs_[p].row_var)])];
     }
     for (int c = 0; c < dJ; ++c, ++scalar_col) {
       colptr_[scalar_col + 1] = colptr_[scalar_col] + (dJ - c) + below;
@@ -201,7 +215,8 @@ SparseSystem::SparseSystem(const Problem& problem, Ordering ordering) : impl_(st
     const int dJ = var_dim_[static_cast<std::size_t>(vJ)];
     for (int c = 0; c < dJ; ++c, ++scalar_col) {
       std::int64_t pos = colptr_[scalar_col];
-      for (int r = c; r < dJ; ++r) rows_[static_cast<std::size_t>(pos++)] = var_offset_[static_cast<std::size_t>(vJ)] + r;
+      for (int r = c; r < dJ; ++r)
+        rows_[static_cast<std::size_t>(pos++)] = var_offset_[static_cast<std::size_t>(vJ)] + r;
       for (std::size_t p = column_pair_begin_[J]; p < column_pair_begin_[J + 1]; ++p) {
         if (static_cast<std::size_t>(pairs_[p].row_var) == J) continue;
         const int I = free_vars_[static_cast<std::size_t>(pairs_[p].row_var)];
@@ -220,8 +235,10 @@ SparseSystem::SparseSystem(const Problem& problem, Ordering ordering) : impl_(st
     grad_sources_.emplace_back(block, local);
     grad_begin_[static_cast<std::size_t>(pos) + 1] = grad_sources_.size();
   }
-  for (std::size_t k = 1; k <= nb; ++k) grad_begin_[k] = std::max(grad_begin_[k], grad_begin_[k - 1]);
-  for (std::size_t k = 1; k <= nb; ++k) column_pair_begin_[k] = std::max(column_pair_begin_[k], column_pair_begin_[k - 1]);
+  for (std::size_t k = 1; k <= nb; ++k)
+    grad_begin_[k] = std::max(grad_begin_[k], grad_begin_[k - 1]);
+  for (std::size_t k = 1; k <= nb; ++k)
+    column_pair_begin_[k] = std::max(column_pair_begin_[k], column_pair_begin_[k - 1]);
 
   if (n_ == 0) return;
 
@@ -244,7 +261,9 @@ SparseSystem::SparseSystem(const Problem& problem, Ordering ordering) : impl_(st
   im.common.zrelax[1] = 0.2;
   im.common.zrelax[2] = 0.1;
   im.L = cholmod_l_analyze(im.A, &im.common);
-  if (!im.L) throw Error("sparse system: CHOLMOD symbolic analysis failed (status " + std::to_string(im.common.status) + ")");
+  if (!im.L)
+    throw Error("sparse system: CHOLMOD symbolic analysis failed (status " +
+                std::to_string(im.common.status) + ")");
   factor_nnz_ = static_cast<std::size_t>(im.common.lnz);
   factor_flops_ = im.common.fl;
   description_ = "cholmod supernodal, " + ordering_name_ + " ordering on the variable graph";
@@ -255,51 +274,56 @@ SparseSystem::SparseSystem(const Problem& problem, Ordering ordering) : impl_(st
 void SparseSystem::assemble(const BlockLinearizations& blocks, Eigen::VectorXd* gradient) {
   const std::size_t num_cols = free_vars_.size();
   gradient->setZero(n_);
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, num_cols, 16),
-                    [&](const tbb::blocked_range<std::size_t>& range) {
-    for (std::size_t J = range.begin(); J != range.end(); ++J) {
-      const int vJ = free_vars_[J];
-      const int dJ = var_dim_[static_cast<std::size_t>(vJ)];
-      const int col0 = var_offset_[static_cast<std::size_t>(vJ)];
-      for (int c = 0; c < dJ; ++c) {
-        const std::int64_t begin = colptr_[static_cast<std::size_t>(col0 + c)];
-        const std::int64_t end = colptr_[static_cast<std::size_t>(col0 + c) + 1];
-        std::fill(values_.begin() + begin, values_.begin() + end, 0.0);
-      }
-      for (std::size_t p = column_pair_begin_[J]; p < column_pair_begin_[J + 1]; ++p) {
-        const PairEntry& pair = pairs_[p];
-        const bool diagonal = static_cast<std::size_t>(pair.row_var) == J;
-        const int dI = var_dim_[static_cast<std::size_t>(free_vars_[static_cast<std::size_t>(pair.row_var)])];
-        for (std::size_t q = pair.contrib_begin; q < pair.contrib_end; ++q) {
-          const Contribution& src = contributions_[q];
-          const auto bi = static_cast<std::size_t>(src.block);
-          const auto D = static_cast<std::size_t>(blocks.dim[bi]);
-          const double* H = blocks.h.data() + blocks.h_offset[bi];
+  tbb::parallel_for(
+      tbb::blocked_range<std::size_t>(0, num_cols, 16),
+      [&](const tbb::blocked_range<std::size_t>& range) {
+        for (std::size_t J = range.begin(); J != range.end(); ++J) {
+          const int vJ = free_vars_[J];
+          const int dJ = var_dim_[static_cast<std::size_t>(vJ)];
+          const int col0 = var_offset_[static_cast<std::size_t>(vJ)];
           for (int c = 0; c < dJ; ++c) {
-            double* column = values_.data() + colptr_[static_cast<std::size_t>(col0 + c)];
-            const double* src_col = H + static_cast<std::size_t>(src.col_local + c) * D + src.row_local;
-            if (diagonal) {
-              for (int r = c; r < dJ; ++r) column[r - c] += src_col[r];
-            } else {
-              double* dst = column + (dJ - c) + pair.row_in_column;
-              for (int r = 0; r < dI; ++r) dst[r] += src_col[r];
+            const std::int64_t begin = colptr_[static_cast<std::size_t>(col0 + c)];
+            const std::int64_t end = colptr_[static_cast<std::size_t>(col0 + c) + 1];
+            std::fill(values_.begin() + begin, values_.begin() + end, 0.0);
+          }
+          for (std::size_t p = column_pair_begin_[J]; p < column_pair_begin_[J + 1]; ++p) {
+            const PairEntry& pair = pairs_[p];
+            const bool diagonal = static_cast<std::size_t>(pair.row_var) == J;
+            const int dI = var_dim_[static_cast<std::size_t>(
+                free_vars_[static_cast<std::size_t>(pair.row_var)])];
+            for (std::size_t q = pair.contrib_begin; q < pair.contrib_end; ++q) {
+              const Contribution& src = contributions_[q];
+              const auto bi = static_cast<std::size_t>(src.block);
+              const auto D = static_cast<std::size_t>(blocks.dim[bi]);
+              const double* H = blocks.h.data() + blocks.h_offset[bi];
+              for (int c = 0; c < dJ; ++c) {
+                double* column = values_.data() + colptr_[static_cast<std::size_t>(col0 + c)];
+                const double* src_col =
+                    H + static_cast<std::size_t>(src.col_local + c) * D + src.row_local;
+                if (diagonal) {
+                  for (int r = c; r < dJ; ++r) column[r - c] += src_col[r];
+                } else {
+                  double* dst = column + (dJ - c) + pair.row_in_column;
+                  for (int r = 0; r < dI; ++r) dst[r] += src_col[r];
+                }
+              }
             }
           }
+          double* g = gradient->data() + col0;
+          for (std::size_t s = grad_begin_[J]; s < grad_begin_[J + 1]; ++s) {
+            const auto [block, local] = grad_sources_[s];
+            const double* b =
+                blocks.b.data() + blocks.b_offset[static_cast<std::size_t>(block)] + local;
+            for (int r = 0; r < dJ; ++r) g[r] += b[r];
+          }
         }
-      }
-      double* g = gradient->data() + col0;
-      for (std::size_t s = grad_begin_[J]; s < grad_begin_[J + 1]; ++s) {
-        const auto [block, local] = grad_sources_[s];
-        const double* b = blocks.b.data() + blocks.b_offset[static_cast<std::size_t>(block)] + local;
-        for (int r = 0; r < dJ; ++r) g[r] += b[r];
-      }
-    }
-  });
+      });
 }
 
 Eigen::VectorXd SparseSystem::diagonal() const {
   Eigen::VectorXd d(n_);
-  for (int k = 0; k < n_; ++k) d[k] = values_[static_cast<std::size_t>(diag_pos_[static_cast<std::size_t>(k)])];
+  for (int k = 0; k < n_; ++k)
+    d[k] = values_[static_cast<std::size_t>(diag_pos_[static_cast<std::size_t>(k)])];
   return d;
 }
 
@@ -323,7 +347,8 @@ void SparseSystem::solve(const Eigen::VectorXd& rhs, Eigen::VectorXd* x) {
   Impl& im = *impl_;
   std::copy(rhs.data(), rhs.data() + n_, static_cast<double*>(im.B->x));
   if (!cholmod_l_solve2(CHOLMOD_A, im.L, im.B, nullptr, &im.X, nullptr, &im.Y, &im.E, &im.common)) {
-    throw Error("sparse system: CHOLMOD solve failed (status " + std::to_string(im.common.status) + ")");
+    throw Error("sparse system: CHOLMOD solve failed (status " + std::to_string(im.common.status) +
+                ")");
   }
   x->resize(n_);
   std::copy_n(static_cast<const double*>(im.X->x), n_, x->data());

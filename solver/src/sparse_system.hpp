@@ -7,13 +7,12 @@
 // per iteration. Values are gathered through precomputed lists (deterministic), and CHOLMOD's
 // supernodal symbolic analysis runs once.
 
+#include <Eigen/Core>
 #include <cstddef>
 #include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "carat/solver/problem.hpp"
 #include "carat/solver/solver_options.hpp"
@@ -80,8 +79,8 @@ class SparseSystem {
   // Gather lists for H: per block column J (elimination position), the block rows I >= J with
   // their offset below the diagonal block, and for each such pair a list of contributions.
   struct PairEntry {
-    int row_var;                  // elimination position of the row block
-    std::int64_t row_in_column;   // offset of the row block below the diagonal block
+    int row_var;                 // elimination position of the row block
+    std::int64_t row_in_column;  // offset of the row block below the diagonal block
     std::size_t contrib_begin;
     std::size_t contrib_end;
   };
@@ -90,8 +89,8 @@ class SparseSystem {
     std::int16_t row_local;  // offset of the row variable inside the block's D
     std::int16_t col_local;  // offset of the column variable inside the block's D
   };
-  std::vector<int> free_vars_;                 // free variable at each elimination position
-  std::vector<std::size_t> column_pair_begin_; // per elimination position
+  std::vector<int> free_vars_;                  // free variable at each elimination position
+  std::vector<std::size_t> column_pair_begin_;  // per elimination position
   std::vector<PairEntry> pairs_;
   std::vector<Contribution> contributions_;
   // Gradient gather: per free variable, (block, local offset).

@@ -4,11 +4,10 @@
 /// weights that keeps the weighted sum and the total weight (to rounding). In dimension L at
 /// most L + 1 points are needed (fewer when the points span a lower-dimensional space).
 
+#include <Eigen/Core>
 #include <cstdint>
 #include <span>
 #include <vector>
-
-#include <Eigen/Core>
 
 namespace carat {
 
@@ -20,9 +19,9 @@ struct WeightedSubset {
 
 /// Settings of the Caratheodory reductions.
 struct CaratheodoryOptions {
-  int clusters = 64;        ///< Fast-Caratheodory: clusters per level (K >= L + 2)
-  int min_points = 0;       ///< stop eliminating at this many points (0: as few as possible)
-  std::uint64_t seed = 1;   ///< Fast-Caratheodory: seed of the shuffle that forms clusters
+  int clusters = 64;       ///< Fast-Caratheodory: clusters per level (K >= L + 2)
+  int min_points = 0;      ///< stop eliminating at this many points (0: as few as possible)
+  std::uint64_t seed = 1;  ///< Fast-Caratheodory: seed of the shuffle that forms clusters
 };
 
 /// Classic Caratheodory on `points` (L x n, one column per point) with positive `weights`:

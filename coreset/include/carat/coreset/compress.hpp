@@ -14,10 +14,10 @@ namespace carat {
 
 /// Settings of compress().
 struct CompressionOptions {
-  int target_rows = 0;      ///< M; 0: the minimum r(r+1)/2 + r + 2 for the block's reduced dim r
-  int clusters = 64;        ///< K clusters per Fast-Caratheodory level
-  std::uint64_t seed = 1;   ///< seed of the shuffle
-  bool exact_size = true;   ///< exactly M rows (when the block has more than M)
+  int target_rows = 0;     ///< M; 0: the minimum r(r+1)/2 + r + 2 for the block's reduced dim r
+  int clusters = 64;       ///< K clusters per Fast-Caratheodory level
+  std::uint64_t seed = 1;  ///< seed of the shuffle
+  bool exact_size = true;  ///< exactly M rows (when the block has more than M)
 };
 
 /// Exact compression at `values`: the weighted rows reproduce J_r^T J_r, J_r^T e and e^T e of
@@ -30,9 +30,9 @@ std::shared_ptr<CompressedBlock> compress(std::shared_ptr<const ResidualBlock> b
 
 /// Settings of compress_random().
 struct RandomSamplingOptions {
-  int target_rows = 29;     ///< M rows to keep (a multiple of group_size)
-  int group_size = 1;       ///< rows that are kept or dropped together (3 for a GICP point)
-  std::uint64_t seed = 1;   ///< seed of the draw
+  int target_rows = 29;    ///< M rows to keep (a multiple of group_size)
+  int group_size = 1;      ///< rows that are kept or dropped together (3 for a GICP point)
+  std::uint64_t seed = 1;  ///< seed of the draw
 };
 
 /// Uniform random sampling without replacement of M / group_size groups of group_size

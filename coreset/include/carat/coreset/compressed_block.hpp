@@ -23,7 +23,9 @@ class CompressedBlock final : public ResidualBlock {
   int num_rows() const override { return static_cast<int>(rows_.size()); }
   std::span<const int> tangent_dims() const override { return inner_->tangent_dims(); }
   int reduced_dim() const override { return inner_->reduced_dim(); }
-  void reduced_map(ParameterPointers params, double* A) const override { inner_->reduced_map(params, A); }
+  void reduced_map(ParameterPointers params, double* A) const override {
+    inner_->reduced_map(params, A);
+  }
   void evaluate_rows(ParameterPointers params, std::span<const int> rows, double* residuals,
                      double* jacobian) const override;
   std::unique_ptr<ResidualBlock> extract_rows(std::span<const int> rows) const override;

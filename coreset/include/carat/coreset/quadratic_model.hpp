@@ -2,10 +2,9 @@
 
 /// The quadratic model (H, b, c) of least-squares rows and relative errors between two models.
 
+#include <Eigen/Core>
 #include <algorithm>
 #include <span>
-
-#include <Eigen/Core>
 
 namespace carat {
 
@@ -27,15 +26,19 @@ struct QuadraticModelError {
 
 /// The model of all rows (J_r row-major N x r, e), in long double accumulation for reference use.
 QuadraticModel quadratic_model(
-    const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>& J_r,
+    const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>&
+        J_r,
     const Eigen::Ref<const Eigen::VectorXd>& e);
 
 /// The model of a weighted subset of rows.
 QuadraticModel quadratic_model(
-    const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>& J_r,
-    const Eigen::Ref<const Eigen::VectorXd>& e, std::span<const int> rows, std::span<const double> weights);
+    const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>&
+        J_r,
+    const Eigen::Ref<const Eigen::VectorXd>& e, std::span<const int> rows,
+    std::span<const double> weights);
 
 /// Relative errors of `approximation` against `reference`.
-QuadraticModelError relative_error(const QuadraticModel& reference, const QuadraticModel& approximation);
+QuadraticModelError relative_error(const QuadraticModel& reference,
+                                   const QuadraticModel& approximation);
 
 }  // namespace carat

@@ -9,19 +9,18 @@
 /// once into contiguous columns, summed in fixed chunks in one pass, and every level works on
 /// chunk or row sums with one weight per surviving range.
 
+#include <Eigen/Core>
 #include <cstdint>
 #include <vector>
-
-#include <Eigen/Core>
 
 namespace carat {
 
 /// Settings of the quadratic coreset.
 struct RowCoresetOptions {
-  int target_rows = 0;       ///< M; 0 means the minimum L + 1 (29 for r = 6)
-  int clusters = 64;         ///< K clusters per Fast-Caratheodory level (>= L + 2)
-  std::uint64_t seed = 1;    ///< seed of the row shuffle (same seed, same rows)
-  bool exact_size = true;    ///< return exactly M rows (when N > M); else at most M
+  int target_rows = 0;     ///< M; 0 means the minimum L + 1 (29 for r = 6)
+  int clusters = 64;       ///< K clusters per Fast-Caratheodory level (>= L + 2)
+  std::uint64_t seed = 1;  ///< seed of the row shuffle (same seed, same rows)
+  bool exact_size = true;  ///< return exactly M rows (when N > M); else at most M
 };
 
 /// Selected rows (ascending indices into the input) and their weights.
@@ -37,7 +36,8 @@ int minimum_coreset_rows(int reduced_dim);
 /// weight 1. Throws carat::Error for M below the minimum, K < L + 2, sizes that do not match,
 /// or a non-finite value (naming the row).
 RowCoreset select_coreset_rows(
-    const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>& J_r,
+    const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>&
+        J_r,
     const Eigen::Ref<const Eigen::VectorXd>& e, const RowCoresetOptions& options = {});
 
 }  // namespace carat

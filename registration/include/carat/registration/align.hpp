@@ -22,18 +22,19 @@ enum class RegistrationMethod {
 /// Settings of align().
 struct AlignSettings {
   RegistrationMethod method = RegistrationMethod::kGicp;  ///< error to minimize
-  double max_correspondence_distance = 1.0;  ///< metres; farther pairs are not used
-  int max_iterations = 30;                   ///< outer iterations (correspondence searches)
-  double translation_tolerance = 1e-4;       ///< converged when a step moves less (metres) ...
-  double rotation_tolerance = 1e-4;          ///< ... and turns less (radians)
-  int min_correspondences = 30;              ///< fewer pairs than this is a failure
-  int num_threads = 1;                       ///< threads for the search and the linearization
+  double max_correspondence_distance = 1.0;               ///< metres; farther pairs are not used
+  int max_iterations = 30;              ///< outer iterations (correspondence searches)
+  double translation_tolerance = 1e-4;  ///< converged when a step moves less (metres) ...
+  double rotation_tolerance = 1e-4;     ///< ... and turns less (radians)
+  int min_correspondences = 30;         ///< fewer pairs than this is a failure
+  int num_threads = 1;                  ///< threads for the search and the linearization
 };
 
 /// What align() found.
 struct AlignResult {
   Eigen::Isometry3d T_target_source = Eigen::Isometry3d::Identity();  ///< maps source into target
-  se3::Matrix6d H = se3::Matrix6d::Zero();  ///< J^T J of the method's rows at the result (right tangent of T)
+  se3::Matrix6d H =
+      se3::Matrix6d::Zero();    ///< J^T J of the method's rows at the result (right tangent of T)
   double error = 0.0;           ///< sum of squared residuals of the method's rows at the result
   int iterations = 0;           ///< outer iterations run
   int num_correspondences = 0;  ///< pairs used in the last iteration
@@ -46,6 +47,7 @@ struct AlignResult {
 /// (estimate_covariances); `target_tree` indexes target. Throws carat::Error if covariances are
 /// missing or fewer than settings.min_correspondences pairs are found.
 AlignResult align(const PointCloud& target, const KdTree& target_tree, const PointCloud& source,
-                  const Eigen::Isometry3d& T_target_source_init, const AlignSettings& settings = {});
+                  const Eigen::Isometry3d& T_target_source_init,
+                  const AlignSettings& settings = {});
 
 }  // namespace carat

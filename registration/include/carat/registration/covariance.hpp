@@ -10,13 +10,14 @@ namespace carat {
 
 /// Settings of estimate_covariances().
 struct CovarianceOptions {
-  int neighbors = 10;  ///< k, including the point itself (>= 4)
-  int num_threads = 1; ///< threads (>= 1)
+  int neighbors = 10;   ///< k, including the point itself (>= 4)
+  int num_threads = 1;  ///< threads (>= 1)
 };
 
 /// Fills cloud.covariances. Every point uses its k nearest neighbours; a cloud with fewer than
 /// k points uses all of its points for every neighbourhood. Throws carat::Error for fewer than
 /// 4 points or k < 4.
-void estimate_covariances(PointCloud& cloud, const KdTree& tree, const CovarianceOptions& options = {});
+void estimate_covariances(PointCloud& cloud, const KdTree& tree,
+                          const CovarianceOptions& options = {});
 
 }  // namespace carat

@@ -2,11 +2,10 @@
 
 /// k-nearest-neighbour search over a point cloud's positions (nanoflann k-d tree).
 
+#include <Eigen/Core>
 #include <cstdint>
 #include <memory>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "carat/registration/point_cloud.hpp"
 
@@ -23,7 +22,8 @@ class KdTree {
 
   /// Up to k nearest points of `query`: indices and squared distances, nearest first.
   /// Returns how many were found (fewer than k only when the cloud is smaller than k).
-  int knn(const Eigen::Vector3f& query, int k, std::uint32_t* indices, float* squared_distances) const;
+  int knn(const Eigen::Vector3f& query, int k, std::uint32_t* indices,
+          float* squared_distances) const;
 
   /// The nearest point: its index and squared distance; false for an empty cloud.
   bool nearest(const Eigen::Vector3f& query, std::uint32_t* index, float* squared_distance) const;

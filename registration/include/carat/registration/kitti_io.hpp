@@ -21,6 +21,7 @@ struct ReadOptions {
 
 /// Reads a KITTI .bin scan. Throws carat::Error naming the file for a missing or empty file, a
 /// size that is not a whole number of records, or (unless dropped) a non-finite point.
-PointCloud read_kitti_bin(const std::filesystem::path& path, KittiFormat format, const ReadOptions& options = {});
+PointCloud read_kitti_bin(const std::filesystem::path& path, KittiFormat format,
+                          const ReadOptions& options = {});
 
 }  // namespace carat

@@ -4,17 +4,16 @@
 /// keep thousands of frames in memory: 12 bytes per point for positions, 24 more with
 /// covariances (the 6 unique entries xx, xy, xz, yy, yz, zz), 36 bytes in all.
 
+#include <Eigen/Core>
 #include <cstddef>
 #include <vector>
-
-#include <Eigen/Core>
 
 namespace carat {
 
 /// Positions (metres, in the cloud's own frame) and optional covariances.
 struct PointCloud {
-  std::vector<Eigen::Vector3f> points;                    ///< positions
-  std::vector<Eigen::Matrix<float, 6, 1>> covariances;    ///< empty, or one per point
+  std::vector<Eigen::Vector3f> points;                  ///< positions
+  std::vector<Eigen::Matrix<float, 6, 1>> covariances;  ///< empty, or one per point
 
   /// Number of points.
   std::size_t size() const { return points.size(); }

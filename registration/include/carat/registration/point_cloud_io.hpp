@@ -28,7 +28,8 @@ void write_pcd(const std::filesystem::path& path, const PointCloud& cloud, bool 
 void write_ply(const std::filesystem::path& path, const PointCloud& cloud, bool ascii = false);
 
 /// Reads .pcd, .ply or .bin (KITTI, with `kitti_format`) by the file's extension.
-PointCloud read_point_cloud(const std::filesystem::path& path, KittiFormat kitti_format = KittiFormat::kXyzi,
+PointCloud read_point_cloud(const std::filesystem::path& path,
+                            KittiFormat kitti_format = KittiFormat::kXyzi,
                             const ReadOptions& options = {});
 
 }  // namespace carat

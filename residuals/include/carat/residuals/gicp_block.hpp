@@ -8,14 +8,13 @@
 /// rebuilds blocks as its estimate moves. Variables: target pose T_world_i, source pose
 /// T_world_j. Memory: 12 doubles (96 bytes) per correspondence.
 
+#include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <array>
 #include <cstdint>
 #include <memory>
 #include <span>
 #include <vector>
-
-#include <Eigen/Core>
-#include <Eigen/Geometry>
 
 #include "carat/solver/residual_block.hpp"
 
@@ -35,9 +34,12 @@ class GicpBlock final : public ResidualBlock {
   /// Builds the rows at the relative pose T_target_source (used only to fuse covariances).
   /// Throws carat::Error if there are no correspondences, a value is not finite, or a fused
   /// covariance is not positive definite.
-  GicpBlock(std::span<const GicpCorrespondence> correspondences, const Eigen::Isometry3d& T_target_source);
+  GicpBlock(std::span<const GicpCorrespondence> correspondences,
+            const Eigen::Isometry3d& T_target_source);
 
-  int num_rows() const override { return static_cast<int>(rows_.empty() ? 3 * points_.size() : rows_.size()); }
+  int num_rows() const override {
+    return static_cast<int>(rows_.empty() ? 3 * points_.size() : rows_.size());
+  }
   std::span<const int> tangent_dims() const override { return kDims; }
   int reduced_dim() const override { return 6; }
   void reduced_map(ParameterPointers params, double* A) const override;

@@ -5,12 +5,11 @@
 /// Variables: target pose T_world_i, source pose T_world_j; reduced Jacobian w.r.t. the tangent
 /// of T_ij (see registration_rows.hpp). 72 bytes per pair.
 
+#include <Eigen/Core>
 #include <array>
 #include <memory>
 #include <span>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "carat/solver/residual_block.hpp"
 
@@ -21,7 +20,8 @@ class PointToPlaneBlock final : public ResidualBlock {
  public:
   /// Parallel arrays; normals are normalized here. Throws carat::Error for no pairs, different
   /// lengths, non-finite values or a zero normal.
-  PointToPlaneBlock(std::span<const Eigen::Vector3d> points_target, std::span<const Eigen::Vector3d> normals_target,
+  PointToPlaneBlock(std::span<const Eigen::Vector3d> points_target,
+                    std::span<const Eigen::Vector3d> normals_target,
                     std::span<const Eigen::Vector3d> points_source);
 
   int num_rows() const override { return static_cast<int>(target_.size()); }

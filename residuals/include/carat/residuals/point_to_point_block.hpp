@@ -4,12 +4,11 @@
 /// (three rows per pair, metres). Variables: target pose T_world_i, source pose T_world_j;
 /// reduced Jacobian w.r.t. the tangent of T_ij (see registration_rows.hpp). 48 bytes per pair.
 
+#include <Eigen/Core>
 #include <array>
 #include <memory>
 #include <span>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "carat/solver/residual_block.hpp"
 
@@ -20,9 +19,12 @@ class PointToPointBlock final : public ResidualBlock {
  public:
   /// points_target[k] pairs with points_source[k]. Throws carat::Error for no pairs, different
   /// lengths or non-finite values.
-  PointToPointBlock(std::span<const Eigen::Vector3d> points_target, std::span<const Eigen::Vector3d> points_source);
+  PointToPointBlock(std::span<const Eigen::Vector3d> points_target,
+                    std::span<const Eigen::Vector3d> points_source);
 
-  int num_rows() const override { return static_cast<int>(rows_.empty() ? 3 * target_.size() : rows_.size()); }
+  int num_rows() const override {
+    return static_cast<int>(rows_.empty() ? 3 * target_.size() : rows_.size());
+  }
   std::span<const int> tangent_dims() const override { return kDims; }
   int reduced_dim() const override { return 6; }
   void reduced_map(ParameterPointers params, double* A) const override;

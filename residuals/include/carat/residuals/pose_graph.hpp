@@ -2,11 +2,10 @@
 
 /// A 3D pose graph (vertices T_world_vertex, relative-pose edges) and its least-squares problem.
 
+#include <Eigen/Geometry>
 #include <cstdint>
 #include <memory>
 #include <vector>
-
-#include <Eigen/Geometry>
 
 #include "carat/solver/loss_function.hpp"
 #include "carat/solver/problem.hpp"
@@ -18,15 +17,15 @@ namespace carat {
 struct PoseGraph {
   /// One pose.
   struct Vertex {
-    std::int64_t id = 0;                                        ///< file id
+    std::int64_t id = 0;                                               ///< file id
     Eigen::Isometry3d T_world_vertex = Eigen::Isometry3d::Identity();  ///< pose in the world
   };
   /// One relative-pose measurement between two vertices.
   struct Edge {
-    std::int64_t from = 0;                                  ///< id of vertex i
-    std::int64_t to = 0;                                    ///< id of vertex j
+    std::int64_t from = 0;                                        ///< id of vertex i
+    std::int64_t to = 0;                                          ///< id of vertex j
     Eigen::Isometry3d T_from_to = Eigen::Isometry3d::Identity();  ///< measured T_i_j
-    se3::Matrix6d information = se3::Matrix6d::Identity();  ///< translation first
+    se3::Matrix6d information = se3::Matrix6d::Identity();        ///< translation first
   };
   std::vector<Vertex> vertices;     ///< in file order
   std::vector<Edge> edges;          ///< in file order
@@ -44,7 +43,7 @@ struct PoseGraphProblemOptions {
 
 /// A Problem built from a PoseGraph with the variable of each vertex.
 struct PoseGraphProblem {
-  Problem problem;                  ///< one SE(3) variable per vertex, one block per edge
+  Problem problem;                           ///< one SE(3) variable per vertex, one block per edge
   std::vector<VariableId> vertex_variables;  ///< parallel to PoseGraph::vertices
 };
 

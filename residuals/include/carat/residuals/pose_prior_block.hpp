@@ -3,10 +3,9 @@
 /// SE(3) prior on one pose T_world_body:
 ///   e_t = R_p^T (t - t_p),   e_r = 2 vec(q_p^-1 q),   r = U e,  U^T U = information.
 
-#include <array>
-
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <array>
 
 #include "carat/solver/residual_block.hpp"
 #include "carat/solver/se3.hpp"

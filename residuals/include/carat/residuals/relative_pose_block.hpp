@@ -7,10 +7,9 @@
 /// residual r = U e with U^T U = information (6 rows). Jacobians are with respect to the
 /// right-perturbation tangents [omega, v] of both poses (analytic).
 
-#include <array>
-
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <array>
 
 #include "carat/solver/residual_block.hpp"
 #include "carat/solver/se3.hpp"

@@ -4,10 +4,9 @@
 /// central differences through each variable's manifold plus(), compared with the block's
 /// analytic Jacobian J = J_r A.
 
+#include <Eigen/Core>
 #include <span>
 #include <string>
-
-#include <Eigen/Core>
 
 #include "carat/solver/manifold.hpp"
 #include "carat/solver/residual_block.hpp"
@@ -23,14 +22,14 @@ struct JacobianCheckOptions {
 
 /// What check_jacobians() found.
 struct JacobianCheckResult {
-  bool ok = false;                  ///< every entry within tolerance and every value finite
-  double max_abs_error = 0.0;       ///< max |J - J_numeric|
-  double max_rel_error = 0.0;       ///< max_abs_error / max(1, max |J_numeric|)
-  int worst_row = -1;               ///< row of the largest error
-  int worst_col = -1;               ///< tangent column of the largest error
-  Eigen::MatrixXd analytic;         ///< J = J_r A (N x D)
-  Eigen::MatrixXd numeric;          ///< central-difference Jacobian (N x D)
-  std::string message;              ///< one line: verdict and worst entry
+  bool ok = false;             ///< every entry within tolerance and every value finite
+  double max_abs_error = 0.0;  ///< max |J - J_numeric|
+  double max_rel_error = 0.0;  ///< max_abs_error / max(1, max |J_numeric|)
+  int worst_row = -1;          ///< row of the largest error
+  int worst_col = -1;          ///< tangent column of the largest error
+  Eigen::MatrixXd analytic;    ///< J = J_r A (N x D)
+  Eigen::MatrixXd numeric;     ///< central-difference Jacobian (N x D)
+  std::string message;         ///< one line: verdict and worst entry
 };
 
 /// Compares the block's analytic Jacobian at `params` with central differences taken through

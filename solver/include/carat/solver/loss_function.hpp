@@ -9,9 +9,9 @@ namespace carat {
 
 /// rho(s) and its first two derivatives at s.
 struct LossValue {
-  double rho = 0.0;    ///< rho(s)
-  double rho1 = 1.0;   ///< rho'(s)
-  double rho2 = 0.0;   ///< rho''(s)
+  double rho = 0.0;   ///< rho(s)
+  double rho1 = 1.0;  ///< rho'(s)
+  double rho2 = 0.0;  ///< rho''(s)
 };
 
 /// A robust loss rho(s) of a block's squared residual norm s >= 0; rho(0) = 0, rho'(0) = 1.

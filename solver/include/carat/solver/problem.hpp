@@ -3,13 +3,12 @@
 /// A nonlinear least-squares problem: variables on manifolds and residual blocks over them.
 /// The problem owns the variable values; solve() updates them in place.
 
+#include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <cstddef>
 #include <memory>
 #include <span>
 #include <vector>
-
-#include <Eigen/Core>
-#include <Eigen/Geometry>
 
 #include "carat/solver/loss_function.hpp"
 #include "carat/solver/manifold.hpp"
@@ -30,7 +29,8 @@ class Problem {
 
   /// Adds a variable on `manifold` with initial value `initial` (ambient_size() doubles).
   /// Throws carat::Error if the size is wrong or the value invalid.
-  VariableId add_variable(std::shared_ptr<const Manifold> manifold, std::span<const double> initial);
+  VariableId add_variable(std::shared_ptr<const Manifold> manifold,
+                          std::span<const double> initial);
 
   /// Adds an SE(3) variable T_world_body (see se3.hpp for the storage).
   VariableId add_se3(const Eigen::Isometry3d& T_world_body);

@@ -10,11 +10,10 @@
 /// J = J_r A with J_r (N x r) per row and A (r x D) fixed at the evaluation point. Binary
 /// registration blocks do this with r = 6 (the relative pose); all rows then share A.
 
+#include <Eigen/Core>
 #include <cstddef>
 #include <memory>
 #include <span>
-
-#include <Eigen/Core>
 
 namespace carat {
 
@@ -44,8 +43,8 @@ class ResidualBlock {
   /// Evaluates the rows `rows` (indices in [0, N), any order, repeats allowed): residuals[k]
   /// is row rows[k]; when jacobian is not null its row k (r doubles, row-major, stride r) is
   /// the reduced Jacobian of that row.
-  virtual void evaluate_rows(ParameterPointers params, std::span<const int> rows,
-                             double* residuals, double* jacobian) const = 0;
+  virtual void evaluate_rows(ParameterPointers params, std::span<const int> rows, double* residuals,
+                             double* jacobian) const = 0;
 
   /// Adds J_r^T J_r to H_r (r x r) and J_r^T r to b_r over all rows; returns r^T r.
   /// The default evaluates rows in chunks; blocks override it with a faster direct path.

@@ -23,19 +23,19 @@ enum class Ordering {
 /// What solve() does and when it stops.
 struct SolverOptions {
   Method method = Method::kLevenbergMarquardt;  ///< nonlinear method
-  Ordering ordering = Ordering::kAuto;           ///< fill-reducing ordering
-  int max_iterations = 50;          ///< iterations (accepted or not) before giving up
-  double function_tolerance = 1e-6;   ///< stop when |cost change| / cost < this
-  double gradient_tolerance = 1e-10;  ///< stop when max |gradient| < this
-  double parameter_tolerance = 1e-8;  ///< stop when |step| < this * (|x| + this)
-  double initial_trust_region_radius = 1e4;  ///< LM: initial radius mu (damping is 1/mu)
-  double max_trust_region_radius = 1e16;     ///< LM: largest radius
-  double min_trust_region_radius = 1e-32;    ///< LM: stop when the radius falls below this
-  double min_relative_decrease = 1e-3;       ///< LM: smallest gain ratio that accepts a step
-  double min_lm_diagonal = 1e-6;             ///< LM: lower clamp of diag(H) in the damping
-  double max_lm_diagonal = 1e32;             ///< LM: upper clamp of diag(H) in the damping
+  Ordering ordering = Ordering::kAuto;          ///< fill-reducing ordering
+  int max_iterations = 50;                      ///< iterations (accepted or not) before giving up
+  double function_tolerance = 1e-6;             ///< stop when |cost change| / cost < this
+  double gradient_tolerance = 1e-10;            ///< stop when max |gradient| < this
+  double parameter_tolerance = 1e-8;            ///< stop when |step| < this * (|x| + this)
+  double initial_trust_region_radius = 1e4;     ///< LM: initial radius mu (damping is 1/mu)
+  double max_trust_region_radius = 1e16;        ///< LM: largest radius
+  double min_trust_region_radius = 1e-32;       ///< LM: stop when the radius falls below this
+  double min_relative_decrease = 1e-3;          ///< LM: smallest gain ratio that accepts a step
+  double min_lm_diagonal = 1e-6;                ///< LM: lower clamp of diag(H) in the damping
+  double max_lm_diagonal = 1e32;                ///< LM: upper clamp of diag(H) in the damping
   int num_threads = 1;  ///< threads for linearization (>= 1; capped at the machine's cores)
-  bool record_iterations = true;              ///< keep one IterationSummary per iteration
+  bool record_iterations = true;  ///< keep one IterationSummary per iteration
 
   /// True if every setting is in range; otherwise false with a message in *error.
   bool validate(std::string* error) const;

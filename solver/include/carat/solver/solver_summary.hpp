@@ -20,52 +20,52 @@ const char* to_string(TerminationType type);
 
 /// One row of the iteration table.
 struct IterationSummary {
-  int iteration = 0;            ///< 0 is the initial evaluation
-  double cost = 0.0;            ///< cost after this iteration (1/2 sum rho)
-  double cost_change = 0.0;     ///< decrease of the cost achieved by the step (0 if rejected)
-  double gradient_max_norm = 0.0;  ///< max |b| at the iterate the step started from
-  double step_norm = 0.0;       ///< |delta| of the step tried
-  double relative_decrease = 0.0;  ///< gain ratio actual / predicted decrease
-  double trust_region_radius = 0.0;  ///< LM radius mu after this iteration
-  bool step_is_successful = false;   ///< step accepted
-  bool linear_solver_failed = false; ///< the damped system was not positive definite
-  double iteration_time_s = 0.0;     ///< wall time of this iteration
-  double cumulative_time_s = 0.0;    ///< wall time since solve() started
+  int iteration = 0;                  ///< 0 is the initial evaluation
+  double cost = 0.0;                  ///< cost after this iteration (1/2 sum rho)
+  double cost_change = 0.0;           ///< decrease of the cost achieved by the step (0 if rejected)
+  double gradient_max_norm = 0.0;     ///< max |b| at the iterate the step started from
+  double step_norm = 0.0;             ///< |delta| of the step tried
+  double relative_decrease = 0.0;     ///< gain ratio actual / predicted decrease
+  double trust_region_radius = 0.0;   ///< LM radius mu after this iteration
+  bool step_is_successful = false;    ///< step accepted
+  bool linear_solver_failed = false;  ///< the damped system was not positive definite
+  double iteration_time_s = 0.0;      ///< wall time of this iteration
+  double cumulative_time_s = 0.0;     ///< wall time since solve() started
 };
 
 /// Wall time per stage, summed over the solve, in seconds.
 struct TimeBreakdown {
-  double linearize_s = 0.0;     ///< evaluating blocks' H, b, c (parallel)
-  double cost_s = 0.0;          ///< evaluating the cost of trial steps
-  double assembly_s = 0.0;      ///< scattering block values into the sparse matrix
-  double symbolic_s = 0.0;      ///< pattern, ordering and CHOLMOD symbolic analysis (once)
-  double numeric_s = 0.0;       ///< CHOLMOD numeric factorizations
-  double solve_s = 0.0;         ///< triangular solves
-  double total_s = 0.0;         ///< whole solve() call
+  double linearize_s = 0.0;  ///< evaluating blocks' H, b, c (parallel)
+  double cost_s = 0.0;       ///< evaluating the cost of trial steps
+  double assembly_s = 0.0;   ///< scattering block values into the sparse matrix
+  double symbolic_s = 0.0;   ///< pattern, ordering and CHOLMOD symbolic analysis (once)
+  double numeric_s = 0.0;    ///< CHOLMOD numeric factorizations
+  double solve_s = 0.0;      ///< triangular solves
+  double total_s = 0.0;      ///< whole solve() call
 };
 
 /// The result of one solve.
 struct SolverSummary {
   TerminationType termination = TerminationType::kFailure;  ///< why it stopped
-  std::string message;           ///< human-readable reason
-  double initial_cost = 0.0;     ///< cost at the start
-  double final_cost = 0.0;       ///< cost of the returned (best) iterate
-  int num_iterations = 0;        ///< iterations run (accepted + rejected)
-  int num_successful_steps = 0;  ///< accepted steps
-  int num_unsuccessful_steps = 0;  ///< rejected steps
-  int num_linear_solver_failures = 0;  ///< factorizations that were not positive definite
-  int num_variables = 0;          ///< variables in the problem
-  int num_free_variables = 0;     ///< variables not held constant
-  int num_tangent_parameters = 0; ///< size of the linear system
-  int num_residual_blocks = 0;    ///< residual blocks
-  std::size_t num_residual_rows = 0;  ///< scalar residual rows
-  std::size_t factor_nonzeros = 0;    ///< nonzeros of the Cholesky factor
-  std::size_t hessian_nonzeros = 0;   ///< stored nonzeros of the upper triangle of H
-  std::size_t residual_memory_bytes = 0;  ///< bytes held by residual blocks
-  int num_threads = 1;            ///< threads used for linearization
-  std::string method;             ///< "levenberg_marquardt" or "gauss_newton"
-  std::string linear_solver;      ///< e.g. "cholmod_supernodal (block_amd)"
-  TimeBreakdown time;             ///< where the time went
+  std::string message;                                      ///< human-readable reason
+  double initial_cost = 0.0;                                ///< cost at the start
+  double final_cost = 0.0;                                  ///< cost of the returned (best) iterate
+  int num_iterations = 0;                    ///< iterations run (accepted + rejected)
+  int num_successful_steps = 0;              ///< accepted steps
+  int num_unsuccessful_steps = 0;            ///< rejected steps
+  int num_linear_solver_failures = 0;        ///< factorizations that were not positive definite
+  int num_variables = 0;                     ///< variables in the problem
+  int num_free_variables = 0;                ///< variables not held constant
+  int num_tangent_parameters = 0;            ///< size of the linear system
+  int num_residual_blocks = 0;               ///< residual blocks
+  std::size_t num_residual_rows = 0;         ///< scalar residual rows
+  std::size_t factor_nonzeros = 0;           ///< nonzeros of the Cholesky factor
+  std::size_t hessian_nonzeros = 0;          ///< stored nonzeros of the upper triangle of H
+  std::size_t residual_memory_bytes = 0;     ///< bytes held by residual blocks
+  int num_threads = 1;                       ///< threads used for linearization
+  std::string method;                        ///< "levenberg_marquardt" or "gauss_newton"
+  std::string linear_solver;                 ///< e.g. "cholmod_supernodal (block_amd)"
+  TimeBreakdown time;                        ///< where the time went
   std::vector<IterationSummary> iterations;  ///< one row per iteration (iteration 0 first)
 
   /// True when the returned values are usable (converged or ran out of iterations).
