@@ -52,14 +52,19 @@ WeightedSubset to_subset(const internal::Items& items) {
 WeightedSubset caratheodory(const Eigen::MatrixXd& points, std::span<const double> weights,
                             int min_points) {
   validate(points, weights, "caratheodory");
-  Eigen::VectorXd w =
-      Eigen::Map<const Eigen::VectorXd>(weights.data(), static_cast<Eigen::Index>(weights.size()));
-  const std::vector<char> alive = internal::eliminate(points, w, {}, min_points);
+  const Eigen::Index L = points.rows();
+  const Eigen::Index n = points.cols();
+  // Coordinate-major copy, as the elimination reads it.
+  const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> by_coordinate =
+      points;
+  std::vector<double> w(weights.begin(), weights.end());
+  const std::vector<char> alive =
+      internal::eliminate(by_coordinate.data(), L, n, n, w.data(), {}, min_points);
   WeightedSubset out;
   for (std::size_t i = 0; i < alive.size(); ++i) {
     if (!alive[i]) continue;
     out.indices.push_back(static_cast<int>(i));
-    out.weights.push_back(w[static_cast<Eigen::Index>(i)]);
+    out.weights.push_back(w[i]);
   }
   return out;
 }
@@ -76,12 +81,13 @@ WeightedSubset fast_caratheodory(const Eigen::MatrixXd& points, std::span<const 
   const auto n = static_cast<int>(points.cols());
   const std::vector<int> order = internal::seeded_permutation(n, options.seed);
   internal::Items items;
-  items.sums.resize(points.rows(), n);
-  items.counts.assign(static_cast<std::size_t>(n), 1);
-  items.weight.resize(static_cast<std::size_t>(n));
+  items.reset(points.rows(), n);
+  std::fill(items.counts.begin(), items.counts.end(), 1);
   items.ids = order;
   for (int k = 0; k < n; ++k) {
-    items.sums.col(k) = points.col(order[static_cast<std::size_t>(k)]);
+    for (Eigen::Index l = 0; l < points.rows(); ++l) {
+      items.item(k)[l] = points(l, order[static_cast<std::size_t>(k)]);
+    }
     items.weight[static_cast<std::size_t>(k)] =
         weights[static_cast<std::size_t>(order[static_cast<std::size_t>(k)])];
   }

@@ -9,22 +9,36 @@
 namespace carat::internal {
 namespace {
 
-using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+/// Row-major matrix with rows padded to a multiple of 8 doubles (zeros beyond the columns), so
+/// that row updates run whole vectors from an aligned column on.
+struct PaddedMatrix {
+  std::vector<double> data;  ///< rows x stride, row-major
+  Eigen::Index rows = 0;     ///< number of rows
+  Eigen::Index cols = 0;     ///< number of live columns
+  Eigen::Index stride = 0;   ///< doubles per row (cols rounded up to 8)
 
-/// y -= a * x over n contiguous doubles (vectorizes: no reduction).
-CARAT_MULTIVERSION
-void axpy_minus(double* __restrict y, const double* __restrict x, double a, Eigen::Index n) {
-  for (Eigen::Index i = 0; i < n; ++i) y[i] -= a * x[i];
-}
+  void resize(Eigen::Index r, Eigen::Index c) {
+    rows = r;
+    cols = c;
+    stride = (c + 7) / 8 * 8;
+    data.assign(static_cast<std::size_t>(r * stride), 0.0);
+  }
+  double* row(Eigen::Index r) { return data.data() + r * stride; }
+  double& operator()(Eigen::Index r, Eigen::Index c) {
+    return data[static_cast<std::size_t>(r * stride + c)];
+  }
+};
 
-/// Gauss-Jordan with partial pivoting on the row-major m x n matrix T (in place): column by
-/// column, a pivot above `tolerance` becomes a unit pivot row and is cleared from every other
-/// row; a column without one is free. Only the columns a later step still reads are updated.
+/// Gauss-Jordan with partial pivoting on T (in place): column by column, a pivot above
+/// `tolerance` becomes a unit pivot row and is cleared from every other row; a column without one
+/// is free. Returns the rank; pivot_col[r] is the basic column of row r.
 CARAT_MULTIVERSION
-void gauss_jordan(RowMatrix& T, double tolerance, std::vector<Eigen::Index>& pivot_col,
-                  std::vector<Eigen::Index>& free_col) {
-  const Eigen::Index m = T.rows();
-  const Eigen::Index n = T.cols();
+Eigen::Index gauss_jordan(PaddedMatrix& T, double tolerance, std::vector<Eigen::Index>& pivot_col,
+                          std::vector<Eigen::Index>& free_col) {
+  const Eigen::Index m = T.rows;
+  const Eigen::Index n = T.cols;
+  const Eigen::Index stride = T.stride;
+  double* __restrict base = T.data.data();
   pivot_col.clear();
   free_col.clear();
   Eigen::Index rank = 0;
@@ -34,9 +48,9 @@ void gauss_jordan(RowMatrix& T, double tolerance, std::vector<Eigen::Index>& piv
       continue;
     }
     Eigen::Index best = rank;
-    double best_abs = std::abs(T(rank, col));
+    double best_abs = std::abs(base[rank * stride + col]);
     for (Eigen::Index r = rank + 1; r < m; ++r) {
-      const double v = std::abs(T(r, col));
+      const double v = std::abs(base[r * stride + col]);
       if (v > best_abs) {
         best_abs = v;
         best = r;
@@ -46,32 +60,85 @@ void gauss_jordan(RowMatrix& T, double tolerance, std::vector<Eigen::Index>& piv
       free_col.push_back(col);
       continue;
     }
-    if (best != rank) T.row(best).swap(T.row(rank));
-    double* pivot_row = T.row(rank).data();
+    // Columns before `from` are zero in the pivot row (basic columns) or not read again.
+    const Eigen::Index first = free_col.empty() ? col : std::min(col, free_col.front());
+    const Eigen::Index from = first / 8 * 8;
+    double* __restrict pivot_row = base + rank * stride;
+    if (best != rank) {
+      double* __restrict other = base + best * stride;
+      for (Eigen::Index c = from; c < stride; ++c) std::swap(pivot_row[c], other[c]);
+    }
     const double inverse = 1.0 / pivot_row[col];
-    for (Eigen::Index c = col + 1; c < n; ++c) pivot_row[c] *= inverse;
-    for (Eigen::Index f : free_col) pivot_row[f] *= inverse;
+    for (Eigen::Index c = from; c < stride; ++c) pivot_row[c] *= inverse;
     pivot_row[col] = 1.0;
     for (Eigen::Index r = 0; r < m; ++r) {
       if (r == rank) continue;
-      double* row = T.row(r).data();
+      double* __restrict row = base + r * stride;
       const double factor = row[col];
       if (factor == 0.0) continue;
-      axpy_minus(row + col + 1, pivot_row + col + 1, factor, n - col - 1);
-      for (Eigen::Index f : free_col) row[f] -= factor * pivot_row[f];
+      for (Eigen::Index c = from; c < stride; ++c) row[c] -= factor * pivot_row[c];
       row[col] = 0.0;
     }
     pivot_col.push_back(col);
     ++rank;
   }
+  return rank;
+}
+
+/// The basis exchange of the tableau F when free column k enters at row j_row: pivot row
+/// divided by F(j_row, k), the column cleared from every other row (columns after k only).
+CARAT_MULTIVERSION
+void exchange(PaddedMatrix& F, Eigen::Index rank, Eigen::Index j_row, Eigen::Index k) {
+  const Eigen::Index stride = F.stride;
+  const Eigen::Index from = (k + 1) / 8 * 8;
+  double* __restrict base = F.data.data();
+  double* __restrict pivot_row = base + j_row * stride;
+  const double inverse = 1.0 / pivot_row[k];
+  for (Eigen::Index c = from; c < stride; ++c) pivot_row[c] *= inverse;
+  for (Eigen::Index r = 0; r < rank; ++r) {
+    if (r == j_row) continue;
+    double* __restrict row = base + r * stride;
+    const double factor = row[k];
+    if (factor == 0.0) continue;
+    for (Eigen::Index c = from; c < stride; ++c) row[c] -= factor * pivot_row[c];
+  }
+}
+
+/// t = (p - weighted mean of p) / max |p - mean| over n points (t = 0 when p is constant).
+/// Four partial sums and maxima (fixed order), so that the reductions vectorize.
+CARAT_MULTIVERSION
+void centre_and_scale(const double* __restrict p, const double* __restrict w, Eigen::Index n,
+                      double total, double* __restrict t) {
+  typedef double v4d __attribute__((vector_size(32)));
+  v4d acc = {0.0, 0.0, 0.0, 0.0};
+  Eigen::Index i = 0;
+  for (; i + 3 < n; i += 4) {
+    v4d pv;
+    v4d wv;
+    __builtin_memcpy(&pv, p + i, sizeof(pv));
+    __builtin_memcpy(&wv, w + i, sizeof(wv));
+    acc += pv * wv;
+  }
+  double mean = (acc[0] + acc[1]) + (acc[2] + acc[3]);
+  for (; i < n; ++i) mean += p[i] * w[i];
+  mean /= total;
+  for (i = 0; i < n; ++i) t[i] = p[i] - mean;
+  double m[4] = {0.0, 0.0, 0.0, 0.0};
+  for (i = 0; i + 3 < n; i += 4) {
+    for (int q = 0; q < 4; ++q) m[q] = std::max(m[q], std::abs(t[i + q]));
+  }
+  for (; i < n; ++i) m[0] = std::max(m[0], std::abs(t[i]));
+  const double scale = std::max(std::max(m[0], m[1]), std::max(m[2], m[3]));
+  if (!(scale > 0.0)) return;
+  const double inverse = 1.0 / scale;
+  for (i = 0; i < n; ++i) t[i] *= inverse;
 }
 
 }  // namespace
 
-std::vector<char> eliminate(const Eigen::MatrixXd& points, Eigen::VectorXd& weights,
-                            std::span<const long> sizes, long min_rows) {
-  const Eigen::Index L = points.rows();
-  const Eigen::Index n = points.cols();
+std::vector<char> eliminate(const double* points, Eigen::Index L, Eigen::Index n,
+                            Eigen::Index stride, double* weights, std::span<const long> sizes,
+                            long min_rows) {
   std::vector<char> alive(static_cast<std::size_t>(n), 1);
   if (n <= 1) return alive;
   const auto size_of = [&](Eigen::Index i) {
@@ -80,34 +147,28 @@ std::vector<char> eliminate(const Eigen::MatrixXd& points, Eigen::VectorXd& weig
 
   // T = [points; 1] with every coordinate centred and scaled to unit range: row operations, so
   // the kernel is unchanged, but the factorization sees numbers of one magnitude.
-  thread_local RowMatrix T;
+  thread_local PaddedMatrix T;
   T.resize(L + 1, n);
-  const double total = weights.sum();
+  double total = 0.0;
+  for (Eigen::Index i = 0; i < n; ++i) total += weights[i];
   for (Eigen::Index l = 0; l < L; ++l) {
-    double mean = 0.0;
-    for (Eigen::Index i = 0; i < n; ++i) mean += points(l, i) * weights[i];
-    mean /= total;
-    double scale = 0.0;
-    for (Eigen::Index i = 0; i < n; ++i) {
-      const double v = points(l, i) - mean;
-      T(l, i) = v;
-      scale = std::max(scale, std::abs(v));
-    }
-    if (scale > 0.0) T.row(l) *= 1.0 / scale;
+    const double* p = points + l * stride;
+    double* t = T.row(l);
+    centre_and_scale(p, weights, n, total, t);
   }
-  T.row(L).setOnes();
+  double* ones = T.row(L);
+  for (Eigen::Index i = 0; i < n; ++i) ones[i] = 1.0;
 
   // Reduced row echelon form: basic columns (one per pivot row) and free columns. Free column f
   // gives the null vector v = e_f - sum_r T(r, f) e_{basic(r)} of the points' [p; 1].
   thread_local std::vector<Eigen::Index> pivot_col, free_col;
-  gauss_jordan(T, 1e-11, pivot_col, free_col);
-  const auto rank = static_cast<Eigen::Index>(pivot_col.size());
+  const Eigen::Index rank = gauss_jordan(T, 1e-11, pivot_col, free_col);
   const auto m = static_cast<Eigen::Index>(free_col.size());
   if (m == 0) return alive;
 
   // The free columns as one contiguous tableau F (rank x m): column k stays valid for the
   // current basis as points leave and free points enter it.
-  thread_local RowMatrix F;
+  thread_local PaddedMatrix F;
   F.resize(rank, m);
   for (Eigen::Index r = 0; r < rank; ++r) {
     for (Eigen::Index k = 0; k < m; ++k) F(r, k) = T(r, free_col[static_cast<std::size_t>(k)]);
@@ -144,16 +205,8 @@ std::vector<char> eliminate(const Eigen::MatrixXd& points, Eigen::VectorXd& weig
     alive[static_cast<std::size_t>(j)] = 0;
     rows -= size_of(j);
     if (j_row < 0 || k + 1 == m) continue;
-    // Basis exchange: f replaces j in row j_row; pivot the remaining free columns.
-    const Eigen::Index rest = m - k - 1;
-    double* pivot_row = F.row(j_row).data() + k + 1;
-    const double inverse = 1.0 / F(j_row, k);
-    for (Eigen::Index q = 0; q < rest; ++q) pivot_row[q] *= inverse;
-    for (Eigen::Index r = 0; r < rank; ++r) {
-      if (r == j_row) continue;
-      const double factor = F(r, k);
-      if (factor != 0.0) axpy_minus(F.row(r).data() + k + 1, pivot_row, factor, rest);
-    }
+    // Basis exchange: f replaces j in row j_row.
+    exchange(F, rank, j_row, k);
     basic[static_cast<std::size_t>(j_row)] = f;
   }
   // Points whose weight rounded to zero carry nothing: drop them (unless that would break the

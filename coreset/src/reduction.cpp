@@ -1,10 +1,33 @@
 #include "reduction.hpp"
 
 #include <algorithm>
+#include <cstddef>
 
 #include "elimination.hpp"
+#include "simd.hpp"
 
 namespace carat::internal {
+namespace {
+
+/// acc[0..L) += w * p[0..L) (vectorizes over the coordinates).
+inline void add_scaled(double* __restrict acc, const double* __restrict p, double w,
+                       Eigen::Index L) {
+  for (Eigen::Index l = 0; l < L; ++l) acc[l] += w * p[l];
+}
+
+/// Item-major weighted sums of contiguous clusters: out[c * L + l] = sum over i in
+/// [begin[c], begin[c + 1]) of w[i] * p[i * L + l].
+CARAT_MULTIVERSION
+void cluster_sums(const double* __restrict p, const double* __restrict w, Eigen::Index L,
+                  const int* begin, int clusters, double* __restrict out) {
+  for (int c = 0; c < clusters; ++c) {
+    double* acc = out + c * L;
+    for (Eigen::Index l = 0; l < L; ++l) acc[l] = 0.0;
+    for (int i = begin[c]; i < begin[c + 1]; ++i) add_scaled(acc, p + i * L, w[i], L);
+  }
+}
+
+}  // namespace
 
 long Items::rows() const {
   long total = 0;
@@ -13,18 +36,22 @@ long Items::rows() const {
 }
 
 void Items::reset(Eigen::Index L, int count) {
-  if (sums.rows() != L || sums.cols() < count) sums.resize(L, std::max<Eigen::Index>(count, 64));
+  dim = L;
+  if (sums.size() < static_cast<std::size_t>(L * count)) {
+    sums.resize(static_cast<std::size_t>(L * count));
+  }
   counts.resize(static_cast<std::size_t>(count));
   weight.resize(static_cast<std::size_t>(count));
   ids.resize(static_cast<std::size_t>(count));
 }
 
 void Items::filter(const std::vector<char>& keep) {
+  const int n = size();
   int out = 0;
-  for (int i = 0; i < size(); ++i) {
+  for (int i = 0; i < n; ++i) {
     if (!keep[static_cast<std::size_t>(i)]) continue;
     if (out != i) {
-      sums.col(out) = sums.col(i);
+      std::copy(item(i), item(i) + dim, item(out));
       counts[static_cast<std::size_t>(out)] = counts[static_cast<std::size_t>(i)];
       weight[static_cast<std::size_t>(out)] = weight[static_cast<std::size_t>(i)];
       ids[static_cast<std::size_t>(out)] = ids[static_cast<std::size_t>(i)];
@@ -36,35 +63,69 @@ void Items::filter(const std::vector<char>& keep) {
   ids.resize(static_cast<std::size_t>(out));
 }
 
+void Items::split_tail(int from, Items& tail) {
+  const int n = size();
+  tail.reset(dim, n - from);
+  std::copy(item(from), item(n), tail.item(0));
+  tail.counts.assign(counts.begin() + from, counts.end());
+  tail.weight.assign(weight.begin() + from, weight.end());
+  tail.ids.assign(ids.begin() + from, ids.end());
+  counts.resize(static_cast<std::size_t>(from));
+  weight.resize(static_cast<std::size_t>(from));
+  ids.resize(static_cast<std::size_t>(from));
+}
+
+void Items::append(const Items& tail) {
+  const int n = size();
+  const int total = n + tail.size();
+  if (sums.size() < static_cast<std::size_t>(dim * total)) {
+    sums.resize(static_cast<std::size_t>(dim * total));
+  }
+  std::copy(tail.item(0), tail.item(tail.size()), item(n));
+  counts.insert(counts.end(), tail.counts.begin(), tail.counts.end());
+  weight.insert(weight.end(), tail.weight.begin(), tail.weight.end());
+  ids.insert(ids.end(), tail.ids.begin(), tail.ids.end());
+}
+
 void reduce_level(Items& items, int clusters, long min_rows) {
   const int n = items.size();
-  const Eigen::Index L = items.sums.rows();
-  Eigen::MatrixXd means = Eigen::MatrixXd::Zero(L, clusters);
-  Eigen::VectorXd cluster_weight = Eigen::VectorXd::Zero(clusters);
-  std::vector<long> cluster_rows(static_cast<std::size_t>(clusters), 0);
-  std::vector<int> begin(static_cast<std::size_t>(clusters) + 1);
-  for (int c = 0; c <= clusters; ++c) {
-    begin[static_cast<std::size_t>(c)] = static_cast<int>(static_cast<long>(n) * c / clusters);
+  const Eigen::Index L = items.dim;
+  const auto K = static_cast<std::size_t>(clusters);
+  thread_local std::vector<double> sums, means, cluster_weight, new_weight;
+  thread_local std::vector<long> cluster_rows;
+  thread_local std::vector<int> begin;
+  sums.resize(static_cast<std::size_t>(L) * K);
+  means.resize(static_cast<std::size_t>(L) * K);
+  cluster_weight.assign(K, 0.0);
+  cluster_rows.assign(K, 0);
+  begin.resize(K + 1);
+  for (std::size_t c = 0; c <= K; ++c) {
+    begin[c] = static_cast<int>(static_cast<long>(n) * static_cast<long>(c) / clusters);
   }
-  for (int c = 0; c < clusters; ++c) {
-    auto mean = means.col(c);
-    for (int i = begin[static_cast<std::size_t>(c)]; i < begin[static_cast<std::size_t>(c) + 1];
-         ++i) {
-      const double w = items.weight[static_cast<std::size_t>(i)];
-      mean.noalias() += w * items.sums.col(i);
-      cluster_weight[c] += w * static_cast<double>(items.counts[static_cast<std::size_t>(i)]);
-      cluster_rows[static_cast<std::size_t>(c)] += items.counts[static_cast<std::size_t>(i)];
+  for (std::size_t c = 0; c < K; ++c) {
+    for (int i = begin[c]; i < begin[c + 1]; ++i) {
+      const long count = items.counts[static_cast<std::size_t>(i)];
+      cluster_weight[c] += items.weight[static_cast<std::size_t>(i)] * static_cast<double>(count);
+      cluster_rows[c] += count;
     }
-    mean /= cluster_weight[c];
   }
-  Eigen::VectorXd new_weight = cluster_weight;
-  const std::vector<char> alive = eliminate(means, new_weight, cluster_rows, min_rows);
+  cluster_sums(items.sums.data(), items.weight.data(), L, begin.data(), clusters, sums.data());
+  // Means, coordinate-major (as the elimination reads them).
+  for (std::size_t c = 0; c < K; ++c) {
+    const double inverse = 1.0 / cluster_weight[c];
+    for (Eigen::Index l = 0; l < L; ++l) {
+      means[static_cast<std::size_t>(l) * K + c] =
+          sums[c * static_cast<std::size_t>(L) + static_cast<std::size_t>(l)] * inverse;
+    }
+  }
+  new_weight = cluster_weight;
+  const std::vector<char> alive =
+      eliminate(means.data(), L, clusters, clusters, new_weight.data(), cluster_rows, min_rows);
   std::vector<char> keep(static_cast<std::size_t>(n), 0);
-  for (int c = 0; c < clusters; ++c) {
-    if (!alive[static_cast<std::size_t>(c)]) continue;
+  for (std::size_t c = 0; c < K; ++c) {
+    if (!alive[c]) continue;
     const double scale = new_weight[c] / cluster_weight[c];
-    for (int i = begin[static_cast<std::size_t>(c)]; i < begin[static_cast<std::size_t>(c) + 1];
-         ++i) {
+    for (int i = begin[c]; i < begin[c + 1]; ++i) {
       keep[static_cast<std::size_t>(i)] = 1;
       items.weight[static_cast<std::size_t>(i)] *= scale;
     }
@@ -74,19 +135,28 @@ void reduce_level(Items& items, int clusters, long min_rows) {
 
 void reduce_final(Items& items, long min_rows) {
   const int n = items.size();
-  Eigen::MatrixXd means(items.sums.rows(), n);
-  Eigen::VectorXd total(n);
+  const Eigen::Index L = items.dim;
+  thread_local std::vector<double> means, total;
+  means.resize(static_cast<std::size_t>(L * n));
+  total.resize(static_cast<std::size_t>(n));
   for (int i = 0; i < n; ++i) {
-    const double count = static_cast<double>(items.counts[static_cast<std::size_t>(i)]);
-    means.col(i) = items.sums.col(i) / count;
-    total[i] = items.weight[static_cast<std::size_t>(i)] * count;
+    total[static_cast<std::size_t>(i)] =
+        items.weight[static_cast<std::size_t>(i)] *
+        static_cast<double>(items.counts[static_cast<std::size_t>(i)]);
   }
-  Eigen::VectorXd new_total = total;
-  const std::vector<char> alive = eliminate(means, new_total, items.counts, min_rows);
+  for (int i = 0; i < n; ++i) {
+    const double* p = items.item(i);
+    const double inverse = 1.0 / static_cast<double>(items.counts[static_cast<std::size_t>(i)]);
+    for (Eigen::Index l = 0; l < L; ++l)
+      means[static_cast<std::size_t>(l * n + i)] = p[l] * inverse;
+  }
+  const std::vector<char> alive =
+      eliminate(means.data(), L, n, n, total.data(), items.counts, min_rows);
   for (int i = 0; i < n; ++i) {
     if (alive[static_cast<std::size_t>(i)]) {
       items.weight[static_cast<std::size_t>(i)] =
-          new_total[i] / static_cast<double>(items.counts[static_cast<std::size_t>(i)]);
+          total[static_cast<std::size_t>(i)] /
+          static_cast<double>(items.counts[static_cast<std::size_t>(i)]);
     }
   }
   items.filter(alive);

@@ -1,7 +1,9 @@
 #pragma once
 
 // Internal: the Fast-Caratheodory level loop over "items". An item stands for `count` rows that
-// share one weight per row; `sums` holds each item's unweighted sum of lifted rows.
+// share one weight per row; `sums` holds each item's unweighted sum of lifted rows, item-major
+// (the L coordinates of item i at sums[i * L]) so that a level's cluster sums and the filtering
+// of survivors run over contiguous memory.
 
 #include <Eigen/Core>
 #include <vector>
@@ -11,10 +13,11 @@ namespace carat::internal {
 /// Items of a reduction: their lifted sums, row counts and per-row weights. Storage only grows
 /// (reuse one Items across calls to avoid page faults on fresh memory).
 struct Items {
-  Eigen::MatrixXd sums;        ///< L x capacity; columns [0, size()) are live
+  std::vector<double> sums;    ///< L per item, item-major; items [0, size()) are live
   std::vector<long> counts;    ///< rows per item
   std::vector<double> weight;  ///< weight of each row of the item
   std::vector<int> ids;        ///< caller's id of each item
+  Eigen::Index dim = 0;        ///< L, the lifted dimension
 
   /// Makes room for `count` items of dimension L (contents unspecified).
   void reset(Eigen::Index L, int count);
@@ -22,8 +25,16 @@ struct Items {
   int size() const { return static_cast<int>(counts.size()); }
   /// Rows represented by all items.
   long rows() const;
+  /// The L coordinates of item i.
+  double* item(Eigen::Index i) { return sums.data() + i * dim; }
+  /// The L coordinates of item i.
+  const double* item(Eigen::Index i) const { return sums.data() + i * dim; }
   /// Keeps the items flagged in `keep` (in order).
   void filter(const std::vector<char>& keep);
+  /// Moves items [from, size()) to `tail` (replacing its contents).
+  void split_tail(int from, Items& tail);
+  /// Appends the items of `tail`.
+  void append(const Items& tail);
 };
 
 /// One Fast-Caratheodory level: K contiguous clusters of items, a Caratheodory set of their

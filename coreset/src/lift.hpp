@@ -1,0 +1,20 @@
+#pragma once
+
+// Internal: the lift of a least-squares row (a: 1 x r, residual e) to the L = (r+1)(r+2)/2
+// products x_j x_k (j <= k) of x = [a, e]: upper(a^T a), a^T e and e^2, interleaved row by row
+// of the upper triangle of x^T x. Every row's lift, or the sum over a range of rows.
+
+namespace carat::internal {
+
+/// Lifted dimension (r+1)(r+2)/2 for reduced dimension r.
+constexpr int lifted_dim(int r) { return (r + 1) * (r + 2) / 2; }
+
+/// Writes the sum of the lifts of rows [begin, end) to out (L doubles). J is row-major with r
+/// columns and `rows` rows in all; e has one residual per row.
+void lift_sum(const double* J, const double* e, int r, long rows, long begin, long end,
+              double* out);
+
+/// Writes the lift of row ids[k] to out[k * L, (k + 1) * L) (item-major), k < count.
+void lift_rows(const double* J, const double* e, int r, const int* ids, int count, double* out);
+
+}  // namespace carat::internal
