@@ -31,14 +31,20 @@ json_field() {  # json_field FILE EXPR -> prints the value (python3 is on Debian
   python3 -c "import json,sys; j=json.load(open(sys.argv[1])); print($2)" "$1"
 }
 
-# demo: runs, prints a report, and its JSON has the documented fields.
-check demo_runs 0 "" -- "$CARAT" demo --frames 120
-grep -q "Termination: CONVERGENCE" "$scratch/out" || { echo "FAIL demo report lacks termination"; fail=$((fail + 1)); }
-check demo_json 0 "" -- "$CARAT" demo --frames 120 --json
+# demo: the dense-graph job on a small synthetic world; report, JSON fields, files.
+check demo_runs 0 "" -- "$CARAT" demo --frames 24 --out "$scratch/demo-text"
+grep -q "GRE exact (M=29)" "$scratch/out" || { echo "FAIL demo report lacks the GRE exact row"; fail=$((fail + 1)); }
+check demo_json 0 "" -- "$CARAT" demo --frames 24 --json --out "$scratch/demo"
 cp "$scratch/out" "$scratch/demo.json"
-if [[ $(json_field "$scratch/demo.json" "j['position_rmse_final_m'] < j['position_rmse_initial_m']") != "True" ]]; then
-  echo "FAIL demo: optimization did not reduce the trajectory error"; fail=$((fail + 1))
-else pass=$((pass + 1)); fi
+demo_ok=$(json_field "$scratch/demo.json" "all(k in m for m in j['methods'] for k in ('ate_mean','ate_std','ate_rmse','time_s','time_breakdown','memory_bytes','iterations')) and j['frames'] == 24 and j['factors'] >= 23 and [m['method'] for m in j['methods']] == ['pgo_identity','pgo_hessian','gre_full','gre_exact','gre_random']")
+if [[ $demo_ok != "True" ]]; then echo "FAIL demo JSON fields: $demo_ok"; fail=$((fail + 1)); else pass=$((pass + 1)); fi
+demo_better=$(json_field "$scratch/demo.json" "all(m['ate_rmse'] < j['initial_ate_rmse'] for m in j['methods'][:4])")
+if [[ $demo_better != "True" ]]; then echo "FAIL demo: a method did not improve on the initial guess"; fail=$((fail + 1)); else pass=$((pass + 1)); fi
+for f in ground_truth_kitti.txt ground_truth_tum.txt initial_kitti.txt gre_exact_kitti.txt gre_exact_tum.txt pgo_hessian_tum.txt trajectories_before.svg trajectories_after.svg graph.svg demo.json; do
+  if [[ ! -s "$scratch/demo/$f" ]]; then echo "FAIL demo did not write $f"; fail=$((fail + 1)); else pass=$((pass + 1)); fi
+done
+if [[ $(grep -c . "$scratch/demo/gre_exact_kitti.txt") -ne 24 ]]; then echo "FAIL demo trajectory has the wrong length"; fail=$((fail + 1)); else pass=$((pass + 1)); fi
+grep -q "<svg" "$scratch/demo/graph.svg" && grep -q "<line" "$scratch/demo/graph.svg" || { echo "FAIL graph.svg has no edges"; fail=$((fail + 1)); }
 
 # solve-g2o on a generated graph: write it with the library via the demo? Use a tiny inline graph.
 cat >"$scratch/tiny.g2o" <<'G2O'
@@ -123,6 +129,105 @@ if [[ -f "${CARAT_DATA_DIR:-}/posegraph/sphere2500.g2o" ]]; then
   check cubicle_indefinite 1 "cubicle.g2o:5753: information matrix" -- "$CARAT" solve-g2o "$CARAT_DATA_DIR/posegraph/cubicle.g2o"
 else
   echo "skipping real-data CLI checks: ${CARAT_DATA_DIR:-<unset>}/posegraph not found"
+fi
+
+# ate: absolute trajectory error between small trajectory files.
+cat >"$scratch/ref.kitti" <<'KITTI'
+1 0 0 0 0 1 0 0 0 0 1 0
+0 -1 0 2 1 0 0 1 0 0 1 0.5
+1 0 0 4 0 0 -1 -1 0 1 0 1
+1 0 0 3 0 1 0 5 0 0 1 -2
+KITTI
+# The same poses shifted by (0.3, -1.2, 0.4), |shift| = 1.3.
+awk '{ $4 += 0.3; $8 -= 1.2; $12 += 0.4; print }' "$scratch/ref.kitti" >"$scratch/shifted.kitti"
+check ate_identical 0 "" -- "$CARAT" ate --estimate "$scratch/ref.kitti" --reference "$scratch/ref.kitti" --json
+cp "$scratch/out" "$scratch/ate_same.json"
+if [[ $(json_field "$scratch/ate_same.json" "j['rmse'] < 1e-9 and j['max'] < 1e-9 and j['num_poses'] == 4 and j['association'] == 'index'") != "True" ]]; then
+  echo "FAIL ate of a trajectory with itself is not 0"; fail=$((fail + 1))
+else pass=$((pass + 1)); fi
+for key in rmse mean median std min max rotation_rmse_deg rotation_mean_deg rotation_max_deg num_poses T_reference_estimate; do
+  if [[ $(json_field "$scratch/ate_same.json" "'$key' in j") != "True" ]]; then
+    echo "FAIL ate --json lacks $key"; fail=$((fail + 1))
+  fi
+done
+check ate_shift_no_align 0 "" -- "$CARAT" ate --estimate "$scratch/shifted.kitti" --reference "$scratch/ref.kitti" --no-align --json
+cp "$scratch/out" "$scratch/ate_shift.json"
+if [[ $(json_field "$scratch/ate_shift.json" "abs(j['rmse'] - 1.3) < 1e-9 and abs(j['median'] - 1.3) < 1e-9 and j['std'] < 1e-9 and not j['aligned']") != "True" ]]; then
+  echo "FAIL ate --no-align of a shifted copy: rmse $(json_field "$scratch/ate_shift.json" "j['rmse']"), expected 1.3"; fail=$((fail + 1))
+else pass=$((pass + 1)); fi
+check ate_shift_aligned 0 "" -- "$CARAT" ate --estimate "$scratch/shifted.kitti" --reference "$scratch/ref.kitti" --json
+cp "$scratch/out" "$scratch/ate_aligned.json"
+if [[ $(json_field "$scratch/ate_aligned.json" "j['rmse'] < 1e-9 and abs(j['T_reference_estimate'][1][3] - 1.2) < 1e-9") != "True" ]]; then
+  echo "FAIL ate with alignment of a shifted copy is not 0"; fail=$((fail + 1))
+else pass=$((pass + 1)); fi
+check ate_text 0 "" -- "$CARAT" ate --estimate "$scratch/shifted.kitti" --reference "$scratch/ref.kitti" --no-align
+grep -q "rmse 1.300000" "$scratch/out" || { echo "FAIL ate text output lacks 'rmse 1.300000'"; fail=$((fail + 1)); }
+# TUM: paired by stamp (0.004 s apart, one extra reference pose); graph: by index.
+printf '# t x y z qx qy qz qw\n0.0 0 0 0 0 0 0 1\n1.0 1 0 0 0 0 0 1\n2.0 1 1 0 0 0 0 1\n3.0 0 1 1 0 0 0 1\n' >"$scratch/ref.tum"
+printf '0.004 0 0 0 0 0 0 1\r\n2.004 1 1 0 0 0 0 1\r\n3.004 0 1 1 0 0 0 1\r\n' >"$scratch/est.tum"
+check ate_tum 0 "" -- "$CARAT" ate --estimate "$scratch/est.tum" --reference "$scratch/ref.tum" --format tum --json
+cp "$scratch/out" "$scratch/ate_tum.json"
+if [[ $(json_field "$scratch/ate_tum.json" "j['num_poses'] == 3 and j['association'] == 'stamp' and j['rmse'] < 1e-9") != "True" ]]; then
+  echo "FAIL ate on TUM files did not pair 3 poses by stamp"; fail=$((fail + 1))
+else pass=$((pass + 1)); fi
+check ate_tum_no_match 1 "est.tum: none of its 3 stamps" -- "$CARAT" ate --estimate "$scratch/est.tum" --reference "$scratch/ref.tum" --format tum --max-difference 0.001
+printf 'v0 0 0 0 0 0 0 1\nv1 2 1 0.5 0 0 0.7071067811865476 0.7071067811865476\nv2 4 -1 1 0 0 0 1\nv3 3 5 -2 0 0 0 1\n' >"$scratch/graph.txt"
+check ate_graph_vs_kitti 0 "" -- "$CARAT" ate --estimate "$scratch/graph.txt" --format graph --reference "$scratch/shifted.kitti" --reference-format kitti --no-align --json
+cp "$scratch/out" "$scratch/ate_graph.json"
+if [[ $(json_field "$scratch/ate_graph.json" "abs(j['rmse'] - 1.3) < 1e-9") != "True" ]]; then
+  echo "FAIL ate graph vs kitti: rmse $(json_field "$scratch/ate_graph.json" "j['rmse']"), expected 1.3"; fail=$((fail + 1))
+else pass=$((pass + 1)); fi
+# Bad input: one-line messages naming the files (and the line); usage errors exit 2.
+head -n 3 "$scratch/ref.kitti" >"$scratch/three.kitti"
+check ate_count_mismatch 1 "three.kitti has 3 poses but $scratch/ref.kitti has 4" -- "$CARAT" ate --estimate "$scratch/three.kitti" --reference "$scratch/ref.kitti"
+printf '1 0 0 0 0 1 0 0 0 0 1 0\n1 0 0 0 0 1 0 0 0 0 1\n' >"$scratch/malformed.kitti"
+check ate_malformed 1 "malformed.kitti:2: KITTI pose (3x4 row-major [R|t]) needs 12 fields, found 11" -- "$CARAT" ate --estimate "$scratch/malformed.kitti" --reference "$scratch/ref.kitti"
+printf '0 0 0 0 0 0 0 1\n1 0 0 0 0 0 0 2\n' >"$scratch/badquat.tum"
+check ate_bad_quaternion 1 "badquat.tum:2: quaternion is not normalized" -- "$CARAT" ate --estimate "$scratch/badquat.tum" --reference "$scratch/ref.tum" --format tum
+check ate_missing 1 "nope.kitti: no such file" -- "$CARAT" ate --estimate "$scratch/nope.kitti" --reference "$scratch/ref.kitti"
+: >"$scratch/empty.kitti"
+check ate_empty 1 "empty.kitti: no KITTI poses" -- "$CARAT" ate --estimate "$scratch/empty.kitti" --reference "$scratch/ref.kitti"
+head -n 2 "$scratch/ref.kitti" >"$scratch/two.kitti"
+check ate_too_few_to_align 1 "alignment needs at least 3 (use --no-align)" -- "$CARAT" ate --estimate "$scratch/two.kitti" --reference "$scratch/two.kitti"
+check ate_bad_format 2 "" -- "$CARAT" ate --estimate "$scratch/ref.kitti" --reference "$scratch/ref.kitti" --format euroc
+check ate_no_reference 2 "" -- "$CARAT" ate --estimate "$scratch/ref.kitti"
+if [[ -f "${CARAT_DATA_DIR:-}/kitti07_seq5/graph.txt" ]]; then
+  check ate_real_graph 0 "" -- "$CARAT" ate --estimate "$CARAT_DATA_DIR/kitti07_seq5/graph.txt" --reference "$CARAT_DATA_DIR/kitti07_seq5/graph.txt" --format graph --json
+  cp "$scratch/out" "$scratch/ate_real.json"
+  if [[ $(json_field "$scratch/ate_real.json" "j['num_poses'] == 5 and j['rmse'] < 1e-9") != "True" ]]; then
+    echo "FAIL ate of kitti07_seq5/graph.txt with itself"; fail=$((fail + 1))
+  else pass=$((pass + 1)); fi
+fi
+
+# simulate + map: a simulated drive written to disk, then optimized from perturbed poses.
+check simulate 0 "" -- "$CARAT" simulate --out "$scratch/seq" --frames 20 --laps 1
+if [[ ! -s "$scratch/seq/000019.bin" ]] || [[ $(grep -c . "$scratch/seq/poses.txt") -ne 20 ]]; then
+  echo "FAIL simulate did not write 20 frames and 20 poses"; fail=$((fail + 1)); else pass=$((pass + 1)); fi
+check map_synthetic 0 "" -- "$CARAT" map --frames "$scratch/seq" --poses "$scratch/seq/poses.txt" --bin-format xyz --perturb-m 0.1 --perturb-deg 1 --out "$scratch/map_out.txt" --json
+cp "$scratch/out" "$scratch/map.json"
+if [[ $(json_field "$scratch/map.json" "j['ate_rmse'] < 0.25 * j['initial_ate_rmse'] and j['frames'] == 20") != "True" ]]; then
+  echo "FAIL map on the simulated drive: $(head -c 400 "$scratch/map.json")"; fail=$((fail + 1)); else pass=$((pass + 1)); fi
+if [[ $(grep -c . "$scratch/map_out.txt") -ne 20 ]]; then echo "FAIL map --out"; fail=$((fail + 1)); else pass=$((pass + 1)); fi
+check map_pgo 0 "" -- "$CARAT" map --frames "$scratch/seq" --poses "$scratch/seq/poses.txt" --bin-format xyz --perturb-m 0.1 --perturb-deg 1 --method pgo --json
+# Bad input: clear one-line errors, exit 1, no output file left behind.
+mkdir -p "$scratch/empty_frames"
+check map_empty_folder 1 "empty_frames: no frames" -- "$CARAT" map --frames "$scratch/empty_frames" --poses "$scratch/seq/poses.txt" --out "$scratch/never.txt"
+head -n 19 "$scratch/seq/poses.txt" >"$scratch/short.txt"
+check map_count_mismatch 1 "holds 20 frames but $scratch/short.txt has 19 poses" -- "$CARAT" map --frames "$scratch/seq" --poses "$scratch/short.txt" --bin-format xyz --out "$scratch/never.txt"
+sed '3s/^[^ ]*/nan/' "$scratch/seq/poses.txt" >"$scratch/nan.txt"
+check map_nan_pose 1 "nan.txt:3:" -- "$CARAT" map --frames "$scratch/seq" --poses "$scratch/nan.txt" --bin-format xyz --out "$scratch/never.txt"
+cp -r "$scratch/seq" "$scratch/small_seq"
+head -c 240 "$scratch/seq/000004.bin" >"$scratch/small_seq/000004.bin"
+check map_tiny_frame 1 "000004.bin: only 20 points" -- "$CARAT" map --frames "$scratch/small_seq" --poses "$scratch/seq/poses.txt" --bin-format xyz --out "$scratch/never.txt"
+head -c 1001 "$scratch/seq/000002.bin" >"$scratch/small_seq/000004.bin"
+check map_truncated_frame 1 "000004.bin" -- "$CARAT" map --frames "$scratch/small_seq" --poses "$scratch/seq/poses.txt" --bin-format xyz --out "$scratch/never.txt"
+if [[ -e "$scratch/never.txt" ]]; then echo "FAIL map left an output file after an error"; fail=$((fail + 1)); else pass=$((pass + 1)); fi
+check map_bad_sampling 2 "" -- "$CARAT" map --frames "$scratch/seq" --poses "$scratch/seq/poses.txt" --sampling most
+if [[ -f "${CARAT_DATA_DIR:-}/kitti07_seq5/graph.txt" ]]; then
+  check map_kitti07 0 "" -- "$CARAT" map --frames "$CARAT_DATA_DIR/kitti07_seq5" --poses "$CARAT_DATA_DIR/kitti07_seq5/graph.txt" --poses-format graph --perturb-m 0.3 --perturb-deg 3 --json
+  cp "$scratch/out" "$scratch/map07.json"
+  if [[ $(json_field "$scratch/map07.json" "j['ate_rmse'] < 0.02 and j['ate_rotation_rmse_deg'] < 0.2 and j['frames'] == 5") != "True" ]]; then
+    echo "FAIL map on kitti07_seq5: $(head -c 600 "$scratch/map07.json")"; fail=$((fail + 1)); else pass=$((pass + 1)); fi
 fi
 
 echo "$pass passed, $fail failed"

@@ -1,64 +1,211 @@
-// carat demo: builds a synthetic city-block pose graph (driven twice, noisy odometry and loop
-// closures), optimizes it and reports the solve and the trajectory error before and after.
+// carat demo [--frames N] [--seed S] [--residuals M] [--out DIR] [--json]: the main job on the
+// built-in synthetic world. Simulates a LiDAR drive twice around a city block, runs GICP
+// odometry from a drifting wheel-odometry guess, builds the dense graph of overlapping pairs,
+// and compares PGO (identity), PGO (Hessian), GRE full, GRE exact (M) and GRE random: ATE
+// against the ground truth, iterations, time breakdown and memory. Writes trajectories (KITTI,
+// TUM) and SVG pictures to --out.
+#include <tbb/info.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include <atomic>
+#include <chrono>
 #include <cstdio>
+#include <filesystem>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <string>
 
-#include "carat/residuals/pose_graph.hpp"
-#include "carat/residuals/synthetic_pose_graph.hpp"
+#include "carat/registration/dense_graph.hpp"
+#include "carat/registration/frame.hpp"
+#include "carat/registration/odometry.hpp"
+#include "carat/registration/synthetic_world.hpp"
+#include "carat/registration/trajectory_error.hpp"
+#include "carat/solver/atomic_file.hpp"
 #include "carat/solver/error.hpp"
-#include "carat/solver/solve.hpp"
 #include "commands.hpp"
+#include "mapping_methods.hpp"
+#include "mapping_output.hpp"
+#include "progress.hpp"
 
 namespace carat::cli {
 namespace {
 
+using Clock = std::chrono::steady_clock;
+
+double seconds_since(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
 struct DemoArgs {
-  int frames = 400;
+  int frames = 100;
   std::uint64_t seed = 1;
-  int threads = 2;
+  int residuals = 29;
+  std::string out = "carat-demo";
+  std::string initial = "odometry";
+  double overlap = 0.2;
+  int rounds = 1;
+  double max_distance = 1.0;
+  double pgo_cauchy = 1.0;
+  double gre_cauchy = 0.0;
+  int threads = 0;
   bool json = false;
 };
 
 int run_demo(const DemoArgs& args) {
-  SyntheticPoseGraphOptions world;
-  world.laps = 2;
-  world.poses_per_lap = std::max(8, args.frames / world.laps);
-  world.seed = args.seed;
-  SyntheticPoseGraph synthetic = make_synthetic_pose_graph(world);
-  const double rmse_before = position_rmse(synthetic.graph, synthetic.T_world_truth);
+  const int threads = args.threads > 0 ? args.threads : tbb::info::default_concurrency();
+  nlohmann::json stages = nlohmann::json::object();
 
-  PoseGraphProblem built = build_pose_graph_problem(synthetic.graph);
-  SolverOptions options;
-  options.num_threads = args.threads;
-  options.max_iterations = 100;
-  const SolverSummary summary = solve(options, built.problem);
-  if (summary.termination == TerminationType::kFailure) {
-    throw Error("demo: the solve failed: " + summary.message);
+  // The world and the drive.
+  auto t0 = Clock::now();
+  SyntheticWorldOptions world_options;
+  world_options.seed = args.seed;
+  const SyntheticWorld world(world_options);
+  SyntheticTrajectoryOptions drive;
+  drive.frames = args.frames;
+  drive.laps = 2;
+  SyntheticSequence sequence;
+  {
+    tbb::task_arena arena(threads);
+    arena.execute([&] { sequence = make_synthetic_sequence(world, drive); });
   }
-  update_vertices(built, &synthetic.graph);
-  const double rmse_after = position_rmse(synthetic.graph, synthetic.T_world_truth);
+  stages["simulate_s"] = seconds_since(t0);
+
+  // Preprocessing: downsampling, covariances, k-d trees.
+  t0 = Clock::now();
+  MappingInput input;
+  input.threads = threads;
+  input.seed = args.seed;
+  input.residuals = args.residuals;
+  input.rounds = args.rounds;
+  input.max_correspondence_distance = args.max_distance;
+  input.pgo_cauchy_scale = args.pgo_cauchy;
+  input.gre_cauchy_scale = args.gre_cauchy;
+  input.frames.resize(sequence.scans.size());
+  {
+    ProgressBar bar("preprocessing scans", true);
+    std::atomic<std::size_t> done{0};
+    tbb::task_arena arena(threads);
+    arena.execute([&] {
+      tbb::parallel_for(std::size_t{0}, sequence.scans.size(), [&](std::size_t k) {
+        input.frames[k] = preprocess_frame(sequence.scans[k], PreprocessOptions{},
+                                           "synthetic frame " + std::to_string(k));
+        bar.update(done.fetch_add(1) + 1, sequence.scans.size());
+      });
+    });
+  }
+  std::size_t points = 0, raw_points = 0;
+  for (std::size_t k = 0; k < input.frames.size(); ++k) {
+    points += input.frames[k]->size();
+    raw_points += sequence.scans[k].size();
+  }
+  sequence.scans.clear();
+  sequence.scans.shrink_to_fit();
+  stages["preprocess_s"] = seconds_since(t0);
+
+  // Initial guess: a drifting wheel-odometry prior, refined by GICP odometry (default).
+  t0 = Clock::now();
+  DriftOptions drift;
+  drift.seed = args.seed;
+  drift.translation_sigma = 0.02;
+  drift.rotation_sigma_deg = 0.1;
+  std::vector<Eigen::Isometry3d> guess = apply_drift(sequence.T_world_frame, drift);
+  if (args.initial == "odometry") {
+    ProgressBar bar("GICP odometry", true);
+    AlignSettings settings;
+    settings.max_correspondence_distance = 2.0;
+    input.T_world_initial =
+        run_odometry(input.frames, guess, settings, threads, bar.callback()).T_world_frame;
+  } else {
+    input.T_world_initial = guess;
+  }
+  stages["initial_guess_s"] = seconds_since(t0);
+
+  // The dense graph at the initial guess.
+  t0 = Clock::now();
+  DenseGraphOptions graph_options;
+  graph_options.overlap_threshold = args.overlap;
+  graph_options.num_threads = threads;
+  {
+    ProgressBar bar("overlap assessment", true);
+    input.pairs =
+        build_dense_graph(input.frames, input.T_world_initial, graph_options, bar.callback());
+  }
+  stages["dense_graph_s"] = seconds_since(t0);
+
+  // The methods.
+  std::vector<MethodResult> results;
+  double registration_s = 0.0;
+  const std::vector<PairRegistration> registrations = register_graph_pairs(input, &registration_s);
+  results.push_back(
+      run_pose_graph(input, registrations, registration_s, PoseGraphInformation::kIdentity));
+  results.push_back(
+      run_pose_graph(input, registrations, registration_s, PoseGraphInformation::kHessian));
+  for (ResidualSampling sampling :
+       {ResidualSampling::kFull, ResidualSampling::kExact, ResidualSampling::kRandom})
+    results.push_back(run_registration(input, sampling));
+  const AteStatistics initial_ate = compute_ate(input.T_world_initial, sequence.T_world_frame);
+  for (MethodResult& r : results) r.ate = compute_ate(r.T_world_frame, sequence.T_world_frame);
+
+  // Files.
+  const std::filesystem::path dir(args.out);
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) throw Error(args.out + ": cannot create the output folder: " + ec.message());
+  std::vector<std::filesystem::path> written;
+  for (const auto& p : write_trajectory_pair(dir, "ground_truth", sequence.T_world_frame))
+    written.push_back(p);
+  for (const auto& p : write_trajectory_pair(dir, "initial", input.T_world_initial))
+    written.push_back(p);
+  for (const MethodResult& r : results)
+    for (const auto& p : write_trajectory_pair(dir, r.key, r.T_world_frame)) written.push_back(p);
+  const MethodResult* exact = &results[3];
+  for (const auto& p : write_mapping_pictures(dir, sequence.T_world_frame, input.T_world_initial,
+                                              results, input.pairs, exact))
+    written.push_back(p);
+
+  nlohmann::json j;
+  j["frames"] = input.frames.size();
+  j["factors"] = input.pairs.size();
+  j["seed"] = args.seed;
+  j["residuals"] = args.residuals;
+  j["threads"] = threads;
+  j["points_raw"] = raw_points;
+  j["points_downsampled"] = points;
+  j["initial"] = args.initial;
+  j["initial_ate_rmse"] = initial_ate.rmse;
+  j["initial_ate_mean"] = initial_ate.mean;
+  j["initial_ate_std"] = initial_ate.std;
+  j["stages"] = stages;
+  j["methods"] = nlohmann::json::array();
+  for (const MethodResult& r : results) j["methods"].push_back(to_json(r));
+  nlohmann::json files = nlohmann::json::array();
+  for (const auto& p : written) files.push_back(p.string());
+  j["files"] = files;
+  written.push_back(dir / "demo.json");
+  write_file_atomically(dir / "demo.json", [&](std::ostream& out) { out << j.dump(2) << '\n'; });
 
   if (args.json) {
-    nlohmann::json j;
-    j["frames"] = synthetic.graph.vertices.size();
-    j["factors"] = synthetic.graph.edges.size();
-    j["seed"] = args.seed;
-    j["position_rmse_initial_m"] = rmse_before;
-    j["position_rmse_final_m"] = rmse_after;
-    j["solver"] = nlohmann::json::parse(summary.to_json());
     std::printf("%s\n", j.dump(2).c_str());
     return 0;
   }
-  std::printf("carat demo: synthetic city-block pose graph, %d laps, seed %llu\n", world.laps,
-              static_cast<unsigned long long>(args.seed));
-  std::printf("  %zu poses, %zu relative-pose factors (odometry + loop closures)\n\n",
-              synthetic.graph.vertices.size(), synthetic.graph.edges.size());
-  std::printf("%s\n", summary.full_report().c_str());
-  std::printf("Trajectory error against ground truth (position RMSE)\n");
-  std::printf("  odometry (initial guess)   %9.4f m\n", rmse_before);
-  std::printf("  optimized                  %9.4f m\n", rmse_after);
+  std::printf("carat demo: synthetic city, %zu LiDAR frames (2 laps), seed %llu, %d threads\n",
+              input.frames.size(), static_cast<unsigned long long>(args.seed), threads);
+  std::printf("  %zu points simulated, %zu after 0.5 m downsampling\n", raw_points, points);
+  std::printf("  initial guess (%s): ATE %.4f ± %.4f m (RMSE %.4f)\n", args.initial.c_str(),
+              initial_ate.mean, initial_ate.std, initial_ate.rmse);
+  std::printf("  dense graph: %zu factors (overlap >= %.2f, plus consecutive pairs)\n\n",
+              input.pairs.size(), args.overlap);
+  std::printf("%s\n", results_table(results).c_str());
+  std::printf("Time breakdown [s]\n");
+  for (const MethodResult& r : results) {
+    std::printf("  %-20s", r.label.c_str());
+    for (const auto& [stage, seconds] : r.breakdown)
+      std::printf(" %s %.3f", stage.c_str(), seconds);
+    std::printf("\n");
+  }
+  std::printf("\nWrote %zu files to %s/ (trajectories, SVG pictures, demo.json)\n", written.size(),
+              args.out.c_str());
   return 0;
 }
 
@@ -66,13 +213,41 @@ int run_demo(const DemoArgs& args) {
 
 void register_demo(CLI::App& app, CommandRegistry& registry) {
   auto args = std::make_shared<DemoArgs>();
-  CLI::App* cmd = app.add_subcommand("demo", "Run the main job on the built-in synthetic world");
-  cmd->add_option("--frames", args->frames, "number of poses")
-      ->check(CLI::Range(16, 1000000))
+  CLI::App* cmd = app.add_subcommand(
+      "demo", "Run the main job: dense global registration on the built-in synthetic world");
+  cmd->add_option("--frames", args->frames, "LiDAR frames (two laps of the circuit)")
+      ->check(CLI::Range(8, 100000))
       ->capture_default_str();
-  cmd->add_option("--seed", args->seed, "random seed")->capture_default_str();
-  cmd->add_option("--threads", args->threads, "threads")
-      ->check(CLI::Range(1, 1024))
+  cmd->add_option("--seed", args->seed, "random seed of the world, noise and drift")
+      ->capture_default_str();
+  cmd->add_option("--residuals", args->residuals, "M: residual rows kept per factor")
+      ->check(CLI::Range(29, 100000))
+      ->capture_default_str();
+  cmd->add_option("--out", args->out, "folder for trajectories, pictures and demo.json")
+      ->capture_default_str();
+  cmd->add_option("--initial", args->initial, "initial guess: GICP odometry or the drift model")
+      ->check(CLI::IsMember({"odometry", "drift"}))
+      ->capture_default_str();
+  cmd->add_option("--overlap", args->overlap, "overlap threshold of the dense graph")
+      ->check(CLI::Range(0.0, 1.0))
+      ->capture_default_str();
+  cmd->add_option("--rounds", args->rounds,
+                  "GRE correspondence rounds (1: fixed at the initial guess, as in the paper)")
+      ->check(CLI::Range(1, 100))
+      ->capture_default_str();
+  cmd->add_option("--max-distance", args->max_distance, "correspondence distance (m)")
+      ->check(CLI::Range(0.05, 100.0))
+      ->capture_default_str();
+  cmd->add_option("--pgo-cauchy", args->pgo_cauchy,
+                  "Cauchy scale of the PGO baselines on the whitened error (0: no kernel)")
+      ->check(CLI::Range(0.0, 1e9))
+      ->capture_default_str();
+  cmd->add_option("--gre-cauchy", args->gre_cauchy,
+                  "Cauchy scale on each GRE factor's whole error (0: none, as in the paper)")
+      ->check(CLI::Range(0.0, 1e9))
+      ->capture_default_str();
+  cmd->add_option("--threads", args->threads, "threads (0: all cores)")
+      ->check(CLI::Range(0, 1024))
       ->capture_default_str();
   cmd->add_flag("--json", args->json, "print one JSON object instead of the report");
   registry.add(cmd, [args] { return run_demo(*args); });

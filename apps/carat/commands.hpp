@@ -35,5 +35,11 @@ void register_solve_g2o(CLI::App& app, CommandRegistry& registry);
 void register_align(CLI::App& app, CommandRegistry& registry);
 /// `carat coreset-check`: exactness and speed of the coreset on random rows.
 void register_coreset_check(CLI::App& app, CommandRegistry& registry);
+/// `carat ate`: absolute trajectory error of an estimate against a reference.
+void register_ate(CLI::App& app, CommandRegistry& registry);
+/// `carat map`: dense global registration on real scans.
+void register_map(CLI::App& app, CommandRegistry& registry);
+/// `carat simulate`: write a simulated LiDAR drive to disk.
+void register_simulate(CLI::App& app, CommandRegistry& registry);
 
 }  // namespace carat::cli

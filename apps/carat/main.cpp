@@ -14,6 +14,9 @@ int main(int argc, char** argv) {
   carat::cli::register_solve_g2o(app, registry);
   carat::cli::register_coreset_check(app, registry);
   carat::cli::register_align(app, registry);
+  carat::cli::register_ate(app, registry);
+  carat::cli::register_map(app, registry);
+  carat::cli::register_simulate(app, registry);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

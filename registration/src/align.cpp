@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "carat/registration/correspondences.hpp"
 #include "carat/residuals/gicp_block.hpp"
 #include "carat/residuals/point_to_plane_block.hpp"
 #include "carat/residuals/point_to_point_block.hpp"
@@ -22,31 +23,6 @@ namespace carat {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-/// Nearest target point of every transformed source point within the distance, in source order.
-std::vector<GicpCorrespondence> find_correspondences(const PointCloud& target, const KdTree& tree,
-                                                     const PointCloud& source,
-                                                     const Eigen::Isometry3d& T,
-                                                     double max_distance) {
-  const float max_sq = static_cast<float>(max_distance * max_distance);
-  std::vector<std::int64_t> match(source.size(), -1);
-  const Eigen::Isometry3f Tf = T.cast<float>();
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, source.size(), 512), [&](const auto& range) {
-    for (std::size_t i = range.begin(); i != range.end(); ++i) {
-      std::uint32_t index = 0;
-      float sq = 0.0f;
-      if (tree.nearest(Tf * source.points[i], &index, &sq) && sq <= max_sq) match[i] = index;
-    }
-  });
-  std::vector<GicpCorrespondence> out;
-  out.reserve(source.size());
-  for (std::size_t i = 0; i < source.size(); ++i) {
-    if (match[i] < 0) continue;
-    const auto t = static_cast<std::size_t>(match[i]);
-    out.push_back({target.point(t), target.covariance(t), source.point(i), source.covariance(i)});
-  }
-  return out;
-}
 
 /// The residual block of `method` over the correspondences, built at T.
 std::shared_ptr<const ResidualBlock> make_block(RegistrationMethod method,

@@ -1,11 +1,13 @@
 #include "carat/registration/kitti_io.hpp"
 
+#include <bit>
 #include <cmath>
 #include <cstring>
 #include <fstream>
 #include <string>
 #include <vector>
 
+#include "carat/solver/atomic_file.hpp"
 #include "carat/solver/error.hpp"
 
 namespace carat {
@@ -42,6 +44,24 @@ PointCloud read_kitti_bin(const std::filesystem::path& path, KittiFormat format,
     cloud.points.emplace_back(xyz[0], xyz[1], xyz[2]);
   }
   return cloud;
+}
+
+void write_kitti_bin(const std::filesystem::path& path, const PointCloud& cloud,
+                     KittiFormat format) {
+  static_assert(std::endian::native == std::endian::little, "KITTI files are little-endian");
+  const std::size_t floats = format == KittiFormat::kXyzi ? 4 : 3;
+  std::vector<float> buffer(cloud.size() * floats, 0.0f);
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    const Eigen::Vector3f& p = cloud.points[i];
+    if (!p.allFinite()) {
+      throw Error(path.string() + ": point " + std::to_string(i) + " is not finite");
+    }
+    for (int c = 0; c < 3; ++c) buffer[i * floats + c] = p[c];
+  }
+  write_file_atomically(path, [&](std::ostream& out) {
+    out.write(reinterpret_cast<const char*>(buffer.data()),
+              static_cast<std::streamsize>(buffer.size() * sizeof(float)));
+  });
 }
 
 }  // namespace carat

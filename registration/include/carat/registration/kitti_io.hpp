@@ -24,4 +24,10 @@ struct ReadOptions {
 PointCloud read_kitti_bin(const std::filesystem::path& path, KittiFormat format,
                           const ReadOptions& options = {});
 
+/// Writes a KITTI .bin scan (little-endian float32 records; intensity 0 for kXyzi) atomically.
+/// An empty cloud gives an empty file (which read_kitti_bin rejects). Throws carat::Error naming
+/// the file for a non-finite point or a failed write.
+void write_kitti_bin(const std::filesystem::path& path, const PointCloud& cloud,
+                     KittiFormat format);
+
 }  // namespace carat

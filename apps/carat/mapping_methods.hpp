@@ -1,0 +1,74 @@
+#pragma once
+
+// The global-mapping methods that `carat demo` and `carat map` run and compare: the pose-graph
+// baselines and global registration error minimization with full, exact or random residuals.
+
+#include <Eigen/Geometry>
+#include <filesystem>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "carat/registration/dense_graph.hpp"
+#include "carat/registration/frame.hpp"
+#include "carat/registration/global_registration.hpp"
+#include "carat/registration/pair_registration.hpp"
+#include "carat/registration/pose_graph_baseline.hpp"
+#include "carat/registration/trajectory_error.hpp"
+
+namespace carat::cli {
+
+/// What every method starts from.
+struct MappingInput {
+  std::vector<std::shared_ptr<const Frame>> frames;  // preprocessed scans
+  std::vector<FramePair> pairs;                      // the dense graph
+  std::vector<Eigen::Isometry3d> T_world_initial;    // initial guess
+  int threads = 1;                                   // threads for every stage
+  std::uint64_t seed = 1;                            // coreset / random sampling seed
+  int residuals = 29;                                // M
+  double max_correspondence_distance = 1.0;          // metres
+  int rounds = 1;                                    // GRE correspondence rounds
+  double pgo_cauchy_scale = 1.0;                     // Cauchy scale of the PGO baselines
+  double gre_cauchy_scale = 0.0;                     // Cauchy scale per GRE factor (0: none)
+  bool progress = true;                              // progress bars on a terminal
+};
+
+/// One method's result and costs.
+struct MethodResult {
+  std::string key;                                        // e.g. "gre_exact"
+  std::string label;                                      // e.g. "GRE exact (M=29)"
+  std::vector<Eigen::Isometry3d> T_world_frame;           // optimized poses
+  double time_s = 0.0;                                    // optimization time
+  std::vector<std::pair<std::string, double>> breakdown;  // stage -> seconds
+  std::size_t memory_bytes = 0;          // residual data held during the optimization
+  std::size_t correspondence_bytes = 0;  // correspondence data built (GRE), 0 for PGO
+  int iterations = 0;                    // solver iterations
+  std::string termination;               // solver termination
+  std::vector<double> factor_costs;      // per pair, for the graph picture (GRE)
+  std::optional<AteStatistics> ate;      // against the reference, when there is one
+};
+
+/// GICP between every graph pair from the initial poses (shared by both PGO baselines).
+std::vector<PairRegistration> register_graph_pairs(const MappingInput& input, double* seconds);
+
+/// A pose-graph baseline over the registered pairs.
+MethodResult run_pose_graph(const MappingInput& input,
+                            const std::vector<PairRegistration>& registrations,
+                            double registration_s, PoseGraphInformation information);
+
+/// Global registration error minimization with the given sampling.
+MethodResult run_registration(const MappingInput& input, ResidualSampling sampling);
+
+/// The result as a JSON object (ate_* fields only when ate is set).
+nlohmann::json to_json(const MethodResult& result);
+
+/// A fixed-width table: method, ATE (mean ± std, rmse), iterations, time, memory.
+std::string results_table(const std::vector<MethodResult>& results);
+
+/// Bytes as "12.3 MiB".
+std::string format_bytes(std::size_t bytes);
+
+}  // namespace carat::cli

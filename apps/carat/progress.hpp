@@ -1,0 +1,62 @@
+#pragma once
+
+// A progress bar on stderr for stages that take more than a second, shown only when stderr is
+// a terminal (never in pipes, files or tests). Safe to update from several threads.
+
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <mutex>
+#include <string>
+
+namespace carat::cli {
+
+/// One stage's progress bar; erased by finish() or the destructor.
+class ProgressBar {
+ public:
+  /// A bar labelled `label`; silent unless stderr is a terminal and `enabled`.
+  explicit ProgressBar(std::string label, bool enabled = true)
+      : label_(std::move(label)),
+        enabled_(enabled && isatty(STDERR_FILENO) == 1),
+        start_(std::chrono::steady_clock::now()) {}
+  ~ProgressBar() { finish(); }
+  ProgressBar(const ProgressBar&) = delete;
+  ProgressBar& operator=(const ProgressBar&) = delete;
+
+  /// Reports `done` of `total`; draws at most 10 times a second, after the first second.
+  void update(std::size_t done, std::size_t total) {
+    if (!enabled_) return;
+    std::lock_guard lock(mutex_);
+    const auto now = std::chrono::steady_clock::now();
+    if (now - start_ < std::chrono::seconds(1) || now - last_ < std::chrono::milliseconds(100))
+      return;
+    last_ = now;
+    const int width = 30;
+    const int filled = total == 0 ? width : static_cast<int>(width * done / total);
+    std::fprintf(stderr, "\r%-28s [%s%s] %zu/%zu", label_.c_str(), std::string(filled, '#').c_str(),
+                 std::string(width - filled, ' ').c_str(), done, total);
+    std::fflush(stderr);
+    drawn_ = true;
+  }
+  /// A callback for library functions that report (done, total).
+  auto callback() {
+    return [this](std::size_t done, std::size_t total) { update(done, total); };
+  }
+  /// Erases the bar if it was drawn.
+  void finish() {
+    std::lock_guard lock(mutex_);
+    if (drawn_) std::fprintf(stderr, "\r%80s\r", "");
+    drawn_ = false;
+  }
+
+ private:
+  std::string label_;
+  bool enabled_;
+  bool drawn_ = false;
+  std::chrono::steady_clock::time_point start_;
+  std::chrono::steady_clock::time_point last_{};
+  std::mutex mutex_;
+};
+
+}  // namespace carat::cli

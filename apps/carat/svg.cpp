@@ -1,0 +1,193 @@
+#include "svg.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <sstream>
+
+#include "carat/solver/atomic_file.hpp"
+
+namespace carat::cli {
+namespace {
+
+constexpr double kWidth = 800.0;
+constexpr double kHeight = 640.0;
+constexpr double kMargin = 50.0;
+constexpr double kLegendWidth = 180.0;
+
+/// Maps world x/y (metres) into the drawing area, keeping the aspect ratio.
+class Viewport {
+ public:
+  explicit Viewport(const std::vector<Eigen::Vector2d>& points) {
+    Eigen::Vector2d lo = Eigen::Vector2d::Constant(std::numeric_limits<double>::max());
+    Eigen::Vector2d hi = -lo;
+    for (const auto& p : points) {
+      lo = lo.cwiseMin(p);
+      hi = hi.cwiseMax(p);
+    }
+    if (points.empty()) lo = hi = Eigen::Vector2d::Zero();
+    const double span = std::max({hi.x() - lo.x(), hi.y() - lo.y(), 1.0});
+    const double area_w = kWidth - 2 * kMargin - kLegendWidth;
+    const double area_h = kHeight - 2 * kMargin;
+    scale_ = std::min(area_w, area_h) / span;
+    center_ = 0.5 * (lo + hi);
+    origin_ = Eigen::Vector2d(kMargin + area_w / 2, kMargin + area_h / 2);
+  }
+  Eigen::Vector2d operator()(const Eigen::Vector3d& p) const {
+    return {origin_.x() + (p.x() - center_.x()) * scale_,
+            origin_.y() - (p.y() - center_.y()) * scale_};
+  }
+  double scale() const { return scale_; }
+
+ private:
+  double scale_ = 1.0;
+  Eigen::Vector2d center_, origin_;
+};
+
+std::string escape(const std::string& text) {
+  std::string out;
+  for (char c : text) {
+    if (c == '<')
+      out += "&lt;";
+    else if (c == '>')
+      out += "&gt;";
+    else if (c == '&')
+      out += "&amp;";
+    else
+      out += c;
+  }
+  return out;
+}
+
+std::string header(const std::string& title) {
+  std::ostringstream s;
+  s << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << kWidth << "\" height=\"" << kHeight
+    << "\" viewBox=\"0 0 " << kWidth << ' ' << kHeight << "\" font-family=\"sans-serif\">\n"
+    << "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n"
+    << "<text x=\"" << kWidth / 2 << "\" y=\"28\" text-anchor=\"middle\" font-size=\"18\">"
+    << escape(title) << "</text>\n";
+  return s.str();
+}
+
+/// A scale bar of a round length near 1/5 of the drawing.
+std::string scale_bar(const Viewport& view) {
+  const double target = (kWidth - 2 * kMargin - kLegendWidth) / 5 / view.scale();
+  const double magnitude = std::pow(10.0, std::floor(std::log10(target)));
+  double length = magnitude;
+  for (double m : {2.0, 5.0, 10.0})
+    if (m * magnitude <= target) length = m * magnitude;
+  const double pixels = length * view.scale();
+  const double y = kHeight - 20;
+  std::ostringstream s;
+  s << "<line x1=\"" << kMargin << "\" y1=\"" << y << "\" x2=\"" << kMargin + pixels << "\" y2=\""
+    << y << "\" stroke=\"black\" stroke-width=\"2\"/>\n"
+    << "<text x=\"" << kMargin + pixels + 6 << "\" y=\"" << y + 4 << "\" font-size=\"12\">"
+    << length << " m</text>\n";
+  return s.str();
+}
+
+/// Blue -> cyan -> yellow -> red for t in [0, 1].
+std::string ramp(double t) {
+  t = std::clamp(t, 0.0, 1.0);
+  const double stops[4][3] = {{49, 54, 149}, {116, 173, 209}, {253, 174, 97}, {215, 48, 39}};
+  const double x = t * 3.0;
+  const int k = std::min(static_cast<int>(x), 2);
+  const double f = x - k;
+  char out[8];
+  std::snprintf(out, sizeof(out), "#%02x%02x%02x",
+                static_cast<int>(stops[k][0] + f * (stops[k + 1][0] - stops[k][0])),
+                static_cast<int>(stops[k][1] + f * (stops[k + 1][1] - stops[k][1])),
+                static_cast<int>(stops[k][2] + f * (stops[k + 1][2] - stops[k][2])));
+  return out;
+}
+
+}  // namespace
+
+std::string trajectories_svg(const std::string& title, std::span<const SvgTrajectory> lines) {
+  std::vector<Eigen::Vector2d> all;
+  for (const auto& line : lines)
+    for (const auto& T : line.poses) all.push_back(T.translation().head<2>());
+  const Viewport view(all);
+  std::ostringstream s;
+  s << header(title);
+  double legend_y = kMargin + 10;
+  for (const auto& line : lines) {
+    s << "<polyline fill=\"none\" stroke=\"" << line.colour << "\" stroke-width=\"1.6\""
+      << (line.dashed ? " stroke-dasharray=\"6 4\"" : "") << " points=\"";
+    for (const auto& T : line.poses) {
+      const Eigen::Vector2d p = view(T.translation());
+      s << p.x() << ',' << p.y() << ' ';
+    }
+    s << "\"/>\n";
+    const double x = kWidth - kLegendWidth;
+    s << "<line x1=\"" << x << "\" y1=\"" << legend_y << "\" x2=\"" << x + 24 << "\" y2=\""
+      << legend_y << "\" stroke=\"" << line.colour << "\" stroke-width=\"3\""
+      << (line.dashed ? " stroke-dasharray=\"6 4\"" : "") << "/>\n"
+      << "<text x=\"" << x + 30 << "\" y=\"" << legend_y + 4 << "\" font-size=\"12\">"
+      << escape(line.label) << "</text>\n";
+    legend_y += 20;
+  }
+  s << scale_bar(view) << "</svg>\n";
+  return s.str();
+}
+
+std::string graph_svg(const std::string& title, std::span<const Eigen::Isometry3d> poses,
+                      std::span<const SvgEdge> edges, const std::string& value_label) {
+  std::vector<Eigen::Vector2d> all;
+  for (const auto& T : poses) all.push_back(T.translation().head<2>());
+  const Viewport view(all);
+  double lo = std::numeric_limits<double>::max(), hi = 0.0;
+  for (const auto& e : edges) {
+    if (e.value > 0.0 && std::isfinite(e.value)) {
+      lo = std::min(lo, e.value);
+      hi = std::max(hi, e.value);
+    }
+  }
+  if (!(lo <= hi)) lo = hi = 1.0;
+  const double log_lo = std::log10(lo), log_hi = std::log10(hi);
+  const auto t_of = [&](double v) {
+    if (!(v > 0.0) || log_hi <= log_lo) return 0.0;
+    return (std::log10(v) - log_lo) / (log_hi - log_lo);
+  };
+  std::ostringstream s;
+  s << header(title);
+  std::vector<SvgEdge> sorted(edges.begin(), edges.end());
+  std::sort(sorted.begin(), sorted.end(),
+            [](const SvgEdge& a, const SvgEdge& b) { return a.value < b.value; });  // red on top
+  for (const auto& e : sorted) {
+    if (e.from < 0 || e.to < 0 || e.from >= static_cast<int>(poses.size()) ||
+        e.to >= static_cast<int>(poses.size()))
+      continue;
+    const Eigen::Vector2d a = view(poses[static_cast<std::size_t>(e.from)].translation());
+    const Eigen::Vector2d b = view(poses[static_cast<std::size_t>(e.to)].translation());
+    s << "<line x1=\"" << a.x() << "\" y1=\"" << a.y() << "\" x2=\"" << b.x() << "\" y2=\"" << b.y()
+      << "\" stroke=\"" << ramp(t_of(e.value)) << "\" stroke-width=\"1\" opacity=\"0.7\"/>\n";
+  }
+  for (const auto& T : poses) {
+    const Eigen::Vector2d p = view(T.translation());
+    s << "<circle cx=\"" << p.x() << "\" cy=\"" << p.y() << "\" r=\"2.2\" fill=\"black\"/>\n";
+  }
+  // Colour bar.
+  const double x = kWidth - kLegendWidth + 10, top = kMargin + 20, height = 200;
+  for (int k = 0; k < 50; ++k) {
+    s << "<rect x=\"" << x << "\" y=\"" << top + height * (49 - k) / 50
+      << "\" width=\"16\" height=\"" << height / 50 + 0.5 << "\" fill=\"" << ramp(k / 49.0)
+      << "\"/>\n";
+  }
+  char lo_text[32], hi_text[32];
+  std::snprintf(lo_text, sizeof(lo_text), "%.3g", lo);
+  std::snprintf(hi_text, sizeof(hi_text), "%.3g", hi);
+  s << "<text x=\"" << x + 22 << "\" y=\"" << top + 10 << "\" font-size=\"12\">" << hi_text
+    << "</text>\n<text x=\"" << x + 22 << "\" y=\"" << top + height << "\" font-size=\"12\">"
+    << lo_text << "</text>\n<text x=\"" << x << "\" y=\"" << top - 8 << "\" font-size=\"12\">"
+    << escape(value_label) << "</text>\n";
+  s << scale_bar(view) << "</svg>\n";
+  return s.str();
+}
+
+void write_svg(const std::filesystem::path& path, const std::string& svg) {
+  write_file_atomically(path, [&](std::ostream& out) { out << svg; });
+}
+
+}  // namespace carat::cli

@@ -1,0 +1,39 @@
+#pragma once
+
+// SVG pictures of trajectories and registration graphs (top view, x right, y up).
+
+#include <Eigen/Geometry>
+#include <filesystem>
+#include <span>
+#include <string>
+#include <vector>
+
+namespace carat::cli {
+
+/// One trajectory to draw: its poses, colour (SVG colour string) and legend label.
+struct SvgTrajectory {
+  std::vector<Eigen::Isometry3d> poses;  // T_world_frame
+  std::string colour;                    // e.g. "#1f77b4"
+  std::string label;                     // legend text
+  bool dashed = false;                   // dashed line (for references)
+};
+
+/// Top view of several trajectories with a legend and a metre scale; returns the SVG text.
+std::string trajectories_svg(const std::string& title, std::span<const SvgTrajectory> lines);
+
+/// One edge of a graph picture: frame indices and the value that colours it.
+struct SvgEdge {
+  int from = 0;        // frame index
+  int to = 0;          // frame index
+  double value = 0.0;  // e.g. the factor's error; coloured on a log scale
+};
+
+/// Top view of a graph: frames as dots at their positions, edges coloured from blue (small
+/// value) to red (large value) on a log scale, with a colour bar labelled `value_label`.
+std::string graph_svg(const std::string& title, std::span<const Eigen::Isometry3d> poses,
+                      std::span<const SvgEdge> edges, const std::string& value_label);
+
+/// Writes `svg` to `path` atomically.
+void write_svg(const std::filesystem::path& path, const std::string& svg);
+
+}  // namespace carat::cli

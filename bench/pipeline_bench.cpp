@@ -1,0 +1,150 @@
+// The dense-graph stages on the synthetic world (30 frames, two laps, the demo's sensor and
+// 0.5 m voxels), single-threaded, per factor: building a full GICP factor (correspondence
+// search + block), compressing it exactly (M = 29) or randomly, and linearizing it full vs
+// compressed. The ratio compress / linearize-full says after how many LM iterations the exact
+// factor has paid for itself.
+#include <benchmark/benchmark.h>
+
+#include <memory>
+#include <vector>
+
+#include "carat/coreset/compress.hpp"
+#include "carat/registration/correspondences.hpp"
+#include "carat/registration/dense_graph.hpp"
+#include "carat/registration/frame.hpp"
+#include "carat/registration/synthetic_world.hpp"
+#include "carat/residuals/gicp_block.hpp"
+#include "carat/solver/se3.hpp"
+
+namespace {
+
+struct Graph {
+  std::vector<std::shared_ptr<const carat::Frame>> frames;
+  std::vector<Eigen::Isometry3d> poses;
+  std::vector<carat::FramePair> pairs;
+  std::vector<std::shared_ptr<const carat::GicpBlock>> blocks;  // full, one per pair
+  std::vector<std::array<double, 7>> storage;
+};
+
+const Graph& graph() {
+  static const Graph g = [] {
+    Graph out;
+    const carat::SyntheticWorld world;
+    carat::SyntheticTrajectoryOptions drive;
+    drive.frames = 30;
+    const auto sequence = carat::make_synthetic_sequence(world, drive);
+    for (const auto& scan : sequence.scans)
+      out.frames.push_back(carat::preprocess_frame(scan, carat::PreprocessOptions{}, "frame"));
+    out.poses = sequence.T_world_frame;
+    out.pairs = carat::build_dense_graph(out.frames, out.poses);
+    for (const auto& p : out.pairs) {
+      const auto T = out.poses[p.target].inverse() * out.poses[p.source];
+      const auto c =
+          carat::find_correspondences(out.frames[p.target]->cloud(), out.frames[p.target]->tree(),
+                                      out.frames[p.source]->cloud(), T, 1.0);
+      out.blocks.push_back(std::make_shared<const carat::GicpBlock>(c, T));
+    }
+    out.storage.resize(out.poses.size());
+    for (std::size_t i = 0; i < out.poses.size(); ++i)
+      carat::se3::to_storage(out.poses[i], out.storage[i].data());
+    return out;
+  }();
+  return g;
+}
+
+void set_counters(benchmark::State& state) {
+  std::size_t rows = 0;
+  for (const auto& b : graph().blocks) rows += static_cast<std::size_t>(b->num_rows());
+  state.counters["factors"] = static_cast<double>(graph().blocks.size());
+  state.counters["rows_per_factor"] = static_cast<double>(rows) / graph().blocks.size();
+}
+
+void BM_BuildFullFactor(benchmark::State& state) {
+  const Graph& g = graph();
+  std::size_t k = 0;
+  for (auto _ : state) {
+    const auto& p = g.pairs[k++ % g.pairs.size()];
+    const auto T = g.poses[p.target].inverse() * g.poses[p.source];
+    const auto c =
+        carat::find_correspondences(g.frames[p.target]->cloud(), g.frames[p.target]->tree(),
+                                    g.frames[p.source]->cloud(), T, 1.0);
+    carat::GicpBlock block(c, T);
+    benchmark::DoNotOptimize(block.num_rows());
+  }
+  set_counters(state);
+}
+
+void BM_LinearizeFull(benchmark::State& state) {
+  const Graph& g = graph();
+  std::size_t k = 0;
+  Eigen::MatrixXd H(6, 6);
+  Eigen::VectorXd b(6);
+  for (auto _ : state) {
+    const std::size_t i = k++ % g.pairs.size();
+    const double* values[2] = {g.storage[g.pairs[i].target].data(),
+                               g.storage[g.pairs[i].source].data()};
+    H.setZero();
+    b.setZero();
+    benchmark::DoNotOptimize(g.blocks[i]->accumulate(values, H, b));
+  }
+  set_counters(state);
+}
+
+void BM_CompressExact(benchmark::State& state) {
+  const Graph& g = graph();
+  std::size_t k = 0;
+  for (auto _ : state) {
+    const std::size_t i = k++ % g.pairs.size();
+    const double* values[2] = {g.storage[g.pairs[i].target].data(),
+                               g.storage[g.pairs[i].source].data()};
+    auto compressed = carat::compress(g.blocks[i], values);
+    benchmark::DoNotOptimize(compressed->num_rows());
+  }
+  set_counters(state);
+}
+
+void BM_CompressRandom(benchmark::State& state) {
+  const Graph& g = graph();
+  std::size_t k = 0;
+  carat::RandomSamplingOptions options;
+  options.group_size = 3;
+  options.target_rows = 30;
+  for (auto _ : state) {
+    const std::size_t i = k++ % g.pairs.size();
+    auto compressed = carat::compress_random(g.blocks[i], options);
+    benchmark::DoNotOptimize(compressed->num_rows());
+  }
+  set_counters(state);
+}
+
+void BM_LinearizeExact(benchmark::State& state) {
+  const Graph& g = graph();
+  std::vector<std::shared_ptr<carat::CompressedBlock>> compressed;
+  for (std::size_t i = 0; i < g.pairs.size(); ++i) {
+    const double* values[2] = {g.storage[g.pairs[i].target].data(),
+                               g.storage[g.pairs[i].source].data()};
+    compressed.push_back(carat::compress(g.blocks[i], values));
+  }
+  std::size_t k = 0;
+  Eigen::MatrixXd H(6, 6);
+  Eigen::VectorXd b(6);
+  for (auto _ : state) {
+    const std::size_t i = k++ % g.pairs.size();
+    const double* values[2] = {g.storage[g.pairs[i].target].data(),
+                               g.storage[g.pairs[i].source].data()};
+    H.setZero();
+    b.setZero();
+    benchmark::DoNotOptimize(compressed[i]->accumulate(values, H, b));
+  }
+  set_counters(state);
+}
+
+BENCHMARK(BM_BuildFullFactor)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_LinearizeFull)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_CompressExact)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_CompressRandom)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_LinearizeExact)->Unit(benchmark::kMicrosecond);
+
+}  // namespace
+
+BENCHMARK_MAIN();

@@ -1,0 +1,41 @@
+#pragma once
+
+/// The dense registration graph: a factor for every pair of frames whose scans overlap enough
+/// under the current poses, plus every consecutive pair.
+
+#include <Eigen/Geometry>
+#include <functional>
+#include <memory>
+#include <span>
+#include <vector>
+
+#include "carat/registration/frame.hpp"
+
+namespace carat {
+
+/// Settings of build_dense_graph().
+struct DenseGraphOptions {
+  double overlap_threshold = 0.2;  ///< pairs with at least this overlap fraction get a factor
+  double voxel_size = 1.0;         ///< voxel edge of the overlap test, metres
+  double max_distance = 100.0;     ///< pairs whose sensors are farther apart are not tested (m)
+  int overlap_stride = 4;          ///< test every this-many-th source point (speed)
+  int num_threads = 1;             ///< threads for the overlap tests
+};
+
+/// One factor of the graph: frame `target` (i) and frame `source` (j), i < j.
+struct FramePair {
+  int target = 0;        ///< index i of the target frame
+  int source = 0;        ///< index j of the source frame
+  double overlap = 0.0;  ///< overlap fraction of source in target at the poses used
+};
+
+/// Every consecutive pair (i, i+1) and every other pair i < j with overlap >= threshold under
+/// T_world_frame, sorted by (target, source). Throws carat::Error when frames and poses differ
+/// in count, fewer than 2 frames are given, a pose is not finite, or an option is out of range.
+/// `progress`, if set, is called with (pairs tested, pairs to test) from any thread.
+std::vector<FramePair> build_dense_graph(
+    std::span<const std::shared_ptr<const Frame>> frames,
+    std::span<const Eigen::Isometry3d> T_world_frame, const DenseGraphOptions& options = {},
+    const std::function<void(std::size_t, std::size_t)>& progress = {});
+
+}  // namespace carat

@@ -1,0 +1,50 @@
+#pragma once
+
+/// A scan prepared for registration: voxel-downsampled points with GICP covariances and a k-d
+/// tree over them, held together so the tree never outlives or loses its cloud.
+
+#include <memory>
+#include <string>
+
+#include "carat/registration/kdtree.hpp"
+#include "carat/registration/point_cloud.hpp"
+
+namespace carat {
+
+/// Settings of preprocess_frame().
+struct PreprocessOptions {
+  double voxel_size = 0.5;        ///< downsampling voxel edge, metres (> 0)
+  int covariance_neighbors = 10;  ///< k of the covariance estimate (>= 4)
+  int min_points = 29;            ///< fewer points after downsampling is an error
+  int num_threads = 1;            ///< threads for the covariance estimate
+};
+
+/// A downsampled cloud with covariances and its k-d tree (immutable once built).
+class Frame {
+ public:
+  /// Takes a cloud that already has covariances and builds its tree. Throws carat::Error if
+  /// the cloud has no covariances.
+  explicit Frame(PointCloud cloud);
+  Frame(const Frame&) = delete;
+  Frame& operator=(const Frame&) = delete;
+
+  /// The points (frame's own coordinates) and their covariances.
+  const PointCloud& cloud() const { return *cloud_; }
+  /// The k-d tree over cloud().
+  const KdTree& tree() const { return *tree_; }
+  /// Number of points.
+  std::size_t size() const { return cloud_->size(); }
+
+ private:
+  std::unique_ptr<PointCloud> cloud_;  // on the heap: the tree keeps a reference to it
+  std::unique_ptr<KdTree> tree_;
+};
+
+/// Downsamples `raw`, estimates covariances and builds the tree. `name` (a file name or
+/// "frame 12") is used in errors; throws carat::Error for bad options or a frame with fewer
+/// than min_points points after downsampling.
+std::shared_ptr<const Frame> preprocess_frame(const PointCloud& raw,
+                                              const PreprocessOptions& options,
+                                              const std::string& name);
+
+}  // namespace carat

@@ -1,0 +1,102 @@
+#pragma once
+
+/// Global registration error minimization (Koide et al. 2023, Sec. IV-C): a GICP block with
+/// correspondences fixed at the initial poses for every frame pair of the dense graph, each
+/// kept whole, compressed exactly (coreset) or randomly sampled, and all poses optimized
+/// together with LM (the first pose held constant).
+
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <span>
+#include <string_view>
+#include <vector>
+
+#include "carat/registration/dense_graph.hpp"
+#include "carat/registration/frame.hpp"
+#include "carat/solver/loss_function.hpp"
+#include "carat/solver/problem.hpp"
+#include "carat/solver/solver_options.hpp"
+#include "carat/solver/solver_summary.hpp"
+
+namespace carat {
+
+/// How each factor's rows are kept.
+enum class ResidualSampling {
+  kFull,    ///< every row of every correspondence
+  kExact,   ///< an exact coreset of M weighted rows (same H, b, c at the initial poses)
+  kRandom,  ///< ceil(M/3) random correspondences (3 rows each), weighted N/M
+};
+
+/// Name of a sampling mode: "full", "exact", "random".
+const char* to_string(ResidualSampling sampling);
+/// Parses "full", "exact" or "random"; throws carat::Error listing the valid names otherwise.
+ResidualSampling parse_residual_sampling(std::string_view name);
+
+/// Settings of the global registration problem and its solve.
+struct GlobalRegistrationOptions {
+  ResidualSampling sampling = ResidualSampling::kExact;  ///< rows kept per factor
+  int residuals = 29;                        ///< M: rows per factor for exact and random sampling
+  double max_correspondence_distance = 1.0;  ///< metres, at the initial poses
+  int min_correspondences = 29;              ///< a factor with fewer is an error
+  std::uint64_t seed = 1;                    ///< seed of the coreset shuffle / random draw
+  int num_threads = 1;                       ///< threads for building, compressing, solving
+  double factor_cauchy_scale = 0.0;          ///< Cauchy kernel on each factor's whole squared error
+                                             ///< (exactness is kept); 0: none, as in the paper
+  int rounds = 1;  ///< 1: correspondences fixed at the initial poses (the paper); more: search
+                   ///< again at each round's result and solve again, until a round moves no
+                   ///< pose more than the tolerances below
+  double round_translation_tolerance = 1e-3;  ///< metres
+  double round_rotation_tolerance = 1e-4;     ///< radians
+  SolverOptions solver;                       ///< LM settings
+};
+
+/// Bytes and times of building the factors.
+struct RegistrationFactorStats {
+  std::size_t num_factors = 0;           ///< residual blocks
+  std::size_t num_correspondences = 0;   ///< correspondences found over all factors
+  std::size_t num_rows = 0;              ///< rows kept over all factors
+  std::size_t correspondence_bytes = 0;  ///< bytes of the full GICP blocks as built
+  std::size_t residual_bytes = 0;        ///< bytes the kept blocks hold during the solve
+  double correspondence_s = 0.0;  ///< wall time of the searches and full blocks (share of stage)
+  double compression_s = 0.0;     ///< wall time of compressing (share of the same stage)
+};
+
+/// The assembled problem: one SE(3) variable per frame, one block per pair.
+struct RegistrationProblem {
+  Problem problem;                                  ///< variables and blocks
+  std::vector<VariableId> frame_variables;          ///< parallel to the frames
+  std::vector<FramePair> pairs;                     ///< parallel to the blocks
+  std::vector<std::size_t> factor_correspondences;  ///< per block: correspondences found
+  RegistrationFactorStats stats;                    ///< what building cost
+};
+
+/// Builds the problem at T_world_frame (the first frame's pose held constant). Factors are
+/// built and compressed in parallel; results do not depend on the thread count. Throws
+/// carat::Error for mismatched counts, bad options, non-finite poses, or a pair with fewer
+/// than min_correspondences correspondences (naming the pair). `progress` gets (factors done,
+/// factors).
+RegistrationProblem build_registration_problem(
+    std::span<const std::shared_ptr<const Frame>> frames, std::span<const FramePair> pairs,
+    std::span<const Eigen::Isometry3d> T_world_frame, const GlobalRegistrationOptions& options,
+    const std::function<void(std::size_t, std::size_t)>& progress = {});
+
+/// What optimize_registration() found.
+struct GlobalRegistrationResult {
+  std::vector<Eigen::Isometry3d> T_world_frame;  ///< optimized poses
+  SolverSummary summary;                         ///< the LM solve
+  RegistrationFactorStats stats;                 ///< building the factors
+  std::vector<double> factor_costs;  ///< per factor: sum of squared residuals / correspondences
+  int rounds = 0;                    ///< correspondence rounds run
+};
+
+/// Builds the problem and solves it, `options.rounds` times at most (summary, stats and
+/// iterations add up over the rounds; factor_costs are the last round's). Throws carat::Error
+/// as build_registration_problem() does, or when a solve fails.
+GlobalRegistrationResult optimize_registration(
+    std::span<const std::shared_ptr<const Frame>> frames, std::span<const FramePair> pairs,
+    std::span<const Eigen::Isometry3d> T_world_frame, const GlobalRegistrationOptions& options,
+    const std::function<void(std::size_t, std::size_t)>& progress = {});
+
+}  // namespace carat

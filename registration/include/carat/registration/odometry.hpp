@@ -1,0 +1,30 @@
+#pragma once
+
+/// LiDAR odometry: GICP between consecutive frames, chained into a trajectory.
+
+#include <Eigen/Geometry>
+#include <functional>
+#include <memory>
+#include <span>
+#include <vector>
+
+#include "carat/registration/pair_registration.hpp"
+
+namespace carat {
+
+/// Odometry poses and the consecutive-pair measurements they were chained from.
+struct OdometryResult {
+  std::vector<Eigen::Isometry3d> T_world_frame;  ///< chained poses, the first one as given
+  std::vector<PairRegistration> steps;           ///< step k aligns frame k+1 to frame k
+};
+
+/// Aligns frame k+1 to frame k for every k, starting each alignment from the relative motion
+/// of T_world_guess (wheel odometry, a drift model, or any prior), in parallel, and chains the
+/// results from T_world_guess[0]. Throws carat::Error for fewer than 2 frames, mismatched
+/// counts, or a failed alignment (naming the frames).
+OdometryResult run_odometry(std::span<const std::shared_ptr<const Frame>> frames,
+                            std::span<const Eigen::Isometry3d> T_world_guess,
+                            const AlignSettings& settings, int num_threads,
+                            const std::function<void(std::size_t, std::size_t)>& progress = {});
+
+}  // namespace carat

@@ -1,0 +1,39 @@
+#pragma once
+
+/// GICP scan matching of many frame pairs at once (the measurements of odometry and of the
+/// pose-graph baselines).
+
+#include <Eigen/Geometry>
+#include <functional>
+#include <memory>
+#include <span>
+#include <vector>
+
+#include "carat/registration/align.hpp"
+#include "carat/registration/dense_graph.hpp"
+#include "carat/registration/frame.hpp"
+#include "carat/solver/se3.hpp"
+
+namespace carat {
+
+/// The scan-matching result of one frame pair.
+struct PairRegistration {
+  FramePair pair;                                                     ///< which frames
+  Eigen::Isometry3d T_target_source = Eigen::Isometry3d::Identity();  ///< aligned relative pose
+  se3::Matrix6d H = se3::Matrix6d::Zero();  ///< GICP J^T J at the result (right tangent [w, v])
+  double error = 0.0;                       ///< GICP sum of squared residuals at the result
+  int num_correspondences = 0;              ///< pairs used in the last iteration
+  int iterations = 0;                       ///< outer GICP iterations
+  bool converged = false;                   ///< the last step was below tolerance
+};
+
+/// Aligns every pair (source onto target) starting from the relative pose that T_world_frame
+/// implies, in parallel over pairs with `num_threads` threads (each alignment single-threaded,
+/// so results do not depend on the thread count). Throws carat::Error naming the pair when an
+/// alignment fails. `progress`, if set, gets (pairs done, pairs) from any thread.
+std::vector<PairRegistration> register_pairs(
+    std::span<const std::shared_ptr<const Frame>> frames, std::span<const FramePair> pairs,
+    std::span<const Eigen::Isometry3d> T_world_frame, const AlignSettings& settings,
+    int num_threads, const std::function<void(std::size_t, std::size_t)>& progress = {});
+
+}  // namespace carat

@@ -1,0 +1,47 @@
+#pragma once
+
+/// The pose-graph baseline of global registration: one SE(3) relative-pose factor per
+/// registered frame pair, with identity or GICP-Hessian information and a Cauchy kernel.
+
+#include <Eigen/Geometry>
+#include <span>
+#include <vector>
+
+#include "carat/registration/pair_registration.hpp"
+#include "carat/solver/solver_options.hpp"
+#include "carat/solver/solver_summary.hpp"
+
+namespace carat {
+
+/// Information matrix of each relative-pose factor.
+enum class PoseGraphInformation {
+  kIdentity,  ///< every factor weighs the same
+  kHessian,   ///< the GICP Hessian of the pair at its alignment
+};
+
+/// Settings of optimize_pose_graph_baseline().
+struct PoseGraphBaselineOptions {
+  PoseGraphInformation information = PoseGraphInformation::kHessian;  ///< factor weights
+  double cauchy_scale = 1.0;  ///< Cauchy kernel scale on the whitened error; 0 disables it
+  SolverOptions solver;       ///< LM settings (first pose held constant)
+};
+
+/// Optimized poses and the solve's summary.
+struct PoseGraphBaselineResult {
+  std::vector<Eigen::Isometry3d> T_world_frame;  ///< optimized poses
+  SolverSummary summary;                         ///< the solve
+};
+
+/// The information of a relative-pose factor (translation first, RelativePoseBlock's order)
+/// equivalent to a GICP Hessian H over the right tangent [w, v] of T_target_source.
+se3::Matrix6d relative_pose_information(const Eigen::Isometry3d& T_target_source,
+                                        const se3::Matrix6d& H);
+
+/// Optimizes the poses from T_world_initial with one factor per registration. Throws
+/// carat::Error when a registration names a missing frame or its information is not positive
+/// definite, or when the solve fails.
+PoseGraphBaselineResult optimize_pose_graph_baseline(
+    std::span<const Eigen::Isometry3d> T_world_initial,
+    std::span<const PairRegistration> registrations, const PoseGraphBaselineOptions& options = {});
+
+}  // namespace carat

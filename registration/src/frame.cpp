@@ -1,0 +1,47 @@
+#include "carat/registration/frame.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <string>
+#include <utility>
+
+#include "carat/registration/covariance.hpp"
+#include "carat/registration/voxel_grid.hpp"
+#include "carat/solver/error.hpp"
+
+namespace carat {
+
+Frame::Frame(PointCloud cloud) : cloud_(std::make_unique<PointCloud>(std::move(cloud))) {
+  if (!cloud_->has_covariances())
+    throw Error("Frame: the cloud has no covariances (run estimate_covariances first)");
+  tree_ = std::make_unique<KdTree>(*cloud_);
+}
+
+std::shared_ptr<const Frame> preprocess_frame(const PointCloud& raw,
+                                              const PreprocessOptions& options,
+                                              const std::string& name) {
+  if (!(std::isfinite(options.voxel_size) && options.voxel_size > 0.0))
+    throw Error(name + ": voxel size must be finite and > 0, got " +
+                std::to_string(options.voxel_size));
+  if (options.min_points < 4)
+    throw Error(name + ": min_points must be >= 4, got " + std::to_string(options.min_points));
+  if (static_cast<int>(raw.size()) < options.min_points) {
+    throw Error(name + ": only " + std::to_string(raw.size()) + " points (at least " +
+                std::to_string(options.min_points) + " are needed)");
+  }
+  PointCloud cloud = voxel_downsample(raw, options.voxel_size);
+  if (static_cast<int>(cloud.size()) < options.min_points) {
+    char voxel[32];
+    std::snprintf(voxel, sizeof(voxel), "%g", options.voxel_size);
+    throw Error(name + ": only " + std::to_string(cloud.size()) + " points after " + voxel +
+                " m downsampling (at least " + std::to_string(options.min_points) + " are needed)");
+  }
+  const KdTree tree(cloud);
+  CovarianceOptions covariance;
+  covariance.neighbors = options.covariance_neighbors;
+  covariance.num_threads = options.num_threads;
+  estimate_covariances(cloud, tree, covariance);
+  return std::make_shared<const Frame>(std::move(cloud));
+}
+
+}  // namespace carat

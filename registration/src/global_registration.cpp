@@ -1,0 +1,267 @@
+#include "carat/registration/global_registration.hpp"
+
+#include <tbb/info.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include <algorithm>
+#include <array>
+#include <atomic>
+#include <chrono>
+#include <string>
+
+#include "carat/coreset/compress.hpp"
+#include "carat/registration/correspondences.hpp"
+#include "carat/residuals/gicp_block.hpp"
+#include "carat/solver/error.hpp"
+#include "carat/solver/se3.hpp"
+#include "carat/solver/solve.hpp"
+
+namespace carat {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double seconds_since(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+std::string pair_name(const FramePair& pair) {
+  return "pair (" + std::to_string(pair.target) + ", " + std::to_string(pair.source) + ")";
+}
+
+void check_options(const GlobalRegistrationOptions& options) {
+  if (options.residuals < 1)
+    throw Error("global registration: residuals (M) must be >= 1, got " +
+                std::to_string(options.residuals));
+  if (!(options.max_correspondence_distance > 0.0))
+    throw Error("global registration: max_correspondence_distance must be > 0");
+  if (options.min_correspondences < 1)
+    throw Error("global registration: min_correspondences must be >= 1");
+  std::string why;
+  if (!options.solver.validate(&why)) throw Error("global registration: " + why);
+}
+
+/// Per factor: the block that goes into the problem and what building it cost.
+struct BuiltFactor {
+  std::shared_ptr<const ResidualBlock> block;
+  std::size_t correspondences = 0;
+  std::size_t correspondence_bytes = 0;
+  double correspondence_s = 0.0;
+  double compression_s = 0.0;
+};
+
+/// Adds one round's solve and build statistics to the running result.
+void accumulate_round(const SolverSummary& summary, const RegistrationFactorStats& stats,
+                      bool first, GlobalRegistrationResult* out) {
+  if (first) {
+    out->summary = summary;
+    out->stats = stats;
+    return;
+  }
+  SolverSummary& total = out->summary;
+  total.termination = summary.termination;
+  total.message = summary.message;
+  total.final_cost = summary.final_cost;
+  total.num_iterations += summary.num_iterations;
+  total.num_successful_steps += summary.num_successful_steps;
+  total.num_unsuccessful_steps += summary.num_unsuccessful_steps;
+  total.num_linear_solver_failures += summary.num_linear_solver_failures;
+  total.time.linearize_s += summary.time.linearize_s;
+  total.time.cost_s += summary.time.cost_s;
+  total.time.assembly_s += summary.time.assembly_s;
+  total.time.symbolic_s += summary.time.symbolic_s;
+  total.time.numeric_s += summary.time.numeric_s;
+  total.time.solve_s += summary.time.solve_s;
+  total.time.total_s += summary.time.total_s;
+  total.iterations.insert(total.iterations.end(), summary.iterations.begin(),
+                          summary.iterations.end());
+  out->stats.correspondence_s += stats.correspondence_s;
+  out->stats.compression_s += stats.compression_s;
+  out->stats.num_correspondences = stats.num_correspondences;
+  out->stats.num_rows = stats.num_rows;
+  out->stats.correspondence_bytes =
+      std::max(out->stats.correspondence_bytes, stats.correspondence_bytes);
+  out->stats.residual_bytes = std::max(out->stats.residual_bytes, stats.residual_bytes);
+}
+
+}  // namespace
+
+const char* to_string(ResidualSampling sampling) {
+  switch (sampling) {
+    case ResidualSampling::kFull:
+      return "full";
+    case ResidualSampling::kExact:
+      return "exact";
+    case ResidualSampling::kRandom:
+      return "random";
+  }
+  return "unknown";
+}
+
+ResidualSampling parse_residual_sampling(std::string_view name) {
+  if (name == "full") return ResidualSampling::kFull;
+  if (name == "exact") return ResidualSampling::kExact;
+  if (name == "random") return ResidualSampling::kRandom;
+  throw Error("unknown sampling '" + std::string(name) + "' (valid: full, exact, random)");
+}
+
+RegistrationProblem build_registration_problem(
+    std::span<const std::shared_ptr<const Frame>> frames, std::span<const FramePair> pairs,
+    std::span<const Eigen::Isometry3d> T_world_frame, const GlobalRegistrationOptions& options,
+    const std::function<void(std::size_t, std::size_t)>& progress) {
+  check_options(options);
+  if (frames.size() != T_world_frame.size()) {
+    throw Error("global registration: " + std::to_string(frames.size()) + " frames but " +
+                std::to_string(T_world_frame.size()) + " poses");
+  }
+  if (frames.size() < 2)
+    throw Error("global registration: at least 2 frames are needed, got " +
+                std::to_string(frames.size()));
+  const int n = static_cast<int>(frames.size());
+  for (const FramePair& pair : pairs) {
+    if (pair.target < 0 || pair.target >= n || pair.source < 0 || pair.source >= n ||
+        pair.target == pair.source)
+      throw Error("global registration: " + pair_name(pair) + " does not name two distinct frames");
+  }
+  RegistrationProblem out;
+  out.pairs.assign(pairs.begin(), pairs.end());
+  for (int i = 0; i < n; ++i) {
+    if (!T_world_frame[static_cast<std::size_t>(i)].matrix().allFinite())
+      throw Error("global registration: pose " + std::to_string(i) + " is not finite");
+    out.frame_variables.push_back(out.problem.add_se3(T_world_frame[static_cast<std::size_t>(i)]));
+  }
+  out.problem.set_constant(out.frame_variables.front());
+
+  std::vector<std::array<double, 7>> storage(frames.size());
+  for (std::size_t i = 0; i < frames.size(); ++i)
+    se3::to_storage(T_world_frame[i], storage[i].data());
+
+  std::vector<BuiltFactor> built(pairs.size());
+  const int threads = std::clamp(options.num_threads, 1, tbb::info::default_concurrency());
+  tbb::task_arena arena(threads);
+  std::atomic<std::size_t> done{0};
+  const auto stage_start = Clock::now();
+  arena.execute([&] {
+    tbb::parallel_for(std::size_t{0}, pairs.size(), [&](std::size_t k) {
+      const FramePair& pair = pairs[k];
+      const auto i = static_cast<std::size_t>(pair.target);
+      const auto j = static_cast<std::size_t>(pair.source);
+      BuiltFactor& factor = built[k];
+      auto t0 = Clock::now();
+      const Eigen::Isometry3d T_ij = T_world_frame[i].inverse() * T_world_frame[j];
+      const std::vector<GicpCorrespondence> correspondences =
+          find_correspondences(frames[i]->cloud(), frames[i]->tree(), frames[j]->cloud(), T_ij,
+                               options.max_correspondence_distance);
+      if (static_cast<int>(correspondences.size()) < options.min_correspondences) {
+        throw Error("global registration: " + pair_name(pair) + " has only " +
+                    std::to_string(correspondences.size()) + " correspondences within " +
+                    std::to_string(options.max_correspondence_distance) + " m (need " +
+                    std::to_string(options.min_correspondences) +
+                    "); the frames do not overlap at the initial poses");
+      }
+      auto full = std::make_shared<const GicpBlock>(correspondences, T_ij);
+      factor.correspondences = correspondences.size();
+      factor.correspondence_bytes = full->memory_bytes();
+      factor.correspondence_s = seconds_since(t0);
+      t0 = Clock::now();
+      switch (options.sampling) {
+        case ResidualSampling::kFull:
+          factor.block = full;
+          break;
+        case ResidualSampling::kExact: {
+          CompressionOptions compression;
+          compression.target_rows = options.residuals;
+          compression.seed = options.seed + k;
+          const double* values[2] = {storage[i].data(), storage[j].data()};
+          factor.block = compress(full, values, compression);
+          break;
+        }
+        case ResidualSampling::kRandom: {
+          RandomSamplingOptions sampling;
+          sampling.group_size = 3;
+          sampling.target_rows = 3 * ((options.residuals + 2) / 3);
+          sampling.seed = options.seed + k;
+          if (sampling.target_rows >= full->num_rows()) {
+            factor.block = full;
+          } else {
+            factor.block = compress_random(full, sampling);
+          }
+          break;
+        }
+      }
+      factor.compression_s = seconds_since(t0);
+      if (progress) progress(done.fetch_add(1) + 1, pairs.size());
+    });
+  });
+  std::shared_ptr<const LossFunction> loss;
+  if (options.factor_cauchy_scale > 0.0)
+    loss = std::make_shared<CauchyLoss>(options.factor_cauchy_scale);
+  for (std::size_t k = 0; k < pairs.size(); ++k) {
+    const FramePair& pair = pairs[k];
+    out.problem.add_residual_block(built[k].block,
+                                   {out.frame_variables[static_cast<std::size_t>(pair.target)],
+                                    out.frame_variables[static_cast<std::size_t>(pair.source)]},
+                                   loss);
+    RegistrationFactorStats& s = out.stats;
+    s.num_factors += 1;
+    s.num_correspondences += built[k].correspondences;
+    s.num_rows += static_cast<std::size_t>(built[k].block->num_rows());
+    s.correspondence_bytes += built[k].correspondence_bytes;
+    s.residual_bytes += built[k].block->memory_bytes();
+    s.correspondence_s += built[k].correspondence_s;
+    s.compression_s += built[k].compression_s;
+    out.factor_correspondences.push_back(built[k].correspondences);
+  }
+  // The stage ran in parallel: split its wall time in proportion to the per-factor CPU times.
+  const double wall = seconds_since(stage_start);
+  const double cpu = out.stats.correspondence_s + out.stats.compression_s;
+  if (cpu > 0.0) {
+    out.stats.correspondence_s *= wall / cpu;
+    out.stats.compression_s *= wall / cpu;
+  }
+  return out;
+}
+
+GlobalRegistrationResult optimize_registration(
+    std::span<const std::shared_ptr<const Frame>> frames, std::span<const FramePair> pairs,
+    std::span<const Eigen::Isometry3d> T_world_frame, const GlobalRegistrationOptions& options,
+    const std::function<void(std::size_t, std::size_t)>& progress) {
+  if (options.rounds < 1)
+    throw Error("global registration: rounds must be >= 1, got " + std::to_string(options.rounds));
+  GlobalRegistrationResult out;
+  out.T_world_frame.assign(T_world_frame.begin(), T_world_frame.end());
+  SolverOptions solver = options.solver;
+  solver.num_threads = options.num_threads;
+  for (int round = 0; round < options.rounds; ++round) {
+    RegistrationProblem built =
+        build_registration_problem(frames, pairs, out.T_world_frame, options, progress);
+    const SolverSummary summary = solve(solver, built.problem);
+    if (!summary.is_solution_usable())
+      throw Error("global registration: the solve failed: " + summary.message);
+    accumulate_round(summary, built.stats, round == 0, &out);
+    double max_translation = 0.0, max_rotation = 0.0;
+    for (std::size_t i = 0; i < built.frame_variables.size(); ++i) {
+      const Eigen::Isometry3d T = built.problem.se3(built.frame_variables[i]);
+      const se3::Vector6d step = se3::log(out.T_world_frame[i].inverse() * T);
+      max_rotation = std::max(max_rotation, step.head<3>().norm());
+      max_translation = std::max(max_translation, step.tail<3>().norm());
+      out.T_world_frame[i] = T;
+    }
+    out.rounds = round + 1;
+    out.factor_costs.clear();
+    const auto blocks = built.problem.blocks();
+    for (std::size_t k = 0; k < blocks.size(); ++k) {
+      const double* values[2] = {built.problem.value(blocks[k].variables[0]).data(),
+                                 built.problem.value(blocks[k].variables[1]).data()};
+      out.factor_costs.push_back(blocks[k].block->squared_norm(values) /
+                                 static_cast<double>(built.factor_correspondences[k]));
+    }
+    if (max_translation < options.round_translation_tolerance &&
+        max_rotation < options.round_rotation_tolerance)
+      break;
+  }
+  return out;
+}
+
+}  // namespace carat

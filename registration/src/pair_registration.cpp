@@ -1,0 +1,67 @@
+#include "carat/registration/pair_registration.hpp"
+
+#include <tbb/info.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include <algorithm>
+#include <atomic>
+#include <string>
+
+#include "carat/solver/error.hpp"
+
+namespace carat {
+
+std::vector<PairRegistration> register_pairs(
+    std::span<const std::shared_ptr<const Frame>> frames, std::span<const FramePair> pairs,
+    std::span<const Eigen::Isometry3d> T_world_frame, const AlignSettings& settings,
+    int num_threads, const std::function<void(std::size_t, std::size_t)>& progress) {
+  if (frames.size() != T_world_frame.size()) {
+    throw Error("register_pairs: " + std::to_string(frames.size()) + " frames but " +
+                std::to_string(T_world_frame.size()) + " poses");
+  }
+  const int n = static_cast<int>(frames.size());
+  for (const FramePair& pair : pairs) {
+    if (pair.target < 0 || pair.target >= n || pair.source < 0 || pair.source >= n ||
+        pair.target == pair.source) {
+      throw Error("register_pairs: pair (" + std::to_string(pair.target) + ", " +
+                  std::to_string(pair.source) + ") does not name two distinct frames of " +
+                  std::to_string(n));
+    }
+  }
+  AlignSettings single = settings;
+  single.num_threads = 1;
+  std::vector<PairRegistration> out(pairs.size());
+  const int threads = std::clamp(num_threads, 1, tbb::info::default_concurrency());
+  tbb::task_arena arena(threads);
+  std::atomic<std::size_t> done{0};
+  arena.execute([&] {
+    tbb::parallel_for(std::size_t{0}, pairs.size(), [&](std::size_t k) {
+      const FramePair& pair = pairs[k];
+      const Frame& target = *frames[static_cast<std::size_t>(pair.target)];
+      const Frame& source = *frames[static_cast<std::size_t>(pair.source)];
+      const Eigen::Isometry3d T_init =
+          T_world_frame[static_cast<std::size_t>(pair.target)].inverse() *
+          T_world_frame[static_cast<std::size_t>(pair.source)];
+      AlignResult result;
+      try {
+        result = align(target.cloud(), target.tree(), source.cloud(), T_init, single);
+      } catch (const Error& e) {
+        throw Error("aligning frame " + std::to_string(pair.source) + " to frame " +
+                    std::to_string(pair.target) + ": " + e.what());
+      }
+      PairRegistration& r = out[k];
+      r.pair = pair;
+      r.T_target_source = result.T_target_source;
+      r.H = result.H;
+      r.error = result.error;
+      r.num_correspondences = result.num_correspondences;
+      r.iterations = result.iterations;
+      r.converged = result.converged;
+      if (progress) progress(done.fetch_add(1) + 1, pairs.size());
+    });
+  });
+  return out;
+}
+
+}  // namespace carat

@@ -1,0 +1,52 @@
+#include "carat/registration/pose_graph_baseline.hpp"
+
+#include <memory>
+#include <string>
+
+#include "carat/residuals/pose_graph.hpp"
+#include "carat/solver/error.hpp"
+#include "carat/solver/solve.hpp"
+
+namespace carat {
+
+se3::Matrix6d relative_pose_information(const Eigen::Isometry3d& T_target_source,
+                                        const se3::Matrix6d& H) {
+  // A right perturbation exp([w, v]) of T_ij moves the factor's error e = [e_t, e_r] by
+  // e_t = R_ij v and e_r = w, so [w, v] = M e with M = [0 I; R_ij^T 0].
+  se3::Matrix6d M = se3::Matrix6d::Zero();
+  M.block<3, 3>(0, 3).setIdentity();
+  M.block<3, 3>(3, 0) = T_target_source.rotation().transpose();
+  se3::Matrix6d information = M.transpose() * H * M;
+  return 0.5 * (information + information.transpose());
+}
+
+PoseGraphBaselineResult optimize_pose_graph_baseline(
+    std::span<const Eigen::Isometry3d> T_world_initial,
+    std::span<const PairRegistration> registrations, const PoseGraphBaselineOptions& options) {
+  PoseGraph graph;
+  for (std::size_t i = 0; i < T_world_initial.size(); ++i)
+    graph.vertices.push_back({static_cast<std::int64_t>(i), T_world_initial[i]});
+  for (const PairRegistration& r : registrations) {
+    PoseGraph::Edge edge;
+    edge.from = r.pair.target;
+    edge.to = r.pair.source;
+    edge.T_from_to = r.T_target_source;
+    edge.information = options.information == PoseGraphInformation::kHessian
+                           ? relative_pose_information(r.T_target_source, r.H)
+                           : se3::Matrix6d::Identity();
+    graph.edges.push_back(edge);
+  }
+  PoseGraphProblemOptions problem_options;
+  if (options.cauchy_scale > 0.0)
+    problem_options.loss = std::make_shared<CauchyLoss>(options.cauchy_scale);
+  PoseGraphProblem built = build_pose_graph_problem(graph, problem_options);
+  PoseGraphBaselineResult out;
+  out.summary = solve(options.solver, built.problem);
+  if (!out.summary.is_solution_usable())
+    throw Error("pose-graph optimization failed: " + out.summary.message);
+  update_vertices(built, &graph);
+  for (const auto& vertex : graph.vertices) out.T_world_frame.push_back(vertex.T_world_vertex);
+  return out;
+}
+
+}  // namespace carat

@@ -1,0 +1,316 @@
+// The dense global-registration pipeline end to end on a small synthetic world: overlap, the
+// dense graph, odometry, the pose-graph baselines, and GRE with full / exact / random residuals
+// (exactness of the whole graph's quadratic model, ATE improvement, determinism, bad input);
+// and the 5-frame KITTI 07 recovery when the real data are present.
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <tbb/task_arena.h>
+
+#include <cmath>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "carat/registration/dense_graph.hpp"
+#include "carat/registration/frame.hpp"
+#include "carat/registration/global_registration.hpp"
+#include "carat/registration/kitti_io.hpp"
+#include "carat/registration/odometry.hpp"
+#include "carat/registration/overlap.hpp"
+#include "carat/registration/pose_graph_baseline.hpp"
+#include "carat/registration/pose_perturbation.hpp"
+#include "carat/registration/synthetic_world.hpp"
+#include "carat/registration/trajectory_error.hpp"
+#include "carat/registration/trajectory_io.hpp"
+#include "carat/solver/error.hpp"
+#include "carat/solver/se3.hpp"
+#include "test_support.hpp"
+
+namespace carat {
+namespace {
+
+using ::testing::HasSubstr;
+
+/// A small world shared by the tests: 40 frames (10 m apart), two laps, the default 32-beam sensor.
+struct SmallWorld {
+  std::vector<std::shared_ptr<const Frame>> frames;
+  std::vector<Eigen::Isometry3d> truth;
+  std::vector<Eigen::Isometry3d> initial;  // drift model
+};
+
+const SmallWorld& small_world() {
+  static const SmallWorld world = [] {
+    SyntheticWorldOptions options;
+    options.seed = 7;
+    const SyntheticWorld scene(options);
+    SyntheticTrajectoryOptions drive;
+    drive.frames = 40;
+    drive.laps = 2;
+    const SyntheticSequence sequence = make_synthetic_sequence(scene, drive);
+    SmallWorld out;
+    out.truth = sequence.T_world_frame;
+    PreprocessOptions preprocess;
+    preprocess.voxel_size = 0.5;
+    for (std::size_t k = 0; k < sequence.scans.size(); ++k)
+      out.frames.push_back(preprocess_frame(sequence.scans[k], preprocess, "frame"));
+    DriftOptions drift;
+    drift.seed = 3;
+    drift.translation_sigma = 0.005;
+    drift.rotation_sigma_deg = 0.03;
+    out.initial = apply_drift(out.truth, drift);
+    return out;
+  }();
+  return world;
+}
+
+/// Dense H (tangent of all poses), b and c of a problem at its current values.
+struct DenseModel {
+  Eigen::MatrixXd H;
+  Eigen::VectorXd b;
+  double c = 0.0;
+};
+
+DenseModel dense_model(const Problem& problem) {
+  const int n = problem.num_variables();
+  DenseModel m{Eigen::MatrixXd::Zero(6 * n, 6 * n), Eigen::VectorXd::Zero(6 * n), 0.0};
+  for (const auto& entry : problem.blocks()) {
+    const double* values[2] = {problem.value(entry.variables[0]).data(),
+                               problem.value(entry.variables[1]).data()};
+    const int r = entry.block->reduced_dim();
+    Eigen::MatrixXd H_r = Eigen::MatrixXd::Zero(r, r);
+    Eigen::VectorXd b_r = Eigen::VectorXd::Zero(r);
+    m.c += entry.block->accumulate(values, H_r, b_r);
+    Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> A(r, 12);
+    entry.block->reduced_map(values, A.data());
+    const Eigen::MatrixXd H = A.transpose() * H_r * A;
+    const Eigen::VectorXd b = A.transpose() * b_r;
+    const int idx[2] = {6 * entry.variables[0].index, 6 * entry.variables[1].index};
+    for (int p = 0; p < 2; ++p) {
+      m.b.segment<6>(idx[p]) += b.segment<6>(6 * p);
+      for (int q = 0; q < 2; ++q) m.H.block<6, 6>(idx[p], idx[q]) += H.block<6, 6>(6 * p, 6 * q);
+    }
+  }
+  return m;
+}
+
+TEST(OverlapTest, FractionOfOccupiedVoxels) {
+  PointCloud cloud;
+  for (int x = 0; x < 10; ++x)
+    for (int y = 0; y < 10; ++y) cloud.points.emplace_back(x + 0.5f, y + 0.5f, 0.5f);
+  const VoxelOccupancy occupancy(cloud, 1.0);
+  EXPECT_EQ(occupancy.size(), 100u);
+  EXPECT_DOUBLE_EQ(overlap_fraction(occupancy, cloud, Eigen::Isometry3d::Identity()), 1.0);
+  Eigen::Isometry3d half = Eigen::Isometry3d::Identity();
+  half.translation() = Eigen::Vector3d(5.0, 0.0, 0.0);  // half the source leaves the grid
+  EXPECT_DOUBLE_EQ(overlap_fraction(occupancy, cloud, half), 0.5);
+  EXPECT_DOUBLE_EQ(overlap_fraction(occupancy, cloud, half, 2), 0.5);
+  EXPECT_DOUBLE_EQ(overlap_fraction(occupancy, PointCloud{}, half), 0.0);
+  EXPECT_THROW(VoxelOccupancy(cloud, 0.0), Error);
+  cloud.points.emplace_back(std::nanf(""), 0.0f, 0.0f);
+  EXPECT_THROW(VoxelOccupancy(cloud, 1.0), Error);
+}
+
+TEST(DenseGraphTest, ConsecutivePairsAndOverlappingLoops) {
+  const SmallWorld& w = small_world();
+  DenseGraphOptions options;
+  const auto pairs = build_dense_graph(w.frames, w.truth, options);
+  ASSERT_GE(pairs.size(), w.frames.size() - 1);
+  int loops = 0;
+  for (std::size_t k = 0; k < pairs.size(); ++k) {
+    EXPECT_LT(pairs[k].target, pairs[k].source);
+    if (k > 0) {
+      EXPECT_TRUE(
+          pairs[k - 1].target < pairs[k].target ||
+          (pairs[k - 1].target == pairs[k].target && pairs[k - 1].source < pairs[k].source));
+    }
+    if (pairs[k].source - pairs[k].target > 1) {
+      EXPECT_GE(pairs[k].overlap, options.overlap_threshold);
+      // A loop closure across laps: frame k and frame k + 20 are at the same place.
+      if (pairs[k].source - pairs[k].target == 20) ++loops;
+    }
+  }
+  EXPECT_GE(loops, 15) << "frames one lap apart must overlap";
+  for (int i = 0; i + 1 < static_cast<int>(w.frames.size()); ++i) {
+    EXPECT_TRUE(std::any_of(pairs.begin(), pairs.end(), [&](const FramePair& p) {
+      return p.target == i && p.source == i + 1;
+    }));
+  }
+}
+
+TEST(DenseGraphTest, RejectsBadInput) {
+  const SmallWorld& w = small_world();
+  std::vector<Eigen::Isometry3d> poses = w.truth;
+  poses.pop_back();
+  EXPECT_THAT([&] { build_dense_graph(w.frames, poses); },
+              ::testing::ThrowsMessage<Error>(HasSubstr("40 frames but 39 poses")));
+  poses = w.truth;
+  poses[3].translation().x() = std::nan("");
+  EXPECT_THAT([&] { build_dense_graph(w.frames, poses); },
+              ::testing::ThrowsMessage<Error>(HasSubstr("pose 3 is not finite")));
+}
+
+TEST(FrameTest, TooFewPointsIsAnError) {
+  PointCloud cloud;
+  for (int k = 0; k < 28; ++k) cloud.points.emplace_back(k * 2.0f, 0.0f, 0.0f);
+  EXPECT_THAT([&] { preprocess_frame(cloud, PreprocessOptions{}, "scan.bin"); },
+              ::testing::ThrowsMessage<Error>(HasSubstr("scan.bin: only 28 points")));
+}
+
+TEST(OdometryTest, ChainsConsecutiveAlignmentsCloseToTruth) {
+  const SmallWorld& w = small_world();
+  AlignSettings settings;
+  settings.max_correspondence_distance = 2.0;
+  const OdometryResult odometry = run_odometry(w.frames, w.initial, settings, 2);
+  ASSERT_EQ(odometry.T_world_frame.size(), w.frames.size());
+  for (std::size_t k = 0; k < odometry.steps.size(); ++k) {
+    const Eigen::Isometry3d truth = w.truth[k].inverse() * w.truth[k + 1];
+    const se3::Vector6d error = se3::log(truth.inverse() * odometry.steps[k].T_target_source);
+    EXPECT_LT(error.tail<3>().norm(), 0.05) << "step " << k;
+    EXPECT_LT(error.head<3>().norm(), 0.2 * M_PI / 180.0) << "step " << k;
+  }
+  EXPECT_LT(compute_ate(odometry.T_world_frame, w.truth).rmse,
+            compute_ate(w.initial, w.truth).rmse);
+}
+
+TEST(PoseGraphBaselineTest, InformationMatchesTheGicpHessianToFirstOrder) {
+  // e^T I_e e must equal xi^T H xi for the error e of a small right perturbation xi of T_ij.
+  Eigen::Isometry3d T = se3::exp((se3::Vector6d() << 0.1, -0.2, 0.3, 1.0, 2.0, -0.5).finished());
+  se3::Matrix6d L = se3::Matrix6d::Random();
+  const se3::Matrix6d H = L * L.transpose() + se3::Matrix6d::Identity();
+  const se3::Matrix6d info = relative_pose_information(T, H);
+  const se3::Vector6d xi = 1e-6 * (se3::Vector6d() << 1, -2, 3, 0.5, 0.7, -1).finished();
+  const Eigen::Isometry3d moved = T * se3::exp(xi);
+  se3::Vector6d e;
+  e.head<3>() = moved.translation() - T.translation();
+  e.tail<3>() = xi.head<3>();
+  EXPECT_NEAR(e.dot(info * e) / xi.dot(H * xi), 1.0, 1e-5);
+}
+
+TEST(GlobalRegistrationTest, ExactGraphModelEqualsTheFullOne) {
+  const SmallWorld& w = small_world();
+  const auto pairs = build_dense_graph(w.frames, w.initial);
+  GlobalRegistrationOptions options;
+  options.num_threads = 2;
+  options.sampling = ResidualSampling::kFull;
+  const RegistrationProblem full = build_registration_problem(w.frames, pairs, w.initial, options);
+  options.sampling = ResidualSampling::kExact;
+  const RegistrationProblem exact = build_registration_problem(w.frames, pairs, w.initial, options);
+  EXPECT_EQ(exact.stats.num_rows, 29 * pairs.size());
+  EXPECT_LT(exact.stats.residual_bytes * 20, full.stats.residual_bytes);  // <= 5 %
+  const DenseModel a = dense_model(full.problem);
+  const DenseModel b = dense_model(exact.problem);
+  EXPECT_LT((a.H - b.H).norm(), 1e-12 * a.H.norm());
+  EXPECT_LT((a.b - b.b).norm(), 1e-12 * a.b.norm());
+  EXPECT_NEAR(a.c, b.c, 1e-12 * a.c);
+  // Random sampling only estimates it.
+  options.sampling = ResidualSampling::kRandom;
+  const RegistrationProblem random =
+      build_registration_problem(w.frames, pairs, w.initial, options);
+  EXPECT_GT((a.H - dense_model(random.problem).H).norm(), 1e-3 * a.H.norm());
+}
+
+TEST(GlobalRegistrationTest, ExactMatchesFullAndImprovesOnTheStart) {
+  const SmallWorld& w = small_world();
+  const auto pairs = build_dense_graph(w.frames, w.initial);
+  GlobalRegistrationOptions options;
+  options.num_threads = 2;
+  options.sampling = ResidualSampling::kFull;
+  const GlobalRegistrationResult full = optimize_registration(w.frames, pairs, w.initial, options);
+  options.sampling = ResidualSampling::kExact;
+  const GlobalRegistrationResult exact = optimize_registration(w.frames, pairs, w.initial, options);
+  const double start = compute_ate(w.initial, w.truth).rmse;
+  const double ate_full = compute_ate(full.T_world_frame, w.truth).rmse;
+  const double ate_exact = compute_ate(exact.T_world_frame, w.truth).rmse;
+  EXPECT_LT(ate_full, 0.5 * start);
+  EXPECT_LT(ate_exact, 0.5 * start);
+  EXPECT_NEAR(ate_exact, ate_full, 0.02 * ate_full);
+  EXPECT_EQ(exact.factor_costs.size(), pairs.size());
+}
+
+TEST(GlobalRegistrationTest, SameResultWithOneOrTwoThreads) {
+  const SmallWorld& w = small_world();
+  const auto pairs = build_dense_graph(w.frames, w.initial);
+  GlobalRegistrationOptions options;
+  options.sampling = ResidualSampling::kExact;
+  options.num_threads = 1;
+  const GlobalRegistrationResult one = optimize_registration(w.frames, pairs, w.initial, options);
+  options.num_threads = 2;
+  const GlobalRegistrationResult two = optimize_registration(w.frames, pairs, w.initial, options);
+  ASSERT_EQ(one.T_world_frame.size(), two.T_world_frame.size());
+  for (std::size_t k = 0; k < one.T_world_frame.size(); ++k)
+    EXPECT_EQ(one.T_world_frame[k].matrix(), two.T_world_frame[k].matrix()) << "frame " << k;
+  EXPECT_EQ(one.summary.final_cost, two.summary.final_cost);
+}
+
+TEST(GlobalRegistrationTest, PoseGraphBaselinesImproveOnTheStart) {
+  const SmallWorld& w = small_world();
+  const auto pairs = build_dense_graph(w.frames, w.initial);
+  const auto registrations = register_pairs(w.frames, pairs, w.initial, AlignSettings{}, 2);
+  const double start = compute_ate(w.initial, w.truth).rmse;
+  for (auto information : {PoseGraphInformation::kIdentity, PoseGraphInformation::kHessian}) {
+    PoseGraphBaselineOptions options;
+    options.information = information;
+    const auto result = optimize_pose_graph_baseline(w.initial, registrations, options);
+    EXPECT_LT(compute_ate(result.T_world_frame, w.truth).rmse, 0.5 * start);
+  }
+}
+
+TEST(GlobalRegistrationTest, RejectsBadInput) {
+  const SmallWorld& w = small_world();
+  const std::vector<FramePair> pairs{{0, 1, 1.0}};
+  GlobalRegistrationOptions options;
+  std::vector<Eigen::Isometry3d> poses(w.initial.begin(), w.initial.end() - 1);
+  EXPECT_THAT([&] { build_registration_problem(w.frames, pairs, poses, options); },
+              ::testing::ThrowsMessage<Error>(HasSubstr("40 frames but 39 poses")));
+  // Far apart: no correspondences within 1 m.
+  poses = w.initial;
+  poses[1].translation() += Eigen::Vector3d(500.0, 0.0, 0.0);
+  EXPECT_THAT([&] { build_registration_problem(w.frames, pairs, poses, options); },
+              ::testing::ThrowsMessage<Error>(HasSubstr("pair (0, 1) has only 0 correspondences")));
+  const std::vector<FramePair> bad{{0, 0, 1.0}};
+  EXPECT_THROW(build_registration_problem(w.frames, bad, w.initial, options), Error);
+  options.residuals = 0;
+  EXPECT_THROW(build_registration_problem(w.frames, pairs, w.initial, options), Error);
+  EXPECT_THROW(parse_residual_sampling("exactly"), Error);
+}
+
+TEST(PosePerturbationTest, ExactMagnitudesAndTheGaugeStays) {
+  const SmallWorld& w = small_world();
+  const auto moved = perturb_poses(w.truth, 0.3, 3.0, 5);
+  EXPECT_TRUE(moved[0].isApprox(w.truth[0], 0.0));
+  for (std::size_t k = 1; k < moved.size(); ++k) {
+    const Eigen::Isometry3d delta = w.truth[k].inverse() * moved[k];
+    EXPECT_NEAR(delta.translation().norm(), 0.3, 1e-9);
+    EXPECT_NEAR(Eigen::AngleAxisd(delta.linear()).angle() * 180.0 / M_PI, 3.0, 1e-9);
+  }
+  EXPECT_THROW(perturb_poses(w.truth, -1.0, 0.0, 1), Error);
+}
+
+TEST(GlobalRegistrationTest, Kitti07RecoversTheReferenceFromAPerturbedStart) {
+  CARAT_REQUIRE_DATA("kitti07_seq5/graph.txt");
+  const Trajectory reference =
+      read_trajectory(test::data_dir() / "kitti07_seq5/graph.txt", TrajectoryFormat::kGraph);
+  std::vector<std::shared_ptr<const Frame>> frames;
+  PreprocessOptions preprocess;
+  preprocess.voxel_size = 0.25;
+  for (int i = 0; i < 5; ++i) {
+    char name[64];
+    std::snprintf(name, sizeof(name), "kitti07_seq5/%06d/points.bin", i);
+    frames.push_back(preprocess_frame(read_kitti_bin(test::data_dir() / name, KittiFormat::kXyz),
+                                      preprocess, name));
+  }
+  const auto start = perturb_poses(reference.poses, 0.3, 3.0, 1);
+  const auto pairs = build_dense_graph(frames, start);
+  GlobalRegistrationOptions options;
+  options.num_threads = 2;
+  options.rounds = 10;
+  const GlobalRegistrationResult result = optimize_registration(frames, pairs, start, options);
+  const AteStatistics ate = compute_ate(result.T_world_frame, reference.poses);
+  EXPECT_LT(ate.rmse, 0.02);
+  EXPECT_LT(ate.rotation_rmse_deg, 0.2);
+  EXPECT_GT(compute_ate(start, reference.poses).rmse, 0.2);
+}
+
+}  // namespace
+}  // namespace carat

@@ -1,0 +1,326 @@
+// The synthetic LiDAR world: determinism (also across thread counts), point counts and ranges,
+// geometric consistency with the scene, the ground-truth circuit, the drift model, KITTI-style
+// output, option validation and one GICP alignment of consecutive scans.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <tbb/task_arena.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <functional>
+#include <sstream>
+#include <string>
+
+#include "carat/registration/align.hpp"
+#include "carat/registration/covariance.hpp"
+#include "carat/registration/kdtree.hpp"
+#include "carat/registration/kitti_io.hpp"
+#include "carat/registration/synthetic_world.hpp"
+#include "carat/registration/voxel_grid.hpp"
+#include "carat/solver/error.hpp"
+
+namespace carat {
+namespace {
+
+using ::testing::HasSubstr;
+
+/// The default world, built once (construction is cheap, but scans are reused).
+const SyntheticWorld& default_world() {
+  static const SyntheticWorld world;
+  return world;
+}
+
+bool same_points(const PointCloud& a, const PointCloud& b) {
+  return a.size() == b.size() &&
+         std::memcmp(a.points.data(), b.points.data(), a.size() * sizeof(Eigen::Vector3f)) == 0;
+}
+
+PointCloud to_world(const PointCloud& cloud, const Eigen::Isometry3d& T) {
+  PointCloud out;
+  out.points.reserve(cloud.size());
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    out.points.push_back((T * cloud.point(i)).cast<float>());
+  }
+  return out;
+}
+
+TEST(SyntheticWorld, ScansAreDeterministicAndSeeded) {
+  const SyntheticWorld& world = default_world();
+  const auto poses = world.trajectory({});
+  const PointCloud a = world.scan(poses[3], 7);
+  const PointCloud b = world.scan(poses[3], 7);
+  EXPECT_TRUE(same_points(a, b));
+  EXPECT_FALSE(same_points(a, world.scan(poses[3], 8)));  // other noise
+
+  SyntheticWorldOptions other;
+  other.seed = 2;
+  const SyntheticWorld world2(other);
+  EXPECT_FALSE(same_points(a, world2.scan(poses[3], 7)));  // other scene
+}
+
+TEST(SyntheticWorld, SequenceDoesNotDependOnThreadCount) {
+  const SyntheticWorld& world = default_world();
+  SyntheticTrajectoryOptions options;
+  options.frames = 6;
+  options.laps = 1;
+  SyntheticSequence one, two;
+  tbb::task_arena(1).execute([&] { one = make_synthetic_sequence(world, options); });
+  tbb::task_arena(2).execute([&] { two = make_synthetic_sequence(world, options); });
+  ASSERT_EQ(one.scans.size(), 6u);
+  ASSERT_EQ(two.scans.size(), 6u);
+  for (std::size_t k = 0; k < one.scans.size(); ++k) {
+    EXPECT_TRUE(same_points(one.scans[k], two.scans[k])) << "frame " << k;
+    EXPECT_TRUE(one.T_world_frame[k].isApprox(two.T_world_frame[k], 0.0));
+  }
+  EXPECT_FALSE(same_points(one.scans[0], one.scans[1]));
+}
+
+TEST(SyntheticWorld, PointsAreFiniteInRangeAndInTheExpectedBand) {
+  const SyntheticWorld& world = default_world();
+  const auto poses = world.trajectory({});
+  const auto& o = world.options();
+  // Every fifth frame of both laps (corners included), timed.
+  double seconds = 0.0;
+  int scans = 0;
+  for (std::size_t k = 0; k < poses.size(); k += 5) {
+    const auto start = std::chrono::steady_clock::now();
+    const PointCloud cloud = world.scan(poses[k], synthetic_frame_noise_seed(o.seed, k));
+    seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    ++scans;
+    EXPECT_GE(cloud.size(), 15000u) << "frame " << k;
+    EXPECT_LE(cloud.size(), 40000u) << "frame " << k;
+    for (const Eigen::Vector3f& p : cloud.points) {
+      ASSERT_TRUE(p.allFinite()) << "frame " << k;
+      const double r = p.cast<double>().norm();
+      ASSERT_GE(r, o.min_range - 1e-5) << "frame " << k;
+      ASSERT_LE(r, o.max_range + 1e-5) << "frame " << k;
+    }
+  }
+  std::printf("[ INFO     ] %.2f ms per %dx%d scan (mean over %d scans)\n", 1e3 * seconds / scans,
+              o.beams, o.azimuth_steps, scans);
+}
+
+TEST(SyntheticWorld, NoiseFreePointsLieOnTheScene) {
+  SyntheticWorldOptions options;
+  options.range_noise = 0.0;
+  const SyntheticWorld world(options);
+  const auto poses = world.trajectory({});
+  const Eigen::Isometry3d& T = poses[10];
+  const PointCloud cloud = world.scan(T, 1);
+  ASSERT_GT(cloud.size(), 1000u);
+  std::size_t on_ground = 0;
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    const Eigen::Vector3d w = T * cloud.point(i);
+    const double dz = w.z() - world.ground_height(w.x(), w.y());
+    ASSERT_GT(dz, -1e-4) << "point " << i << " is under the ground";
+    if (std::abs(dz) < 5e-5) ++on_ground;
+    // Nothing lies between the sensor and the point: a ray cast towards it ends there.
+    if (i % 97 == 0) {
+      const Eigen::Vector3d ray = w - T.translation();
+      EXPECT_NEAR(world.cast_ray(T.translation(), ray, 100.0), ray.norm(), 1e-4);
+    }
+  }
+  // The ground (with its relief, not just the plane) holds a good share of the points.
+  EXPECT_GT(on_ground, cloud.size() / 4);
+  EXPECT_LT(on_ground, cloud.size() * 9 / 10);  // and the rest is scenery
+}
+
+TEST(SyntheticWorld, ConsecutiveScansOverlap) {
+  const SyntheticWorld& world = default_world();
+  SyntheticTrajectoryOptions options;
+  options.frames = 100;
+  const auto poses = world.trajectory(options);
+  for (const std::size_t k : {std::size_t{0}, std::size_t{12}}) {
+    const PointCloud scan0 = to_world(world.scan(poses[k], 1), poses[k]);
+    const PointCloud scan1 = to_world(world.scan(poses[k + 1], 2), poses[k + 1]);
+    const KdTree tree(scan0);
+    std::size_t close = 0;
+    for (const Eigen::Vector3f& p : scan1.points) {
+      std::uint32_t index;
+      float d2;
+      ASSERT_TRUE(tree.nearest(p, &index, &d2));
+      if (d2 < 0.3f * 0.3f) ++close;
+    }
+    EXPECT_GT(static_cast<double>(close) / scan1.size(), 0.5) << "frames " << k << ", " << k + 1;
+  }
+}
+
+TEST(SyntheticWorld, TrajectoryIsAClosedCircuitWithFewMetreSpacing) {
+  const SyntheticWorld& world = default_world();
+  const auto poses = world.trajectory({});
+  ASSERT_EQ(poses.size(), 100u);
+  for (std::size_t k = 0; k < poses.size(); ++k) {
+    const Eigen::Isometry3d& T = poses[k];
+    EXPECT_TRUE(T.matrix().allFinite());
+    EXPECT_LT((T.linear().transpose() * T.linear() - Eigen::Matrix3d::Identity()).norm(), 1e-12);
+    EXPECT_GT(T.linear().determinant(), 0.0);
+    const Eigen::Vector3d t = T.translation();
+    EXPECT_NEAR(t.z() - world.ground_height(t.x(), t.y()), world.options().sensor_height, 1e-9);
+    if (k + 1 < poses.size() && k + 1 != 50) {
+      const double step = (poses[k + 1].translation() - t).norm();
+      EXPECT_GT(step, 3.0) << "frame " << k;
+      EXPECT_LT(step, 6.0) << "frame " << k;
+    }
+    if (k < 50) {  // the same place one lap later: close, but not identical
+      const Eigen::Isometry3d& L = poses[k + 50];
+      const double d = (L.translation() - t).norm();
+      EXPECT_LT(d, 2.0) << "frame " << k;
+      EXPECT_GT(d, 0.3) << "frame " << k;
+      const double angle = Eigen::AngleAxisd(T.linear().transpose() * L.linear()).angle();
+      EXPECT_LT(angle, 5.0 * M_PI / 180.0);
+    }
+  }
+  // Closing the loop: the last frame is one step before the first frame of its lap.
+  EXPECT_LT((poses.back().translation() - poses[50].translation()).norm(), 6.0);
+}
+
+TEST(SyntheticWorld, DriftIsExactWithoutNoiseAndGrowsWithDistance) {
+  const SyntheticWorld& world = default_world();
+  const auto truth = world.trajectory({});
+  DriftOptions none;
+  none.translation_sigma = 0.0;
+  none.rotation_sigma_deg = 0.0;
+  const auto same = apply_drift(truth, none);
+  ASSERT_EQ(same.size(), truth.size());
+  for (std::size_t k = 0; k < truth.size(); ++k) EXPECT_TRUE(same[k].isApprox(truth[k], 0.0));
+
+  DriftOptions drift;
+  drift.seed = 3;
+  const auto a = apply_drift(truth, drift);
+  const auto b = apply_drift(truth, drift);
+  drift.seed = 4;
+  const auto c = apply_drift(truth, drift);
+  EXPECT_TRUE(a[0].isApprox(truth[0], 0.0));
+  auto error = [&](const std::vector<Eigen::Isometry3d>& guess, std::size_t k) {
+    return (guess[k].translation() - truth[k].translation()).norm();
+  };
+  for (std::size_t k = 0; k < truth.size(); ++k) EXPECT_TRUE(a[k].isApprox(b[k], 0.0));
+  EXPECT_NE(error(a, 99), error(c, 99));
+  // Error grows with the distance travelled (mean over the first and the last ten frames).
+  for (const auto* guess : {&a, &c}) {
+    double early = 0.0, late = 0.0;
+    for (std::size_t k = 1; k <= 10; ++k) early += error(*guess, k);
+    for (std::size_t k = 90; k < 100; ++k) late += error(*guess, k);
+    EXPECT_GT(late, 3.0 * early);
+    EXPECT_GT(late / 10.0, 0.5);  // 400 m of 1 %/0.1 deg per metre drift is metres off
+  }
+  DriftOptions bad;
+  bad.rotation_sigma_deg = -1.0;
+  EXPECT_THAT([&] { apply_drift(truth, bad); },
+              ::testing::ThrowsMessage<Error>(HasSubstr("rotation_sigma_deg")));
+}
+
+TEST(SyntheticWorld, WritesAKittiStyleSequence) {
+  const SyntheticWorld& world = default_world();
+  SyntheticTrajectoryOptions options;
+  options.frames = 3;
+  options.laps = 1;
+  const SyntheticSequence sequence = make_synthetic_sequence(world, options);
+  const auto dir = std::filesystem::temp_directory_path() /
+                   ("carat_world_test_" + std::to_string(::getpid())) / "seq";
+  std::filesystem::remove_all(dir.parent_path());
+  write_synthetic_sequence(dir, sequence);
+  for (std::size_t k = 0; k < 3; ++k) {
+    char name[32];
+    std::snprintf(name, sizeof(name), "%06zu.bin", k);
+    const PointCloud back = read_kitti_bin(dir / name, KittiFormat::kXyz);
+    EXPECT_TRUE(same_points(back, sequence.scans[k])) << name;
+  }
+  std::ifstream in(dir / "poses.txt");
+  std::string line;
+  std::size_t lines = 0;
+  while (std::getline(in, line)) {
+    std::istringstream fields(line);
+    std::vector<double> numbers;
+    double v;
+    while (fields >> v) numbers.push_back(v);
+    ASSERT_EQ(numbers.size(), 12u) << line;
+    const Eigen::Matrix4d M = sequence.T_world_frame[lines].matrix();
+    for (int i = 0; i < 12; ++i) EXPECT_NEAR(numbers[i], M(i / 4, i % 4), 1e-6);
+    ++lines;
+  }
+  EXPECT_EQ(lines, 3u);
+
+  // kXyzi writes zero intensity and reads back the same points.
+  write_kitti_bin(dir / "xyzi.bin", sequence.scans[0], KittiFormat::kXyzi);
+  EXPECT_EQ(std::filesystem::file_size(dir / "xyzi.bin"), 16 * sequence.scans[0].size());
+  EXPECT_TRUE(same_points(read_kitti_bin(dir / "xyzi.bin", KittiFormat::kXyzi), sequence.scans[0]));
+
+  SyntheticSequence mismatched = sequence;
+  mismatched.T_world_frame.pop_back();
+  EXPECT_THROW(write_synthetic_sequence(dir, mismatched), Error);
+  std::filesystem::remove_all(dir.parent_path());
+}
+
+TEST(SyntheticWorld, RejectsBadOptionsNamingTheField) {
+  auto world_error = [](const std::function<void(SyntheticWorldOptions&)>& change,
+                        const std::string& field) {
+    SyntheticWorldOptions options;
+    change(options);
+    EXPECT_THAT([&] { SyntheticWorld{options}; }, ::testing::ThrowsMessage<Error>(HasSubstr(field)))
+        << field;
+  };
+  world_error([](auto& o) { o.beams = 0; }, "beams");
+  world_error([](auto& o) { o.azimuth_steps = 7; }, "azimuth_steps");
+  world_error([](auto& o) { o.min_range = 0.0; }, "min_range");
+  world_error([](auto& o) { o.max_range = 0.5; }, "max_range");
+  world_error([](auto& o) { o.range_noise = NAN; }, "range_noise");
+  world_error([](auto& o) { o.block_size = INFINITY; }, "block_size");
+  world_error([](auto& o) { o.street_width = 2.0; }, "street_width");
+  world_error([](auto& o) { o.ground_slope = NAN; }, "ground_slope");
+  world_error([](auto& o) { o.max_elevation_deg = -30.0; }, "max_elevation_deg");
+  world_error([](auto& o) { o.blocks_x = 0; }, "blocks_x");
+
+  const SyntheticWorld& world = default_world();
+  SyntheticTrajectoryOptions frames;
+  frames.frames = 1;
+  EXPECT_THAT([&] { world.trajectory(frames); },
+              ::testing::ThrowsMessage<Error>(HasSubstr("frames")));
+  SyntheticTrajectoryOptions laps;
+  laps.laps = 0;
+  EXPECT_THAT([&] { world.trajectory(laps); }, ::testing::ThrowsMessage<Error>(HasSubstr("laps")));
+  SyntheticTrajectoryOptions radius;
+  radius.corner_radius = NAN;
+  EXPECT_THAT([&] { world.trajectory(radius); },
+              ::testing::ThrowsMessage<Error>(HasSubstr("corner_radius")));
+}
+
+TEST(SyntheticWorld, GicpRecoversConsecutiveAndLoopClosurePoses) {
+  const SyntheticWorld& world = default_world();
+  const auto poses = world.trajectory({});
+  // Consecutive frames on a straight and on a corner, and a loop closure (one lap later).
+  const std::pair<std::size_t, std::size_t> pairs[] = {{0, 1}, {60, 61}, {30, 31}, {20, 70}};
+  for (const auto& [k, j] : pairs) {
+    auto prepare = [&](std::size_t frame) {
+      PointCloud cloud =
+          voxel_downsample(world.scan(poses[frame], synthetic_frame_noise_seed(1, frame)), 0.5);
+      const KdTree tree(cloud);
+      estimate_covariances(cloud, tree);
+      return cloud;
+    };
+    const PointCloud target = prepare(k), source = prepare(j);
+    const KdTree target_tree(target);
+    // Coarse to fine: frames are about 4 m apart and the search starts at the identity.
+    AlignSettings settings;
+    Eigen::Isometry3d T_target_source = Eigen::Isometry3d::Identity();
+    for (const double distance : {6.0, 3.0, 1.0}) {
+      settings.max_correspondence_distance = distance;
+      T_target_source =
+          align(target, target_tree, source, T_target_source, settings).T_target_source;
+    }
+    const Eigen::Isometry3d truth = poses[k].inverse() * poses[j];
+    if (k == 30) {  // a corner
+      EXPECT_GT(Eigen::AngleAxisd(truth.linear()).angle(), 10.0 * M_PI / 180.0);
+    }
+    const Eigen::Isometry3d error = truth.inverse() * T_target_source;
+    EXPECT_LT(error.translation().norm(), 0.05) << "frames " << k << ", " << j;
+    EXPECT_LT(Eigen::AngleAxisd(error.linear()).angle(), 0.5 * M_PI / 180.0)
+        << "frames " << k << ", " << j;
+  }
+}
+
+}  // namespace
+}  // namespace carat
