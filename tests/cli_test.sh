@@ -230,5 +230,18 @@ if [[ -f "${CARAT_DATA_DIR:-}/kitti07_seq5/graph.txt" ]]; then
     echo "FAIL map on kitti07_seq5: $(head -c 600 "$scratch/map07.json")"; fail=$((fail + 1)); else pass=$((pass + 1)); fi
 fi
 
+# paper --quick: the report, the figures and the JSON numbers the issue asks for.
+check paper_quick 0 "" -- "$CARAT" paper --quick --json --out "$scratch/paper" --data "${CARAT_DATA_DIR:-/nonexistent}"
+cp "$scratch/out" "$scratch/paper.json"
+for f in report.md paper.json fig7_time_breakdown.svg; do
+  if [[ ! -s "$scratch/paper/$f" ]]; then echo "FAIL paper did not write $f"; fail=$((fail + 1)); else pass=$((pass + 1)); fi
+done
+paper_ok=$(json_field "$scratch/paper.json" "all(r['max_relative_error'] < 1e-12 for r in j['table1']['rows']) and [r['M'] for r in j['table1']['rows']] == [29,64,128,256,512,1024] and j['synthetic']['table4'][1]['memory_change_percent'] < -95")
+if [[ $paper_ok != "True" ]]; then echo "FAIL paper tables I/V"; fail=$((fail + 1)); else pass=$((pass + 1)); fi
+if [[ -f "${CARAT_DATA_DIR:-}/kitti00_pair/000000.bin" ]]; then
+  paper_real=$(json_field "$scratch/paper.json" "all(r['nkld'] <= 1e-10 for r in j['table2']['rows'] if r['sampling'] == 'exact') and [r['nkld'] for r in j['table2']['rows'] if r['sampling'] == 'random'] == sorted([r['nkld'] for r in j['table2']['rows'] if r['sampling'] == 'random'], reverse=True)")
+  if [[ $paper_real != "True" ]]; then echo "FAIL paper table II"; fail=$((fail + 1)); else pass=$((pass + 1)); fi
+fi
+
 echo "$pass passed, $fail failed"
 [[ $fail -eq 0 ]]

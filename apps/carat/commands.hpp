@@ -41,5 +41,7 @@ void register_ate(CLI::App& app, CommandRegistry& registry);
 void register_map(CLI::App& app, CommandRegistry& registry);
 /// `carat simulate`: write a simulated LiDAR drive to disk.
 void register_simulate(CLI::App& app, CommandRegistry& registry);
+/// `carat paper`: regenerate the paper's tables and figures.
+void register_paper(CLI::App& app, CommandRegistry& registry);
 
 }  // namespace carat::cli

@@ -17,6 +17,7 @@ int main(int argc, char** argv) {
   carat::cli::register_ate(app, registry);
   carat::cli::register_map(app, registry);
   carat::cli::register_simulate(app, registry);
+  carat::cli::register_paper(app, registry);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -33,6 +33,30 @@ struct SvgEdge {
 std::string graph_svg(const std::string& title, std::span<const Eigen::Isometry3d> poses,
                       std::span<const SvgEdge> edges, const std::string& value_label);
 
+/// One series of a line plot: x and y values, colour and legend label.
+struct SvgSeries {
+  std::vector<double> x;  // abscissae
+  std::vector<double> y;  // ordinates (> 0 on a log axis)
+  std::string colour;     // SVG colour
+  std::string label;      // legend text
+};
+
+/// A line plot with markers; log10 y axis when `log_y` (non-positive values are skipped).
+std::string line_plot_svg(const std::string& title, const std::string& x_label,
+                          const std::string& y_label, std::span<const SvgSeries> series,
+                          bool log_y);
+
+/// One stacked bar: a label and its segments' values (same order as the segment names).
+struct SvgBar {
+  std::string label;           // under the bar
+  std::vector<double> values;  // segment heights
+};
+
+/// Stacked bars (e.g. time breakdowns), one colour per segment name, with a legend.
+std::string stacked_bars_svg(const std::string& title, const std::string& y_label,
+                             std::span<const std::string> segment_names,
+                             std::span<const SvgBar> bars);
+
 /// Writes `svg` to `path` atomically.
 void write_svg(const std::filesystem::path& path, const std::string& svg);
 

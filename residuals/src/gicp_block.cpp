@@ -57,26 +57,29 @@ void GicpBlock::evaluate_rows(ParameterPointers params, std::span<const int> row
                               double* residuals, double* jacobian) const {
   const Eigen::Isometry3d T = relative_pose(params);
   const Eigen::Matrix3d R = T.linear();
+  // Rows come in groups of up to three per correspondence: the transformed point, the
+  // difference and R^T W are computed once per correspondence and reused by its rows.
+  std::size_t cached = static_cast<std::size_t>(-1);
+  Eigen::Vector3d mu = Eigen::Vector3d::Zero(), d = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d W = Eigen::Matrix3d::Zero(), WR = Eigen::Matrix3d::Zero();
   for (std::size_t k = 0; k < rows.size(); ++k) {
     const int row = rows[k];
     const std::size_t index =
         rows_.empty() ? static_cast<std::size_t>(row / 3)
                       : static_cast<std::size_t>(rows_[static_cast<std::size_t>(row)] >> 2);
     const int c = rows_.empty() ? row % 3 : (rows_[static_cast<std::size_t>(row)] & 3);
-    const Point& p = points_[index];
-    const Eigen::Vector3d mu(p.source[0], p.source[1], p.source[2]);
-    const Eigen::Vector3d d = Eigen::Vector3d(p.target[0], p.target[1], p.target[2]) - T * mu;
-    Eigen::RowVector3d w_row;
-    if (c == 0) {
-      w_row << p.whitening[0], p.whitening[1], p.whitening[2];
-    } else if (c == 1) {
-      w_row << 0.0, p.whitening[3], p.whitening[4];
-    } else {
-      w_row << 0.0, 0.0, p.whitening[5];
+    if (index != cached) {
+      cached = index;
+      const Point& p = points_[index];
+      mu = Eigen::Vector3d(p.source[0], p.source[1], p.source[2]);
+      d = Eigen::Vector3d(p.target[0], p.target[1], p.target[2]) - T * mu;
+      W << p.whitening[0], p.whitening[1], p.whitening[2], 0.0, p.whitening[3], p.whitening[4], 0.0,
+          0.0, p.whitening[5];
+      if (jacobian) WR.noalias() = W * R;
     }
-    residuals[k] = w_row.dot(d);
+    residuals[k] = W.row(c).dot(d);
     if (!jacobian) continue;
-    const Eigen::Vector3d w = (w_row * R).transpose();
+    const Eigen::Vector3d w = WR.row(c).transpose();
     const Eigen::Vector3d d_omega = w.cross(mu);
     double* J = jacobian + 6 * k;
     for (int i = 0; i < 3; ++i) {
