@@ -199,6 +199,28 @@ if [[ -f "${CARAT_DATA_DIR:-}/kitti07_seq5/graph.txt" ]]; then
   else pass=$((pass + 1)); fi
 fi
 
+# Degenerate and disconnected input: a single plane cannot fix an alignment; a pose graph with
+# a part not linked to a fixed vertex has undetermined poses.
+python3 - "$scratch" <<'PY'
+import random, struct, sys
+random.seed(1)
+for name in ("plane_a.bin", "plane_b.bin"):
+    with open(sys.argv[1] + "/" + name, "wb") as f:
+        for _ in range(20000):
+            f.write(struct.pack("<3f", random.uniform(-20, 20), random.uniform(-20, 20), random.gauss(0, 0.01)))
+PY
+check align_planar 1 "constrain only 3 of 6 degrees of freedom" -- "$CARAT" align --target "$scratch/plane_a.bin" --source "$scratch/plane_b.bin" --bin-format xyz
+cat >"$scratch/disconnected.g2o" <<'G2O'
+VERTEX_SE3:QUAT 0 0 0 0 0 0 0 1
+VERTEX_SE3:QUAT 1 1 0 0 0 0 0 1
+VERTEX_SE3:QUAT 2 5 0 0 0 0 0 1
+VERTEX_SE3:QUAT 3 6 0 0 0 0 0 1
+EDGE_SE3:QUAT 0 1 1 0 0 0 0 0 1 1 0 0 0 0 0 1 0 0 0 0 1 0 0 0 1 0 0 1 0 1
+EDGE_SE3:QUAT 2 3 1.1 0 0 0 0 0 1 1 0 0 0 0 0 1 0 0 0 0 1 0 0 0 1 0 0 1 0 1
+G2O
+check solve_g2o_disconnected 1 "disconnected.g2o: pose graph: 2 vertices in 1 disconnected part(s) are not linked to a fixed vertex (e.g. vertex 2)" -- "$CARAT" solve-g2o "$scratch/disconnected.g2o" --out "$scratch/never_g2o.g2o"
+if [[ -e "$scratch/never_g2o.g2o" ]]; then echo "FAIL solve-g2o left an output after an error"; fail=$((fail + 1)); else pass=$((pass + 1)); fi
+
 # simulate + map: a simulated drive written to disk, then optimized from perturbed poses.
 check simulate 0 "" -- "$CARAT" simulate --out "$scratch/seq" --frames 20 --laps 1
 if [[ ! -s "$scratch/seq/000019.bin" ]] || [[ $(grep -c . "$scratch/seq/poses.txt") -ne 20 ]]; then
@@ -222,6 +244,8 @@ check map_tiny_frame 1 "000004.bin: only 20 points" -- "$CARAT" map --frames "$s
 head -c 1001 "$scratch/seq/000002.bin" >"$scratch/small_seq/000004.bin"
 check map_truncated_frame 1 "000004.bin" -- "$CARAT" map --frames "$scratch/small_seq" --poses "$scratch/seq/poses.txt" --bin-format xyz --out "$scratch/never.txt"
 if [[ -e "$scratch/never.txt" ]]; then echo "FAIL map left an output file after an error"; fail=$((fail + 1)); else pass=$((pass + 1)); fi
+awk 'NR == 11 { $4 += 500 } { print }' "$scratch/seq/poses.txt" >"$scratch/far.txt"
+check map_disconnected 1 "pair (9, 10) has only 0 correspondences" -- "$CARAT" map --frames "$scratch/seq" --poses "$scratch/far.txt" --bin-format xyz --out "$scratch/never.txt"
 check map_bad_sampling 2 "" -- "$CARAT" map --frames "$scratch/seq" --poses "$scratch/seq/poses.txt" --sampling most
 if [[ -f "${CARAT_DATA_DIR:-}/kitti07_seq5/graph.txt" ]]; then
   check map_kitti07 0 "" -- "$CARAT" map --frames "$CARAT_DATA_DIR/kitti07_seq5" --poses "$CARAT_DATA_DIR/kitti07_seq5/graph.txt" --poses-format graph --perturb-m 0.3 --perturb-deg 3 --json

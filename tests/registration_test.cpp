@@ -271,6 +271,29 @@ TEST(AlignTest, PointToPlaneAndPointToPointAlsoRecoverIt) {
   }
 }
 
+TEST(AlignTest, ASinglePlaneIsReportedAsDegenerate) {
+  // Two noisy samplings of the plane z = 0: only z, roll and pitch are fixed by the geometry.
+  std::mt19937_64 rng(3);
+  std::uniform_real_distribution<float> uniform(-20.0f, 20.0f);
+  std::normal_distribution<float> noise(0.0f, 0.01f);
+  auto make = [&] {
+    auto cloud = std::make_unique<PointCloud>();
+    for (int i = 0; i < 20000; ++i)
+      cloud->points.emplace_back(uniform(rng), uniform(rng), noise(rng));
+    auto down = std::make_unique<PointCloud>(voxel_downsample(*cloud, 0.25));
+    return down;
+  };
+  auto target = make();
+  auto source = make();
+  const KdTree target_tree(*target), source_tree(*source);
+  estimate_covariances(*target, target_tree);
+  estimate_covariances(*source, source_tree);
+  const AlignResult planar =
+      align(*target, target_tree, *source, Eigen::Isometry3d::Identity(), AlignSettings{});
+  EXPECT_EQ(planar.constrained_dof, 3);
+  EXPECT_LT(planar.min_eigenvalue_ratio, 5e-3);
+}
+
 TEST(AlignTest, MissingCovariancesAndNoOverlapAreErrors) {
   const PointCloud scene = make_scene(12, 2000);
   const KdTree tree(scene);
@@ -292,6 +315,7 @@ TEST(AlignTest, Kitti00PairMatchesTheReference) {
   const AlignResult forward =
       align(target.cloud, *target.tree, source.cloud, Eigen::Isometry3d::Identity(), settings);
   EXPECT_TRUE(forward.converged);
+  EXPECT_EQ(forward.constrained_dof, 6);
   // small_gicp at the same settings: t ~= (0.690, 0.004, 0.007) m, rotation ~0.2 deg.
   const Eigen::Vector3d t = forward.T_target_source.translation();
   EXPECT_LT((t - Eigen::Vector3d(0.690, 0.004, 0.007)).norm(), 0.01) << t.transpose();

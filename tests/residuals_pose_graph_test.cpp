@@ -281,3 +281,38 @@ TEST(PoseGraphTest, DeterministicAcrossThreadCounts) {
 
 }  // namespace
 }  // namespace carat
+
+namespace carat {
+namespace {
+
+TEST(PoseGraphProblemTest, PartsNotLinkedToAFixedVertexAreAnError) {
+  PoseGraph graph;
+  for (int i = 0; i < 5; ++i) {
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.translation().x() = i;
+    graph.vertices.push_back({i, T});
+  }
+  Eigen::Isometry3d step = Eigen::Isometry3d::Identity();
+  step.translation().x() = 1.0;
+  graph.edges.push_back({0, 1, step, se3::Matrix6d::Identity()});
+  graph.edges.push_back({2, 3, step, se3::Matrix6d::Identity()});  // 2-3 and 4 float
+  try {
+    build_pose_graph_problem(graph);
+    FAIL() << "expected an error";
+  } catch (const Error& e) {
+    EXPECT_STREQ(e.what(),
+                 "pose graph: 3 vertices in 2 disconnected part(s) are not linked to a fixed "
+                 "vertex (e.g. vertex 2), so their poses are undetermined; add edges or FIX "
+                 "records");
+  }
+  // A FIX in each part, or an explicit opt-out, makes it acceptable.
+  graph.fixed = {0, 2, 4};
+  EXPECT_NO_THROW(build_pose_graph_problem(graph));
+  graph.fixed.clear();
+  PoseGraphProblemOptions options;
+  options.allow_unanchored = true;
+  EXPECT_NO_THROW(build_pose_graph_problem(graph, options));
+}
+
+}  // namespace
+}  // namespace carat

@@ -74,6 +74,12 @@ int run_align(const AlignArgs& args) {
   const AlignResult result =
       align(target, target_tree, source, Eigen::Isometry3d::Identity(), settings);
   const double align_s = seconds(t0);
+  if (result.constrained_dof < 6) {
+    throw Error(args.source + " onto " + args.target + ": the scans constrain only " +
+                std::to_string(result.constrained_dof) +
+                " of 6 degrees of freedom (a degenerate scene, e.g. a single plane), so the "
+                "alignment is not unique");
+  }
   const Eigen::Matrix4d T = result.T_target_source.matrix();
   if (args.json) {
     nlohmann::json j;
@@ -85,6 +91,8 @@ int run_align(const AlignArgs& args) {
     j["iterations"] = result.iterations;
     j["error"] = result.error;
     j["converged"] = result.converged;
+    j["constrained_dof"] = result.constrained_dof;
+    j["min_eigenvalue_ratio"] = result.min_eigenvalue_ratio;
     j["correspondences"] = result.num_correspondences;
     j["points_target"] = target.size();
     j["points_source"] = source.size();

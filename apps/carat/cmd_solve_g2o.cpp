@@ -31,7 +31,12 @@ int run_solve_g2o(const SolveG2oArgs& args) {
   PoseGraphProblemOptions problem_options;
   if (args.loss == "huber") problem_options.loss = std::make_shared<HuberLoss>(args.loss_scale);
   if (args.loss == "cauchy") problem_options.loss = std::make_shared<CauchyLoss>(args.loss_scale);
-  PoseGraphProblem built = build_pose_graph_problem(graph, problem_options);
+  PoseGraphProblem built;
+  try {
+    built = build_pose_graph_problem(graph, problem_options);
+  } catch (const Error& e) {
+    throw Error(args.input + ": " + e.what());
+  }
 
   SolverOptions options;
   options.max_iterations = args.max_iterations;

@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <numeric>
+#include <span>
 #include <string>
+#include <vector>
 
 #include "carat/coreset/row_coreset.hpp"
 #include "carat/solver/error.hpp"
@@ -37,11 +39,31 @@ std::shared_ptr<CompressedBlock> compress(std::shared_ptr<const ResidualBlock> b
   }
   const int n = block->num_rows();
   const int r = block->reduced_dim();
-  Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> J(n, r);
-  Eigen::VectorXd e(n);
-  std::vector<int> all(static_cast<std::size_t>(n));
-  std::iota(all.begin(), all.end(), 0);
-  block->evaluate_rows(values, all, e.data(), J.data());
+  // Per-thread scratch that only grows (up to kMaxReusedRows rows): compressing thousands of
+  // factors in a row would otherwise map and fault in fresh pages for every block's rows.
+  constexpr std::size_t kMaxReusedRows = 1 << 18;
+  thread_local std::vector<double> reused_jacobian, reused_residuals;
+  thread_local std::vector<int> reused_indices;
+  std::vector<double> local_jacobian, local_residuals;
+  std::vector<int> local_indices;
+  const auto size = static_cast<std::size_t>(n);
+  const bool reuse = size <= kMaxReusedRows;
+  std::vector<double>& jacobian_buffer = reuse ? reused_jacobian : local_jacobian;
+  std::vector<double>& residual_buffer = reuse ? reused_residuals : local_residuals;
+  std::vector<int>& all = reuse ? reused_indices : local_indices;
+  if (jacobian_buffer.size() < size * static_cast<std::size_t>(r))
+    jacobian_buffer.resize(size * static_cast<std::size_t>(r));
+  if (residual_buffer.size() < size) residual_buffer.resize(size);
+  if (all.size() < size) {
+    const std::size_t old = all.size();
+    all.resize(size);
+    std::iota(all.begin() + static_cast<std::ptrdiff_t>(old), all.end(), static_cast<int>(old));
+  }
+  block->evaluate_rows(values, std::span<const int>(all.data(), size), residual_buffer.data(),
+                       jacobian_buffer.data());
+  const Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> J(
+      jacobian_buffer.data(), n, r);
+  const Eigen::Map<const Eigen::VectorXd> e(residual_buffer.data(), n);
   RowCoresetOptions row_options;
   row_options.target_rows = options.target_rows;
   row_options.clusters = options.clusters;

@@ -7,6 +7,7 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <memory>
 #include <string>
 #include <vector>
@@ -113,6 +114,22 @@ AlignResult align(const PointCloud& target, const KdTree& target_tree, const Poi
       Eigen::VectorXd b = Eigen::VectorXd::Zero(6);
       result.error = block->accumulate(params, H, b);
       result.H = H;
+      // Degeneracy on a scale-free H: rotations measured at the source's RMS radius, so every
+      // direction is in metres. Along a surface normal GICP weighs a point 1000 x more than
+      // along the surface (covariance eigenvalues 1e-3, 1, 1); a direction below 5e-3 of the
+      // best one is held only by the in-surface terms, i.e. not by the geometry.
+      double radius_sq = 0.0;
+      for (std::size_t i = 0; i < source.size(); ++i) radius_sq += source.point(i).squaredNorm();
+      const double radius =
+          std::sqrt(std::max(radius_sq / std::max<std::size_t>(source.size(), 1), 1e-12));
+      se3::Vector6d scale;
+      scale << 1.0 / radius, 1.0 / radius, 1.0 / radius, 1.0, 1.0, 1.0;
+      const se3::Matrix6d normalized = scale.asDiagonal() * result.H * scale.asDiagonal();
+      const Eigen::SelfAdjointEigenSolver<se3::Matrix6d> eig(normalized, Eigen::EigenvaluesOnly);
+      const double largest = eig.eigenvalues().maxCoeff();
+      result.min_eigenvalue_ratio = largest > 0.0 ? eig.eigenvalues().minCoeff() / largest : 0.0;
+      for (int k = 0; k < 6; ++k)
+        if (largest > 0.0 && eig.eigenvalues()[k] > 5e-3 * largest) ++result.constrained_dof;
     }
   });
   return result;

@@ -2,6 +2,7 @@
 
 #include <string>
 #include <unordered_map>
+#include <vector>
 
 #include "carat/residuals/relative_pose_block.hpp"
 #include "carat/solver/error.hpp"
@@ -14,6 +15,46 @@ std::int64_t PoseGraph::index_of(std::int64_t id) const {
   }
   return -1;
 }
+
+namespace {
+
+/// Throws unless every vertex is connected through edges to a constant vertex: a component
+/// without one can move freely as a whole (its gauge is not fixed).
+void check_anchored(const PoseGraph& graph, const PoseGraphProblem& built) {
+  const std::size_t n = graph.vertices.size();
+  std::vector<std::size_t> parent(n);
+  for (std::size_t i = 0; i < n; ++i) parent[i] = i;
+  const auto find = [&](std::size_t i) {
+    while (parent[i] != i) i = parent[i] = parent[parent[i]];
+    return i;
+  };
+  std::unordered_map<std::int64_t, std::size_t> index;
+  for (std::size_t i = 0; i < n; ++i) index.emplace(graph.vertices[i].id, i);
+  for (const auto& edge : graph.edges) parent[find(index.at(edge.from))] = find(index.at(edge.to));
+  std::vector<char> anchored(n, 0);
+  for (std::size_t i = 0; i < n; ++i)
+    if (built.problem.is_constant(built.vertex_variables[i])) anchored[find(i)] = 1;
+  std::size_t free = 0, components = 0;
+  std::int64_t example = 0;
+  std::vector<char> counted(n, 0);
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::size_t root = find(i);
+    if (anchored[root]) continue;
+    if (free++ == 0) example = graph.vertices[i].id;
+    if (!counted[root]) {
+      counted[root] = 1;
+      ++components;
+    }
+  }
+  if (free > 0) {
+    throw Error(
+        "pose graph: " + std::to_string(free) + " vertices in " + std::to_string(components) +
+        " disconnected part(s) are not linked to a fixed vertex (e.g. vertex " +
+        std::to_string(example) + "), so their poses are undetermined; add edges or FIX records");
+  }
+}
+
+}  // namespace
 
 PoseGraphProblem build_pose_graph_problem(const PoseGraph& graph,
                                           const PoseGraphProblemOptions& options) {
@@ -52,6 +93,7 @@ PoseGraphProblem build_pose_graph_problem(const PoseGraph& graph,
   if (graph.fixed.empty() && options.fix_first_vertex && !out.vertex_variables.empty()) {
     out.problem.set_constant(out.vertex_variables.front());
   }
+  if (!options.allow_unanchored) check_anchored(graph, out);
   return out;
 }
 

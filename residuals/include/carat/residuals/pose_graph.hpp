@@ -39,6 +39,7 @@ struct PoseGraph {
 struct PoseGraphProblemOptions {
   std::shared_ptr<const LossFunction> loss;  ///< robust loss on every edge (null: none)
   bool fix_first_vertex = true;  ///< hold the first vertex constant when no FIX record exists
+  bool allow_unanchored = false;  ///< accept parts of the graph not linked to a fixed vertex
 };
 
 /// A Problem built from a PoseGraph with the variable of each vertex.
@@ -48,7 +49,8 @@ struct PoseGraphProblem {
 };
 
 /// Builds the problem; throws carat::Error if an edge names a missing vertex or joins a vertex
-/// to itself, or an information matrix is not positive definite.
+/// to itself, an information matrix is not positive definite, or (unless allow_unanchored)
+/// some vertices are not connected through edges to a constant vertex.
 PoseGraphProblem build_pose_graph_problem(const PoseGraph& graph,
                                           const PoseGraphProblemOptions& options = {});
 

@@ -1,0 +1,382 @@
+// How global registration scales with the size of the dense graph: synthetic drives of
+// F = 100, 300, 1000, 3000 frames (50 frames per lap, about 4 m apart, so every extra lap adds
+// overlapping frames and the factors grow faster than the frames), 0.5 m voxels, initial poses
+// from the drift model (no odometry), the dense graph built at those poses. Per size:
+//
+//   BM_BuildExact/F     building and compressing every factor for GRE exact (M = 29)
+//   BM_IterationExact/F one LM iteration of GRE exact (summary total / iterations)
+//   BM_IterationFull/F  the same for GRE full, skipped when its correspondences would exceed
+//                       CARAT_SCALING_FULL_LIMIT_GIB (default 8)
+//
+// Counters: frames, factors, rows, residual_bytes, correspondence_bytes, per_iteration_s and
+// the process peak RSS (VmHWM, reset at the start of each benchmark where the kernel allows).
+//
+// Environment: CARAT_SCALING_MAX_FRAMES (largest size run, default 3000),
+// CARAT_SCALING_ITERATIONS (LM iterations per solve, default 3), CARAT_SCALING_THREADS
+// (default: all cores), CARAT_SCALING_FULL_LIMIT_GIB (default 8).
+//
+// Frames are scanned lazily and kept across sizes: the drive of F frames is the first F
+// frames of the largest drive (same trajectory, same noise seeds; checked at start-up). The
+// graph and the problems of one size are freed before the next size starts.
+#include <benchmark/benchmark.h>
+#include <tbb/info.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "carat/registration/dense_graph.hpp"
+#include "carat/registration/frame.hpp"
+#include "carat/registration/global_registration.hpp"
+#include "carat/registration/synthetic_world.hpp"
+#include "carat/registration/trajectory_error.hpp"
+#include "carat/residuals/gicp_block.hpp"
+#include "carat/solver/solve.hpp"
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+constexpr int kFramesPerLap = 50;  // ~199 m circuit: frames about 4 m apart
+constexpr std::array<int, 4> kSizes{100, 300, 1000, 3000};
+
+double seconds_since(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+double env_positive(const char* name, double fallback) {
+  const char* text = std::getenv(name);
+  if (text == nullptr || *text == '\0') return fallback;
+  char* end = nullptr;
+  const double value = std::strtod(text, &end);
+  if (end == text || *end != '\0' || !(value > 0.0)) {
+    std::fprintf(stderr, "scaling_bench: ignoring %s=%s (want a positive number)\n", name, text);
+    return fallback;
+  }
+  return value;
+}
+
+long env_long(const char* name, long fallback) {
+  return static_cast<long>(env_positive(name, static_cast<double>(fallback)));
+}
+
+int max_frames() { return static_cast<int>(env_long("CARAT_SCALING_MAX_FRAMES", 3000)); }
+int solve_iterations() { return static_cast<int>(env_long("CARAT_SCALING_ITERATIONS", 3)); }
+int num_threads() {
+  return static_cast<int>(env_long("CARAT_SCALING_THREADS", tbb::info::default_concurrency()));
+}
+double full_limit_bytes() {
+  return env_positive("CARAT_SCALING_FULL_LIMIT_GIB", 8.0) * 1024.0 * 1024.0 * 1024.0;
+}
+
+// ---- process memory (Linux) ----
+
+/// A "VmXXX:   123 kB" field of /proc/self/status in bytes, or 0.
+double proc_status_bytes(const std::string& field) {
+  std::ifstream in("/proc/self/status");
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.rfind(field + ":", 0) == 0) return std::atof(line.c_str() + field.size() + 1) * 1024.0;
+  }
+  return 0.0;
+}
+
+/// Gives freed heap back to the system and resets VmHWM to the current RSS (Linux >= 4.0).
+void reset_peak_rss() {
+#if defined(__GLIBC__)
+  malloc_trim(0);
+#endif
+  std::ofstream clear("/proc/self/clear_refs");
+  clear << "5";
+}
+
+// ---- the drive, scanned lazily ----
+
+struct Drive {
+  carat::SyntheticWorld world;
+  std::vector<Eigen::Isometry3d> truth;                     // ground truth of the largest drive
+  std::vector<std::shared_ptr<const carat::Frame>> frames;  // preprocessed, a prefix
+  double scan_s = 0.0;                                      // scanning + preprocessing so far
+};
+
+carat::SyntheticTrajectoryOptions drive_options(int frames) {
+  carat::SyntheticTrajectoryOptions options;
+  options.frames = frames;
+  options.laps = std::max(1, frames / kFramesPerLap);
+  return options;
+}
+
+Drive& drive() {
+  static Drive d = [] {
+    Drive out;
+    int largest = kSizes.front();  // the largest size that runs
+    for (const int f : kSizes)
+      if (f <= max_frames()) largest = f;
+    out.truth = out.world.trajectory(drive_options(largest));
+    // A drive of F frames must be the first F frames of the largest one.
+    for (const int f : kSizes) {
+      if (f > largest) break;
+      const auto own = out.world.trajectory(drive_options(f));
+      for (int k = 0; k < f; ++k) {
+        if (!own[static_cast<std::size_t>(k)].isApprox(out.truth[static_cast<std::size_t>(k)],
+                                                       1e-9)) {
+          std::fprintf(stderr,
+                       "scaling_bench: the %d-frame drive is not a prefix of the %d-frame one\n", f,
+                       largest);
+          std::abort();
+        }
+      }
+    }
+    return out;
+  }();
+  return d;
+}
+
+/// Scans and preprocesses frames until there are `count` (as make_synthetic_sequence does:
+/// frame k gets noise seed synthetic_frame_noise_seed(world seed, k)).
+void ensure_frames(std::size_t count) {
+  Drive& d = drive();
+  const std::size_t have = d.frames.size();
+  if (count <= have) return;
+  const auto t0 = Clock::now();
+  d.frames.resize(count);
+  tbb::task_arena arena(num_threads());
+  arena.execute([&] {
+    tbb::parallel_for(have, count, [&](std::size_t k) {
+      const carat::PointCloud raw =
+          d.world.scan(d.truth[k], carat::synthetic_frame_noise_seed(d.world.options().seed, k));
+      d.frames[k] =
+          carat::preprocess_frame(raw, carat::PreprocessOptions{}, "frame " + std::to_string(k));
+    });
+  });
+  d.scan_s += seconds_since(t0);
+}
+
+// ---- one size: initial poses, graph, problems ----
+
+struct Scene {
+  int frames = 0;
+  std::vector<Eigen::Isometry3d> initial;
+  std::vector<carat::FramePair> pairs;
+  double graph_s = 0.0;
+  double initial_ate_rmse = 0.0;
+  std::size_t points = 0;
+  std::optional<std::size_t> correspondences;         // known once exact has been built
+  std::unique_ptr<carat::RegistrationProblem> exact;  // built by BM_BuildExact
+};
+
+std::unique_ptr<Scene>& scene_slot() {
+  static std::unique_ptr<Scene> s;
+  return s;
+}
+
+Scene& scene(int frames) {
+  auto& slot = scene_slot();
+  if (slot && slot->frames == frames) return *slot;
+  slot.reset();  // free the previous size first
+  reset_peak_rss();
+  ensure_frames(static_cast<std::size_t>(frames));
+  auto s = std::make_unique<Scene>();
+  s->frames = frames;
+  const Drive& d = drive();
+  const std::span<const Eigen::Isometry3d> truth(d.truth.data(), static_cast<std::size_t>(frames));
+  carat::DriftOptions drift;
+  drift.translation_sigma = 0.02;
+  drift.rotation_sigma_deg = 0.1;
+  s->initial = carat::apply_drift(truth, drift);
+  const std::span<const std::shared_ptr<const carat::Frame>> prefix(
+      d.frames.data(), static_cast<std::size_t>(frames));
+  for (const auto& f : prefix) s->points += f->size();
+  carat::DenseGraphOptions graph;
+  graph.num_threads = num_threads();
+  const auto t0 = Clock::now();
+  s->pairs = carat::build_dense_graph(prefix, s->initial, graph);
+  s->graph_s = seconds_since(t0);
+  s->initial_ate_rmse = carat::compute_ate(s->initial, truth).rmse;
+  slot = std::move(s);
+  return *slot;
+}
+
+std::span<const std::shared_ptr<const carat::Frame>> frames_of(const Scene& s) {
+  return {drive().frames.data(), static_cast<std::size_t>(s.frames)};
+}
+
+carat::GlobalRegistrationOptions registration_options(carat::ResidualSampling sampling) {
+  carat::GlobalRegistrationOptions options;
+  options.sampling = sampling;
+  options.residuals = 29;
+  options.num_threads = num_threads();
+  return options;
+}
+
+// ---- counters ----
+
+void scene_counters(benchmark::State& state, const Scene& s) {
+  state.counters["frames"] = s.frames;
+  state.counters["factors"] = static_cast<double>(s.pairs.size());
+  state.counters["points"] = static_cast<double>(s.points);
+  state.counters["graph_s"] = s.graph_s;
+  state.counters["scan_s"] = drive().scan_s;
+  state.counters["initial_ate_rmse_m"] = s.initial_ate_rmse;
+  state.counters["threads"] = num_threads();
+}
+
+void stats_counters(benchmark::State& state, const carat::RegistrationFactorStats& stats) {
+  state.counters["rows"] = static_cast<double>(stats.num_rows);
+  state.counters["correspondences"] = static_cast<double>(stats.num_correspondences);
+  state.counters["residual_bytes"] = static_cast<double>(stats.residual_bytes);
+  state.counters["correspondence_bytes"] = static_cast<double>(stats.correspondence_bytes);
+  state.counters["correspondence_s"] = stats.correspondence_s;
+  state.counters["compression_s"] = stats.compression_s;
+}
+
+void memory_counters(benchmark::State& state, double baseline_rss) {
+  state.counters["baseline_rss_bytes"] = baseline_rss;
+  state.counters["peak_rss_bytes"] = proc_status_bytes("VmHWM");
+}
+
+/// Runs LM for solve_iterations() iterations (tolerances off, so none stops it early) and
+/// reports the time per iteration as the benchmark's time.
+void solve_and_report(benchmark::State& state, carat::Problem& problem) {
+  carat::SolverOptions options;
+  options.max_iterations = solve_iterations();
+  options.function_tolerance = 0.0;
+  options.gradient_tolerance = 0.0;
+  options.parameter_tolerance = 0.0;
+  options.num_threads = num_threads();
+  const carat::SolverSummary summary = carat::solve(options, problem);
+  if (!summary.is_solution_usable()) {
+    state.SkipWithError(("solve failed: " + summary.message).c_str());
+    return;
+  }
+  const int iterations = std::max(1, summary.num_iterations);
+  const double per_iteration = summary.time.total_s / iterations;
+  state.SetIterationTime(per_iteration);
+  state.counters["per_iteration_s"] = per_iteration;
+  state.counters["per_iteration_no_symbolic_s"] =
+      (summary.time.total_s - summary.time.symbolic_s) / iterations;
+  state.counters["iterations"] = summary.num_iterations;
+  state.counters["solve_s"] = summary.time.total_s;
+  state.counters["symbolic_s"] = summary.time.symbolic_s;
+  state.counters["numeric_s"] = summary.time.numeric_s;
+  state.counters["linearize_s"] = summary.time.linearize_s;
+  state.counters["factor_nonzeros"] = static_cast<double>(summary.factor_nonzeros);
+  state.counters["initial_cost"] = summary.initial_cost;
+  state.counters["final_cost"] = summary.final_cost;
+}
+
+// ---- benchmarks ----
+
+void BM_BuildExact(benchmark::State& state) {
+  Scene& s = scene(static_cast<int>(state.range(0)));
+  s.exact.reset();
+  reset_peak_rss();
+  const double baseline = proc_status_bytes("VmRSS");
+  for (auto _ : state) {
+    const auto t0 = Clock::now();
+    s.exact = std::make_unique<carat::RegistrationProblem>(carat::build_registration_problem(
+        frames_of(s), s.pairs, s.initial, registration_options(carat::ResidualSampling::kExact)));
+    state.SetIterationTime(seconds_since(t0));
+  }
+  s.correspondences = s.exact->stats.num_correspondences;
+  scene_counters(state, s);
+  stats_counters(state, s.exact->stats);
+  memory_counters(state, baseline);
+}
+
+void BM_IterationExact(benchmark::State& state) {
+  Scene& s = scene(static_cast<int>(state.range(0)));
+  double build_s = 0.0;
+  if (!s.exact) {  // run on its own (a filter): build it here
+    const auto t0 = Clock::now();
+    s.exact = std::make_unique<carat::RegistrationProblem>(carat::build_registration_problem(
+        frames_of(s), s.pairs, s.initial, registration_options(carat::ResidualSampling::kExact)));
+    build_s = seconds_since(t0);
+    s.correspondences = s.exact->stats.num_correspondences;
+  }
+  reset_peak_rss();
+  const double baseline = proc_status_bytes("VmRSS");
+  for (auto _ : state) solve_and_report(state, s.exact->problem);
+  scene_counters(state, s);
+  stats_counters(state, s.exact->stats);
+  if (build_s > 0.0) state.counters["build_s"] = build_s;
+  memory_counters(state, baseline);
+  s.exact.reset();
+}
+
+void BM_IterationFull(benchmark::State& state) {
+  Scene& s = scene(static_cast<int>(state.range(0)));
+  s.exact.reset();
+  // Full bytes: 96 B per correspondence (GicpBlock's Point), known from the exact build; if it
+  // did not run, estimated from the overlaps (fraction of the source's points near the target).
+  double correspondences = 0.0;
+  if (s.correspondences) {
+    correspondences = static_cast<double>(*s.correspondences);
+  } else {
+    const auto frames = frames_of(s);
+    for (const auto& p : s.pairs)
+      correspondences +=
+          p.overlap * static_cast<double>(frames[static_cast<std::size_t>(p.source)]->size());
+  }
+  const double estimate = correspondences * 96.0;
+  state.counters["estimated_correspondence_bytes"] = estimate;
+  if (estimate > full_limit_bytes()) {
+    scene_counters(state, s);
+    char message[160];
+    std::snprintf(message, sizeof(message),
+                  "full skipped: %.2f GiB of correspondences > limit %.2f GiB",
+                  estimate / 1073741824.0, full_limit_bytes() / 1073741824.0);
+    state.SkipWithError(message);
+    for (auto _ : state) {
+    }
+    return;
+  }
+  reset_peak_rss();
+  const double baseline = proc_status_bytes("VmRSS");
+  for (auto _ : state) {
+    const auto t0 = Clock::now();
+    auto full = carat::build_registration_problem(
+        frames_of(s), s.pairs, s.initial, registration_options(carat::ResidualSampling::kFull));
+    state.counters["build_s"] = seconds_since(t0);
+    solve_and_report(state, full.problem);
+    stats_counters(state, full.stats);
+  }
+  scene_counters(state, s);
+  memory_counters(state, baseline);
+}
+
+void register_all() {
+  const int largest = max_frames();
+  for (const int f : kSizes) {
+    if (f > largest) break;
+    for (auto* b : {benchmark::RegisterBenchmark("BM_BuildExact", BM_BuildExact),
+                    benchmark::RegisterBenchmark("BM_IterationExact", BM_IterationExact),
+                    benchmark::RegisterBenchmark("BM_IterationFull", BM_IterationFull)}) {
+      b->Arg(f)->Iterations(1)->UseManualTime()->Unit(benchmark::kMillisecond);
+    }
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  register_all();
+  benchmark::Initialize(&argc, argv);
+  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+  benchmark::RunSpecifiedBenchmarks();
+  benchmark::Shutdown();
+  return 0;
+}
