@@ -5,10 +5,8 @@
 // against the ground truth, iterations, time breakdown and memory. Writes trajectories (KITTI,
 // TUM) and SVG pictures to --out.
 #include <tbb/info.h>
-#include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
-#include <atomic>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -81,18 +79,12 @@ int run_demo(const DemoArgs& args) {
   input.max_correspondence_distance = args.max_distance;
   input.pgo_cauchy_scale = args.pgo_cauchy;
   input.gre_cauchy_scale = args.gre_cauchy;
-  input.frames.resize(sequence.scans.size());
   {
     ProgressBar bar("preprocessing scans", true);
-    std::atomic<std::size_t> done{0};
-    tbb::task_arena arena(threads);
-    arena.execute([&] {
-      tbb::parallel_for(std::size_t{0}, sequence.scans.size(), [&](std::size_t k) {
-        input.frames[k] = preprocess_frame(sequence.scans[k], PreprocessOptions{},
-                                           "synthetic frame " + std::to_string(k));
-        bar.update(done.fetch_add(1) + 1, sequence.scans.size());
-      });
-    });
+    input.frames = preprocess_frames(
+        sequence.scans.size(), [&](std::size_t k) { return sequence.scans[k]; },
+        [](std::size_t k) { return "synthetic frame " + std::to_string(k); }, PreprocessOptions{},
+        threads, bar.callback());
   }
   std::size_t points = 0, raw_points = 0;
   for (std::size_t k = 0; k < input.frames.size(); ++k) {

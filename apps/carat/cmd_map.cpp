@@ -7,11 +7,8 @@
 // pose graph of pairwise GICP results (pgo). Reports the ATE of the start and of the result
 // against the given poses, and writes the optimized trajectory to --out.
 #include <tbb/info.h>
-#include <tbb/parallel_for.h>
-#include <tbb/task_arena.h>
 
 #include <algorithm>
-#include <atomic>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -120,20 +117,13 @@ int run_map(const MapArgs& args) {
   input.residuals = args.residuals;
   input.max_correspondence_distance = args.max_distance;
   input.rounds = args.rounds;
-  input.frames.resize(files.size());
   PreprocessOptions preprocess;
   preprocess.voxel_size = args.voxel;
   {
     ProgressBar bar("reading and preprocessing", true);
-    std::atomic<std::size_t> done{0};
-    tbb::task_arena arena(threads);
-    arena.execute([&] {
-      tbb::parallel_for(std::size_t{0}, files.size(), [&](std::size_t k) {
-        input.frames[k] =
-            preprocess_frame(read_frame(files[k]), preprocess, files[k].path.string());
-        bar.update(done.fetch_add(1) + 1, files.size());
-      });
-    });
+    input.frames = preprocess_frames(
+        files.size(), [&](std::size_t k) { return read_frame(files[k]); },
+        [&](std::size_t k) { return files[k].path.string(); }, preprocess, threads, bar.callback());
   }
   const double preprocess_s = std::chrono::duration<double>(Clock::now() - t0).count();
   input.T_world_initial =

@@ -5,11 +5,9 @@
 // Tables III-V and Fig. 7 (a synthetic dense sequence: ATE, time breakdown, memory), and the
 // real 5-frame KITTI 07 dense graph from a perturbed start.
 #include <tbb/info.h>
-#include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
 #include <algorithm>
-#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -377,12 +375,10 @@ void synthetic_tables(const PaperArgs& args, int threads, const fs::path& dir, R
   MappingInput input;
   input.threads = threads;
   input.seed = args.seed;
-  input.frames.resize(sequence.scans.size());
-  arena.execute([&] {
-    tbb::parallel_for(std::size_t{0}, sequence.scans.size(), [&](std::size_t k) {
-      input.frames[k] = preprocess_frame(sequence.scans[k], PreprocessOptions{}, "frame");
-    });
-  });
+  input.frames = preprocess_frames(
+      sequence.scans.size(), [&](std::size_t k) { return sequence.scans[k]; },
+      [](std::size_t k) { return "synthetic frame " + std::to_string(k); }, PreprocessOptions{},
+      threads);
   sequence.scans.clear();
   DriftOptions drift;
   drift.seed = args.seed;

@@ -1,5 +1,11 @@
 #include "carat/registration/frame.hpp"
 
+#include <tbb/info.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstdio>
 #include <string>
@@ -42,6 +48,24 @@ std::shared_ptr<const Frame> preprocess_frame(const PointCloud& raw,
   covariance.num_threads = options.num_threads;
   estimate_covariances(cloud, tree, covariance);
   return std::make_shared<const Frame>(std::move(cloud));
+}
+
+std::vector<std::shared_ptr<const Frame>> preprocess_frames(
+    std::size_t count, const std::function<PointCloud(std::size_t)>& load,
+    const std::function<std::string(std::size_t)>& name, const PreprocessOptions& options,
+    int num_threads, const std::function<void(std::size_t, std::size_t)>& progress) {
+  std::vector<std::shared_ptr<const Frame>> frames(count);
+  PreprocessOptions single = options;
+  single.num_threads = 1;  // the parallelism is over scans
+  std::atomic<std::size_t> done{0};
+  tbb::task_arena arena(std::clamp(num_threads, 1, tbb::info::default_concurrency()));
+  arena.execute([&] {
+    tbb::parallel_for(std::size_t{0}, count, [&](std::size_t k) {
+      frames[k] = preprocess_frame(load(k), single, name(k));
+      if (progress) progress(done.fetch_add(1) + 1, count);
+    });
+  });
+  return frames;
 }
 
 }  // namespace carat

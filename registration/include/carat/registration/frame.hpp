@@ -3,8 +3,11 @@
 /// A scan prepared for registration: voxel-downsampled points with GICP covariances and a k-d
 /// tree over them, held together so the tree never outlives or loses its cloud.
 
+#include <cstddef>
+#include <functional>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "carat/registration/kdtree.hpp"
 #include "carat/registration/point_cloud.hpp"
@@ -46,5 +49,14 @@ class Frame {
 std::shared_ptr<const Frame> preprocess_frame(const PointCloud& raw,
                                               const PreprocessOptions& options,
                                               const std::string& name);
+
+/// Preprocesses `count` scans in parallel with `num_threads` threads: load(k) returns scan k
+/// (called once per scan, from any thread; read a file there to keep only a few raw scans in
+/// memory) and name(k) names it in errors. `progress`, if set, gets (scans done, count).
+/// Results are in scan order and do not depend on the thread count.
+std::vector<std::shared_ptr<const Frame>> preprocess_frames(
+    std::size_t count, const std::function<PointCloud(std::size_t)>& load,
+    const std::function<std::string(std::size_t)>& name, const PreprocessOptions& options,
+    int num_threads, const std::function<void(std::size_t, std::size_t)>& progress = {});
 
 }  // namespace carat
