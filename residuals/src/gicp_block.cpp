@@ -2,7 +2,8 @@
 
 #include <tbb/parallel_for.h>
 
-#include <Eigen/Cholesky>
+#include <array>
+#include <cmath>
 #include <string>
 #include <unordered_map>
 
@@ -19,6 +20,34 @@ struct Row {
   int component;
 };
 
+/// The upper-triangular W (w0 w1 w2; 0 w3 w4; 0 0 w5) with W^T W = C^-1, in closed form: the
+/// inverse by cofactors, then its 3 x 3 Cholesky factor. False unless C is positive definite.
+bool whitening_of(const Eigen::Matrix3d& C, std::array<double, 6>* W) {
+  const double c00 = C(0, 0), c01 = 0.5 * (C(0, 1) + C(1, 0)), c02 = 0.5 * (C(0, 2) + C(2, 0));
+  const double c11 = C(1, 1), c12 = 0.5 * (C(1, 2) + C(2, 1)), c22 = C(2, 2);
+  // Cofactors of the symmetric C.
+  const double a00 = c11 * c22 - c12 * c12, a01 = c02 * c12 - c01 * c22,
+               a02 = c01 * c12 - c02 * c11;
+  const double a11 = c00 * c22 - c02 * c02, a12 = c01 * c02 - c00 * c12,
+               a22 = c00 * c11 - c01 * c01;
+  const double det = c00 * a00 + c01 * a01 + c02 * a02;
+  // Leading minors of C positive <=> C positive definite.
+  if (!(c00 > 0.0 && a22 > 0.0 && det > 0.0)) return false;
+  const double inv = 1.0 / det;
+  const double i00 = a00 * inv, i01 = a01 * inv, i02 = a02 * inv;
+  const double i11 = a11 * inv, i12 = a12 * inv, i22 = a22 * inv;
+  const double w0 = std::sqrt(i00);
+  const double w1 = i01 / w0, w2 = i02 / w0;
+  const double s3 = i11 - w1 * w1;
+  if (!(s3 > 0.0)) return false;
+  const double w3 = std::sqrt(s3);
+  const double w4 = (i12 - w1 * w2) / w3;
+  const double s5 = i22 - w2 * w2 - w4 * w4;
+  if (!(s5 > 0.0)) return false;
+  *W = {w0, w1, w2, w3, w4, std::sqrt(s5)};
+  return std::isfinite(w0 + w1 + w2 + w3 + w4 + (*W)[5]);
+}
+
 }  // namespace
 
 GicpBlock::GicpBlock(std::span<const GicpCorrespondence> correspondences,
@@ -33,18 +62,15 @@ GicpBlock::GicpBlock(std::span<const GicpCorrespondence> correspondences,
       throw Error("GicpBlock: correspondence " + std::to_string(k) + " has a non-finite value");
     }
     const Eigen::Matrix3d fused = c.covariance_target + R * c.covariance_source * R.transpose();
-    const Eigen::LLT<Eigen::Matrix3d> llt_fused(fused);
-    if (llt_fused.info() != Eigen::Success) {
+    std::array<double, 6> W;
+    if (!whitening_of(fused, &W)) {
       throw Error("GicpBlock: correspondence " + std::to_string(k) +
                   ": fused covariance is not positive definite");
     }
-    const Eigen::Matrix3d information = llt_fused.solve(Eigen::Matrix3d::Identity());
-    const Eigen::LLT<Eigen::Matrix3d> llt(0.5 * (information + information.transpose()));
-    const Eigen::Matrix3d W = llt.matrixU();
     Point p;
     p.target = {c.mean_target.x(), c.mean_target.y(), c.mean_target.z()};
     p.source = {c.mean_source.x(), c.mean_source.y(), c.mean_source.z()};
-    p.whitening = {W(0, 0), W(0, 1), W(0, 2), W(1, 1), W(1, 2), W(2, 2)};
+    p.whitening = W;
     points_.push_back(p);
   }
 }
