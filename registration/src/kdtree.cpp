@@ -1,7 +1,5 @@
 #include "carat/registration/kdtree.hpp"
 
-#include <cmath>
-#include <limits>
 #include <nanoflann.hpp>
 
 namespace carat {
@@ -45,18 +43,6 @@ int KdTree::knn(const Eigen::Vector3f& query, int k, std::uint32_t* indices,
 bool KdTree::nearest(const Eigen::Vector3f& query, std::uint32_t* index,
                      float* squared_distance) const {
   return knn(query, 1, index, squared_distance) == 1;
-}
-
-bool KdTree::nearest_within(const Eigen::Vector3f& query, float max_squared_distance,
-                            std::uint32_t* index, float* squared_distance) const {
-  if (impl_->adaptor.cloud.points.empty()) return false;
-  nanoflann::KNNResultSet<float, std::uint32_t> result(1);
-  result.init(index, squared_distance);
-  // The result set's worst distance is the search's pruning bound; the search keeps points
-  // strictly closer, so the bound sits just above the limit to keep points at the limit.
-  *squared_distance = std::nextafter(max_squared_distance, std::numeric_limits<float>::infinity());
-  impl_->tree.findNeighbors(result, query.data(), nanoflann::SearchParams());
-  return result.size() == 1;
 }
 
 }  // namespace carat

@@ -28,11 +28,6 @@ class KdTree {
   /// The nearest point: its index and squared distance; false for an empty cloud.
   bool nearest(const Eigen::Vector3f& query, std::uint32_t* index, float* squared_distance) const;
 
-  /// The nearest point no farther than sqrt(max_squared_distance); false when there is none.
-  /// Faster than nearest() for far queries: the bound prunes the search.
-  bool nearest_within(const Eigen::Vector3f& query, float max_squared_distance,
-                      std::uint32_t* index, float* squared_distance) const;
-
  private:
   struct Impl;
   std::unique_ptr<Impl> impl_;
