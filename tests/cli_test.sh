@@ -246,6 +246,20 @@ check map_truncated_frame 1 "000004.bin" -- "$CARAT" map --frames "$scratch/smal
 if [[ -e "$scratch/never.txt" ]]; then echo "FAIL map left an output file after an error"; fail=$((fail + 1)); else pass=$((pass + 1)); fi
 awk 'NR == 11 { $4 += 500 } { print }' "$scratch/seq/poses.txt" >"$scratch/far.txt"
 check map_disconnected 1 "pair (9, 10) has only 0 correspondences" -- "$CARAT" map --frames "$scratch/seq" --poses "$scratch/far.txt" --bin-format xyz --out "$scratch/never.txt"
+check map_missing_poses 1 "nope.txt" -- "$CARAT" map --frames "$scratch/seq" --poses "$scratch/nope.txt" --bin-format xyz
+: >"$scratch/empty_poses.txt"
+check map_empty_poses 1 "empty_poses.txt: no KITTI poses" -- "$CARAT" map --frames "$scratch/seq" --poses "$scratch/empty_poses.txt" --bin-format xyz
+check map_missing_frames 1 "nowhere: not a folder of frames" -- "$CARAT" map --frames "$scratch/nowhere" --poses "$scratch/seq/poses.txt"
+check map_unknown_flag 2 "" -- "$CARAT" map --frames "$scratch/seq" --poses "$scratch/seq/poses.txt" --frobnicate
+check map_out_of_range 2 "" -- "$CARAT" map --frames "$scratch/seq" --poses "$scratch/seq/poses.txt" --residuals 5
+check simulate_bad_out 1 "" -- "$CARAT" simulate --out /proc/carat-cannot-write --frames 4
+check simulate_out_of_range 2 "" -- "$CARAT" simulate --out "$scratch/x" --frames 1
+check paper_unknown_flag 2 "" -- "$CARAT" paper --fast
+check demo_out_of_range 2 "" -- "$CARAT" demo --residuals 10
+cp -r "$scratch/seq" "$scratch/nan_seq"
+python3 -c "import struct,sys; f=open(sys.argv[1],'r+b'); f.seek(12*5); f.write(struct.pack('<3f', float('nan'), 0, 0))" "$scratch/nan_seq/000003.bin"
+check map_non_finite_point 1 "000003.bin" -- "$CARAT" map --frames "$scratch/nan_seq" --poses "$scratch/seq/poses.txt" --bin-format xyz --out "$scratch/never.txt"
+check map_drop_non_finite 0 "" -- "$CARAT" map --frames "$scratch/nan_seq" --poses "$scratch/seq/poses.txt" --bin-format xyz --drop-non-finite --rounds 1
 check map_bad_sampling 2 "" -- "$CARAT" map --frames "$scratch/seq" --poses "$scratch/seq/poses.txt" --sampling most
 if [[ -f "${CARAT_DATA_DIR:-}/kitti07_seq5/graph.txt" ]]; then
   check map_kitti07 0 "" -- "$CARAT" map --frames "$CARAT_DATA_DIR/kitti07_seq5" --poses "$CARAT_DATA_DIR/kitti07_seq5/graph.txt" --poses-format graph --perturb-m 0.3 --perturb-deg 3 --json

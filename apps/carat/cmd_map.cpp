@@ -52,6 +52,7 @@ struct MapArgs {
   std::uint64_t seed = 1;
   std::string out;
   int threads = 0;
+  bool drop_non_finite = false;
   bool json = false;
 };
 
@@ -89,9 +90,9 @@ std::vector<FrameFile> list_frames(const std::string& dir, const std::string& bi
   return frames;
 }
 
-PointCloud read_frame(const FrameFile& file) {
+PointCloud read_frame(const FrameFile& file, bool drop_non_finite) {
   ReadOptions options;
-  options.drop_non_finite = true;
+  options.drop_non_finite = drop_non_finite;
   if (file.path.extension() == ".bin")
     return read_kitti_bin(file.path, file.xyz_bin ? KittiFormat::kXyz : KittiFormat::kXyzi,
                           options);
@@ -122,7 +123,7 @@ int run_map(const MapArgs& args) {
   {
     ProgressBar bar("reading and preprocessing", true);
     input.frames = preprocess_frames(
-        files.size(), [&](std::size_t k) { return read_frame(files[k]); },
+        files.size(), [&](std::size_t k) { return read_frame(files[k], args.drop_non_finite); },
         [&](std::size_t k) { return files[k].path.string(); }, preprocess, threads, bar.callback());
   }
   const double preprocess_s = std::chrono::duration<double>(Clock::now() - t0).count();
@@ -233,6 +234,8 @@ void register_map(CLI::App& app, CommandRegistry& registry) {
   cmd->add_option("--threads", args->threads, "threads (0: all cores)")
       ->check(CLI::Range(0, 1024))
       ->capture_default_str();
+  cmd->add_flag("--drop-non-finite", args->drop_non_finite,
+                "drop NaN / Inf points while reading (default: they are an error)");
   cmd->add_flag("--json", args->json, "print one JSON object instead of the report");
   registry.add(cmd, [args] { return run_map(*args); });
 }
