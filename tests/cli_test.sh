@@ -108,6 +108,11 @@ check coreset_bad_rows 2 "" -- "$CARAT" coreset-check --rows 0
 check align_missing 1 "missing.bin: no such file" -- "$CARAT" align --target "$scratch/missing.bin" --source "$scratch/missing.bin"
 printf 'abcdefghij' >"$scratch/ten.bin"
 check align_truncated 1 "ten.bin: 10 bytes is not a whole number of 16-byte records" -- "$CARAT" align --target "$scratch/ten.bin" --source "$scratch/ten.bin"
+: >"$scratch/empty.bin"
+check align_empty 1 "empty.bin" -- "$CARAT" align --target "$scratch/empty.bin" --source "$scratch/empty.bin"
+python3 -c "import struct,sys; open(sys.argv[1],'wb').write(struct.pack('<3f', 1, 2, 3) * 50 + struct.pack('<3f', float('inf'), 0, 0))" "$scratch/inf.bin"
+check align_non_finite 1 "inf.bin" -- "$CARAT" align --target "$scratch/inf.bin" --source "$scratch/inf.bin" --bin-format xyz
+check align_unknown_flag 2 "" -- "$CARAT" align --target "$scratch/inf.bin" --source "$scratch/inf.bin" --fast
 python3 -c "import struct,sys; open(sys.argv[1],'wb').write(struct.pack('<12f', *[0.0]*12))" "$scratch/few.bin"
 check align_too_few_points 1 "few.bin: only 1 points after downsampling (at least 29 are needed)" -- "$CARAT" align --target "$scratch/few.bin" --source "$scratch/few.bin"
 check align_wrong_type 1 "unsupported file type" -- "$CARAT" align --target "$scratch/tiny.g2o" --source "$scratch/tiny.g2o"

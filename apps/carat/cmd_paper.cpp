@@ -287,8 +287,8 @@ void figure_four(const PaperArgs& args, const RealPair* pair, const fs::path& di
     std::vector<double> error;
   };
   std::vector<Method> methods(3);
-  methods[0].label = "exact, 29 residuals";
-  methods[1].label = "random, 10 points (30 residuals)";
+  methods[0].label = "exact, M = 29";
+  methods[1].label = "random, 10 points";
   methods[2].label = "random, 256 points";
   for (int t = 0; t < trials; ++t) {
     CompressionOptions exact;
