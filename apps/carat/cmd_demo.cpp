@@ -127,12 +127,9 @@ int run_demo(const DemoArgs& args) {
 
   // The methods.
   std::vector<MethodResult> results;
-  double registration_s = 0.0;
-  const std::vector<PairRegistration> registrations = register_graph_pairs(input, &registration_s);
-  results.push_back(
-      run_pose_graph(input, registrations, registration_s, PoseGraphInformation::kIdentity));
-  results.push_back(
-      run_pose_graph(input, registrations, registration_s, PoseGraphInformation::kHessian));
+  const std::vector<PairRegistration> registrations = register_graph_pairs(input);
+  results.push_back(run_pose_graph(input, registrations, PoseGraphInformation::kIdentity));
+  results.push_back(run_pose_graph(input, registrations, PoseGraphInformation::kHessian));
   for (ResidualSampling sampling :
        {ResidualSampling::kFull, ResidualSampling::kExact, ResidualSampling::kRandom})
     results.push_back(run_registration(input, sampling));

@@ -137,9 +137,8 @@ int run_map(const MapArgs& args) {
 
   MethodResult result;
   if (args.method == "pgo") {
-    double registration_s = 0.0;
-    const auto registrations = register_graph_pairs(input, &registration_s);
-    result = run_pose_graph(input, registrations, registration_s,
+    const auto registrations = register_graph_pairs(input);
+    result = run_pose_graph(input, registrations,
                             args.information == "identity" ? PoseGraphInformation::kIdentity
                                                            : PoseGraphInformation::kHessian);
   } else {

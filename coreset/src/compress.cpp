@@ -42,12 +42,22 @@ std::shared_ptr<CompressedBlock> compress(std::shared_ptr<const ResidualBlock> b
   // Per-thread scratch that only grows (up to kMaxReusedRows rows): compressing thousands of
   // factors in a row would otherwise map and fault in fresh pages for every block's rows.
   constexpr std::size_t kMaxReusedRows = 1 << 18;
+  // A block's evaluate_rows() may run parallel work whose scheduler starts another compress()
+  // on this thread; the flag keeps that nested call off the buffers in use.
   thread_local std::vector<double> reused_jacobian, reused_residuals;
   thread_local std::vector<int> reused_indices;
+  thread_local bool in_use = false;
   std::vector<double> local_jacobian, local_residuals;
   std::vector<int> local_indices;
   const auto size = static_cast<std::size_t>(n);
-  const bool reuse = size <= kMaxReusedRows;
+  const bool reuse = size <= kMaxReusedRows && !in_use;
+  struct Claim {
+    bool* flag;
+    ~Claim() {
+      if (flag) *flag = false;
+    }
+  } claim{reuse ? &in_use : nullptr};
+  if (reuse) in_use = true;
   std::vector<double>& jacobian_buffer = reuse ? reused_jacobian : local_jacobian;
   std::vector<double>& residual_buffer = reuse ? reused_residuals : local_residuals;
   std::vector<int>& all = reuse ? reused_indices : local_indices;

@@ -84,8 +84,14 @@ AlignResult align(const PointCloud& target, const KdTree& target_tree, const Poi
       problem.add_residual_block(block, {target_pose, source_pose});
       const SolverSummary summary = solve(options, problem);
       const Eigen::Isometry3d previous = result.T_target_source;
-      if (summary.termination != TerminationType::kFailure)
-        result.T_target_source = problem.se3(source_pose);
+      if (summary.termination == TerminationType::kFailure) {
+        // No usable step: the estimate stays where it is and is not called converged.
+        result.optimize_s += std::chrono::duration<double>(Clock::now() - t0).count();
+        result.iterations = iteration + 1;
+        result.num_correspondences = static_cast<int>(pairs.size());
+        break;
+      }
+      result.T_target_source = problem.se3(source_pose);
       result.optimize_s += std::chrono::duration<double>(Clock::now() - t0).count();
       result.iterations = iteration + 1;
       result.num_correspondences = static_cast<int>(pairs.size());

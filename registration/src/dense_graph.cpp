@@ -12,6 +12,7 @@
 
 #include "carat/registration/overlap.hpp"
 #include "carat/solver/error.hpp"
+#include "parallel.hpp"
 
 namespace carat {
 
@@ -54,7 +55,7 @@ std::vector<FramePair> build_dense_graph(
   std::atomic<std::size_t> done{0};
   const std::size_t total = candidates.size() + consecutive.size();
   arena.execute([&] {
-    tbb::parallel_for(std::size_t{0}, frames.size(), [&](std::size_t i) {
+    internal::parallel_for_each_index(frames.size(), [&](std::size_t i) {
       occupancy[i] = std::make_unique<VoxelOccupancy>(frames[i]->cloud(), options.voxel_size);
     });
     const auto measure = [&](std::vector<FramePair>& pairs) {

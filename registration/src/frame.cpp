@@ -11,9 +11,9 @@
 #include <string>
 #include <utility>
 
-#include "carat/registration/covariance.hpp"
 #include "carat/registration/voxel_grid.hpp"
 #include "carat/solver/error.hpp"
+#include "parallel.hpp"
 
 namespace carat {
 
@@ -21,6 +21,13 @@ Frame::Frame(PointCloud cloud) : cloud_(std::make_unique<PointCloud>(std::move(c
   if (!cloud_->has_covariances())
     throw Error("Frame: the cloud has no covariances (run estimate_covariances first)");
   tree_ = std::make_unique<KdTree>(*cloud_);
+}
+
+Frame::Frame(PointCloud cloud, const CovarianceOptions& covariance)
+    : cloud_(std::make_unique<PointCloud>(std::move(cloud))) {
+  tree_ = std::make_unique<KdTree>(*cloud_);
+  // Covariances do not move the points, so the tree stays valid.
+  estimate_covariances(*cloud_, *tree_, covariance);
 }
 
 std::shared_ptr<const Frame> preprocess_frame(const PointCloud& raw,
@@ -42,12 +49,10 @@ std::shared_ptr<const Frame> preprocess_frame(const PointCloud& raw,
     throw Error(name + ": only " + std::to_string(cloud.size()) + " points after " + voxel +
                 " m downsampling (at least " + std::to_string(options.min_points) + " are needed)");
   }
-  const KdTree tree(cloud);
   CovarianceOptions covariance;
   covariance.neighbors = options.covariance_neighbors;
   covariance.num_threads = options.num_threads;
-  estimate_covariances(cloud, tree, covariance);
-  return std::make_shared<const Frame>(std::move(cloud));
+  return std::make_shared<const Frame>(std::move(cloud), covariance);
 }
 
 std::vector<std::shared_ptr<const Frame>> preprocess_frames(
@@ -60,7 +65,7 @@ std::vector<std::shared_ptr<const Frame>> preprocess_frames(
   std::atomic<std::size_t> done{0};
   tbb::task_arena arena(std::clamp(num_threads, 1, tbb::info::default_concurrency()));
   arena.execute([&] {
-    tbb::parallel_for(std::size_t{0}, count, [&](std::size_t k) {
+    internal::parallel_for_each_index(count, [&](std::size_t k) {
       frames[k] = preprocess_frame(load(k), single, name(k));
       if (progress) progress(done.fetch_add(1) + 1, count);
     });

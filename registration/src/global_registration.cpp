@@ -11,11 +11,13 @@
 #include <string>
 
 #include "carat/coreset/compress.hpp"
+#include "carat/coreset/row_coreset.hpp"
 #include "carat/registration/correspondences.hpp"
 #include "carat/residuals/gicp_block.hpp"
 #include "carat/solver/error.hpp"
 #include "carat/solver/se3.hpp"
 #include "carat/solver/solve.hpp"
+#include "parallel.hpp"
 
 namespace carat {
 namespace {
@@ -33,6 +35,10 @@ std::string pair_name(const FramePair& pair) {
 void check_options(const GlobalRegistrationOptions& options) {
   if (options.residuals < 1)
     throw Error("global registration: residuals (M) must be >= 1, got " +
+                std::to_string(options.residuals));
+  if (options.sampling == ResidualSampling::kExact && options.residuals < minimum_coreset_rows(6))
+    throw Error("global registration: exact sampling needs residuals (M) >= " +
+                std::to_string(minimum_coreset_rows(6)) + ", got " +
                 std::to_string(options.residuals));
   if (!(options.max_correspondence_distance > 0.0))
     throw Error("global registration: max_correspondence_distance must be > 0");
@@ -143,7 +149,7 @@ RegistrationProblem build_registration_problem(
   std::atomic<std::size_t> done{0};
   const auto stage_start = Clock::now();
   arena.execute([&] {
-    tbb::parallel_for(std::size_t{0}, pairs.size(), [&](std::size_t k) {
+    internal::parallel_for_each_index(pairs.size(), [&](std::size_t k) {
       const FramePair& pair = pairs[k];
       const auto i = static_cast<std::size_t>(pair.target);
       const auto j = static_cast<std::size_t>(pair.source);

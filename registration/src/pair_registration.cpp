@@ -6,9 +6,11 @@
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <string>
 
 #include "carat/solver/error.hpp"
+#include "parallel.hpp"
 
 namespace carat {
 
@@ -36,7 +38,7 @@ std::vector<PairRegistration> register_pairs(
   tbb::task_arena arena(threads);
   std::atomic<std::size_t> done{0};
   arena.execute([&] {
-    tbb::parallel_for(std::size_t{0}, pairs.size(), [&](std::size_t k) {
+    internal::parallel_for_each_index(pairs.size(), [&](std::size_t k) {
       const FramePair& pair = pairs[k];
       const Frame& target = *frames[static_cast<std::size_t>(pair.target)];
       const Frame& source = *frames[static_cast<std::size_t>(pair.source)];
@@ -44,6 +46,7 @@ std::vector<PairRegistration> register_pairs(
           T_world_frame[static_cast<std::size_t>(pair.target)].inverse() *
           T_world_frame[static_cast<std::size_t>(pair.source)];
       AlignResult result;
+      const auto t0 = std::chrono::steady_clock::now();
       try {
         result = align(target.cloud(), target.tree(), source.cloud(), T_init, single);
       } catch (const Error& e) {
@@ -58,6 +61,7 @@ std::vector<PairRegistration> register_pairs(
       r.num_correspondences = result.num_correspondences;
       r.iterations = result.iterations;
       r.converged = result.converged;
+      r.align_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
       if (progress) progress(done.fetch_add(1) + 1, pairs.size());
     });
   });

@@ -17,7 +17,11 @@ se3::Matrix6d relative_pose_information(const Eigen::Isometry3d& T_target_source
   M.block<3, 3>(0, 3).setIdentity();
   M.block<3, 3>(3, 0) = T_target_source.rotation().transpose();
   se3::Matrix6d information = M.transpose() * H * M;
-  return 0.5 * (information + information.transpose());
+  information = 0.5 * (information + information.transpose());
+  // A pair whose geometry leaves a direction unconstrained gives a singular H; a ridge of 1e-9
+  // of the largest diagonal entry keeps the factor usable (and that direction free in effect).
+  information.diagonal().array() += 1e-9 * information.diagonal().maxCoeff();
+  return information;
 }
 
 PoseGraphBaselineResult optimize_pose_graph_baseline(

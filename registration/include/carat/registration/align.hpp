@@ -39,12 +39,12 @@ struct AlignResult {
   int iterations = 0;           ///< outer iterations run
   int num_correspondences = 0;  ///< pairs used in the last iteration
   bool converged = false;       ///< the last step was below both tolerances
-  int constrained_dof = 0;  ///< directions the geometry constrains (6 unless degenerate): the
-                            ///< eigenvalues of H, rotations scaled by the source's RMS radius,
-                            ///< above 5e-3 x the largest
+  int constrained_dof = 0;      ///< directions the geometry constrains (6 unless degenerate): the
+                                ///< eigenvalues of H, rotations scaled by the source's RMS radius,
+                                ///< above 5e-3 x the largest
   double min_eigenvalue_ratio = 0.0;  ///< smallest / largest of those eigenvalues
-  double search_s = 0.0;        ///< time spent finding correspondences
-  double optimize_s = 0.0;      ///< time spent building blocks and solving
+  double search_s = 0.0;              ///< time spent finding correspondences
+  double optimize_s = 0.0;            ///< time spent building blocks and solving
 };
 
 /// Aligns `source` to `target` starting at T_target_source_init. Both clouds need covariances

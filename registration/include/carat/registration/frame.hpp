@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "carat/registration/covariance.hpp"
 #include "carat/registration/kdtree.hpp"
 #include "carat/registration/point_cloud.hpp"
 
@@ -28,6 +29,9 @@ class Frame {
   /// Takes a cloud that already has covariances and builds its tree. Throws carat::Error if
   /// the cloud has no covariances.
   explicit Frame(PointCloud cloud);
+  /// Takes a cloud, builds its tree and estimates the covariances with that tree (replacing any
+  /// the cloud had). Throws carat::Error as estimate_covariances() does.
+  Frame(PointCloud cloud, const CovarianceOptions& covariance);
   Frame(const Frame&) = delete;
   Frame& operator=(const Frame&) = delete;
 

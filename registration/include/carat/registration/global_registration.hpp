@@ -91,9 +91,12 @@ struct GlobalRegistrationResult {
   int rounds = 0;                    ///< correspondence rounds run
 };
 
-/// Builds the problem and solves it, `options.rounds` times at most (summary, stats and
-/// iterations add up over the rounds; factor_costs are the last round's). Throws carat::Error
-/// as build_registration_problem() does, or when a solve fails.
+/// Builds the problem and solves it, `options.rounds` times at most. Over the rounds: the
+/// summary's iterations, steps and times add up, its initial_cost is the first round's and its
+/// final_cost the last round's (each round has its own correspondences, so the two are costs of
+/// different objectives); the stats' times add up, their counts are the last round's and their
+/// byte counts the largest of any round; factor_costs are the last round's. Throws
+/// carat::Error as build_registration_problem() does, or when a solve fails.
 GlobalRegistrationResult optimize_registration(
     std::span<const std::shared_ptr<const Frame>> frames, std::span<const FramePair> pairs,
     std::span<const Eigen::Isometry3d> T_world_frame, const GlobalRegistrationOptions& options,

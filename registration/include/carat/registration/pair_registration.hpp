@@ -25,6 +25,7 @@ struct PairRegistration {
   int num_correspondences = 0;              ///< pairs used in the last iteration
   int iterations = 0;                       ///< outer GICP iterations
   bool converged = false;                   ///< the last step was below tolerance
+  double align_s = 0.0;                     ///< wall time of this pair's alignment (1 thread)
 };
 
 /// Aligns every pair (source onto target) starting from the relative pose that T_world_frame

@@ -22,8 +22,11 @@ enum class PoseGraphInformation {
 /// Settings of optimize_pose_graph_baseline().
 struct PoseGraphBaselineOptions {
   PoseGraphInformation information = PoseGraphInformation::kHessian;  ///< factor weights
-  double cauchy_scale = 1.0;  ///< Cauchy kernel scale on the whitened error; 0 disables it
-  SolverOptions solver;       ///< LM settings (first pose held constant)
+  /// Cauchy kernel scale on the whitened error; 0 disables it. With Hessian information the
+  /// whitened errors of good pairs are far above 1, so a scale of 1 down-weights every factor
+  /// by about 1 / |error|^2 (a strong reweighting, not only outlier rejection).
+  double cauchy_scale = 1.0;
+  SolverOptions solver;  ///< LM settings (first pose held constant)
 };
 
 /// Optimized poses and the solve's summary.
@@ -33,7 +36,8 @@ struct PoseGraphBaselineResult {
 };
 
 /// The information of a relative-pose factor (translation first, RelativePoseBlock's order)
-/// equivalent to a GICP Hessian H over the right tangent [w, v] of T_target_source.
+/// equivalent to a GICP Hessian H over the right tangent [w, v] of T_target_source, plus a
+/// ridge of 1e-9 x its largest diagonal entry so that a degenerate pair stays usable.
 se3::Matrix6d relative_pose_information(const Eigen::Isometry3d& T_target_source,
                                         const se3::Matrix6d& H);
 

@@ -1,0 +1,31 @@
+#pragma once
+
+// Parallel loops over indices whose errors do not depend on the thread count.
+
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include <cstddef>
+#include <exception>
+#include <vector>
+
+namespace carat::internal {
+
+/// Runs body(i) for i in [0, n) in parallel; each body runs isolated (a thread waiting inside
+/// it on nested TBB work never picks up another index). If bodies throw, the exception of the
+/// lowest failing index is rethrown after the loop, whatever the scheduling was.
+template <class Body>
+void parallel_for_each_index(std::size_t n, const Body& body) {
+  std::vector<std::exception_ptr> errors(n);
+  tbb::parallel_for(std::size_t{0}, n, [&](std::size_t i) {
+    try {
+      tbb::this_task_arena::isolate([&] { body(i); });
+    } catch (...) {
+      errors[i] = std::current_exception();
+    }
+  });
+  for (const std::exception_ptr& error : errors)
+    if (error) std::rethrow_exception(error);
+}
+
+}  // namespace carat::internal
