@@ -85,22 +85,82 @@ Eigen::Index gauss_jordan(PaddedMatrix& T, double tolerance, std::vector<Eigen::
   return rank;
 }
 
-/// The basis exchange of the tableau F when free column k enters at row j_row: pivot row
-/// divided by F(j_row, k), the column cleared from every other row (columns after k only).
+typedef double v4d __attribute__((vector_size(32)));
+
+/// The tableau of the free columns, column-major: column k holds the coefficients of free point k
+/// on the current basis rows, padded with zeros to a multiple of four rows.
+struct Tableau {
+  std::vector<double> data;  ///< cols x stride
+  Eigen::Index rows = 0;     ///< basis rows
+  Eigen::Index stride = 0;   ///< rows rounded up to 4
+
+  void resize(Eigen::Index r, Eigen::Index c) {
+    rows = r;
+    stride = (r + 3) / 4 * 4;
+    data.assign(static_cast<std::size_t>(c * stride), 0.0);
+  }
+  double* col(Eigen::Index k) { return data.data() + k * stride; }
+};
+
+/// Ratio test along the null vector of free column `column` (coefficient -column[r] on basis
+/// row r): the smallest bw[r] / -column[r] over rows with -column[r] > 0, if it is below alpha
+/// (then alpha becomes it and its first row is returned), else -1. Branch-free over the rows:
+/// the signs are data, and a mispredicted branch per row cost more than the divisions.
 CARAT_MULTIVERSION
-void exchange(PaddedMatrix& F, Eigen::Index rank, Eigen::Index j_row, Eigen::Index k) {
+Eigen::Index ratio_test(const double* __restrict column, const double* __restrict bw,
+                        Eigen::Index stride, double* __restrict ratio, double& alpha) {
+  constexpr double inf = std::numeric_limits<double>::infinity();
+  const v4d infinity = {inf, inf, inf, inf};
+  const v4d zero = {0.0, 0.0, 0.0, 0.0};
+  v4d best = infinity;
+  for (Eigen::Index r = 0; r < stride; r += 4) {
+    v4d c;
+    v4d w;
+    __builtin_memcpy(&c, column + r, sizeof(c));
+    __builtin_memcpy(&w, bw + r, sizeof(w));
+    const v4d v = -c;
+    const v4d q = w / v;  // only kept where v > 0
+    const v4d x = v > zero ? q : infinity;
+    __builtin_memcpy(ratio + r, &x, sizeof(x));
+    best = x < best ? x : best;
+  }
+  const double smallest = std::min(std::min(best[0], best[1]), std::min(best[2], best[3]));
+  if (!(smallest < alpha)) return -1;
+  alpha = smallest;
+  Eigen::Index r = 0;
+  while (ratio[r] != smallest) ++r;
+  return r;
+}
+
+/// bw[r] = max(0, bw[r] + alpha * column[r]): the basis weights after a step of alpha.
+CARAT_MULTIVERSION
+void step_basis(double* __restrict bw, const double* __restrict column, double alpha,
+                Eigen::Index stride) {
+  const v4d zero = {0.0, 0.0, 0.0, 0.0};
+  for (Eigen::Index r = 0; r < stride; r += 4) {
+    v4d c;
+    v4d w;
+    __builtin_memcpy(&c, column + r, sizeof(c));
+    __builtin_memcpy(&w, bw + r, sizeof(w));
+    const v4d x = w + alpha * c;
+    const v4d clamped = zero < x ? x : zero;
+    __builtin_memcpy(bw + r, &clamped, sizeof(clamped));
+  }
+}
+
+/// The basis exchange when free column k enters at basis row j_row: every later column c gets
+/// F(j_row, c) / F(j_row, k) in row j_row and F(r, c) - F(r, k) * that in every other row.
+CARAT_MULTIVERSION
+void exchange(Tableau& F, Eigen::Index cols, Eigen::Index j_row, Eigen::Index k) {
   const Eigen::Index stride = F.stride;
-  const Eigen::Index from = (k + 1) / 8 * 8;
-  double* __restrict base = F.data.data();
-  double* __restrict pivot_row = base + j_row * stride;
-  const double inverse = 1.0 / pivot_row[k];
-  for (Eigen::Index c = from; c < stride; ++c) pivot_row[c] *= inverse;
-  for (Eigen::Index r = 0; r < rank; ++r) {
-    if (r == j_row) continue;
-    double* __restrict row = base + r * stride;
-    const double factor = row[k];
-    if (factor == 0.0) continue;
-    for (Eigen::Index c = from; c < stride; ++c) row[c] -= factor * pivot_row[c];
+  const double* __restrict entering = F.col(k);
+  const double inverse = 1.0 / entering[j_row];
+  for (Eigen::Index c = k + 1; c < cols; ++c) {
+    double* __restrict column = F.col(c);
+    const double pivot = column[j_row] * inverse;
+    if (pivot == 0.0) continue;
+    for (Eigen::Index r = 0; r < stride; ++r) column[r] -= entering[r] * pivot;
+    column[j_row] = pivot;
   }
 }
 
@@ -136,10 +196,13 @@ void centre_and_scale(const double* __restrict p, const double* __restrict w, Ei
 
 }  // namespace
 
-std::vector<char> eliminate(const double* points, Eigen::Index L, Eigen::Index n,
-                            Eigen::Index stride, double* weights, std::span<const long> sizes,
-                            long min_rows) {
-  std::vector<char> alive(static_cast<std::size_t>(n), 1);
+const std::vector<char>& eliminate(const double* points, Eigen::Index L, Eigen::Index n,
+                                   Eigen::Index stride, double* weights,
+                                   std::span<const long> sizes, long min_rows) {
+  // Scratch reused across calls: fresh heap pages cost a page fault each, which in a loop of
+  // compressions that allocates and frees its own buffers was a third of the time.
+  thread_local std::vector<char> alive;
+  alive.assign(static_cast<std::size_t>(n), 1);
   if (n <= 1) return alive;
   const auto size_of = [&](Eigen::Index i) {
     return sizes.empty() ? 1L : sizes[static_cast<std::size_t>(i)];
@@ -166,49 +229,46 @@ std::vector<char> eliminate(const double* points, Eigen::Index L, Eigen::Index n
   const auto m = static_cast<Eigen::Index>(free_col.size());
   if (m == 0) return alive;
 
-  // The free columns as one contiguous tableau F (rank x m): column k stays valid for the
+  // The free columns as a column-major tableau F (rank x m): column k stays valid for the
   // current basis as points leave and free points enter it.
-  thread_local PaddedMatrix F;
+  thread_local Tableau F;
   F.resize(rank, m);
-  for (Eigen::Index r = 0; r < rank; ++r) {
-    for (Eigen::Index k = 0; k < m; ++k) F(r, k) = T(r, free_col[static_cast<std::size_t>(k)]);
+  for (Eigen::Index k = 0; k < m; ++k) {
+    double* column = F.col(k);
+    const Eigen::Index f = free_col[static_cast<std::size_t>(k)];
+    for (Eigen::Index r = 0; r < rank; ++r) column[r] = T(r, f);
   }
   thread_local std::vector<Eigen::Index> basic;
   basic.assign(pivot_col.begin(), pivot_col.end());
+  // The basis points' weights by basis row (padding rows stay 0), written back at the end.
+  thread_local std::vector<double> bw, ratio;
+  bw.assign(static_cast<std::size_t>(F.stride), 0.0);
+  ratio.resize(static_cast<std::size_t>(F.stride));
+  for (Eigen::Index r = 0; r < rank; ++r) bw[static_cast<std::size_t>(r)] = weights[basic[static_cast<std::size_t>(r)]];
 
   long rows = 0;
   for (Eigen::Index i = 0; i < n; ++i) rows += size_of(i);
   for (Eigen::Index k = 0; k < m; ++k) {
     const Eigen::Index f = free_col[static_cast<std::size_t>(k)];
     // Ratio test along v (v_f = 1, v_basic(r) = -F(r, k)): the first weight to reach zero.
-    Eigen::Index j = f;
-    Eigen::Index j_row = -1;
     double alpha = weights[f];
-    for (Eigen::Index r = 0; r < rank; ++r) {
-      const double v = -F(r, k);
-      if (!(v > 0.0)) continue;
-      const double w = weights[basic[static_cast<std::size_t>(r)]];
-      if (w < alpha * v) {
-        alpha = w / v;
-        j = basic[static_cast<std::size_t>(r)];
-        j_row = r;
-      }
-    }
+    const Eigen::Index j_row = ratio_test(F.col(k), bw.data(), F.stride, ratio.data(), alpha);
+    const Eigen::Index j = j_row < 0 ? f : basic[static_cast<std::size_t>(j_row)];
     if (rows - size_of(j) < min_rows) break;
     weights[f] -= alpha;
-    for (Eigen::Index r = 0; r < rank; ++r) {
-      double& w = weights[basic[static_cast<std::size_t>(r)]];
-      w = std::max(0.0, w + alpha * F(r, k));
-    }
+    step_basis(bw.data(), F.col(k), alpha, F.stride);
     if (!(weights[f] > 0.0)) weights[f] = 0.0;
     weights[j] = 0.0;
     alive[static_cast<std::size_t>(j)] = 0;
     rows -= size_of(j);
-    if (j_row < 0 || k + 1 == m) continue;
+    if (j_row < 0) continue;
     // Basis exchange: f replaces j in row j_row.
-    exchange(F, rank, j_row, k);
+    weights[j] = 0.0;
+    bw[static_cast<std::size_t>(j_row)] = weights[f];
     basic[static_cast<std::size_t>(j_row)] = f;
+    if (k + 1 < m) exchange(F, m, j_row, k);
   }
+  for (Eigen::Index r = 0; r < rank; ++r) weights[basic[static_cast<std::size_t>(r)]] = bw[static_cast<std::size_t>(r)];
   // Points whose weight rounded to zero carry nothing: drop them (unless that would break the
   // row floor, in which case they keep their tiny non-negative weight).
   for (Eigen::Index i = 0; i < n; ++i) {

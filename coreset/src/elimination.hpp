@@ -14,8 +14,9 @@ namespace carat::internal {
 /// one weight, and a basis exchange that keeps the remaining null vectors valid. Weights stay
 /// >= 0 and keep sum(w) and sum(w_i p_i). `sizes[i]` is how many rows point i stands for
 /// (empty: 1 each); elimination stops before the rows of the survivors would drop below
-/// `min_rows`. Returns the survivor mask; `weights` (n) holds the new weights.
-std::vector<char> eliminate(const double* points, Eigen::Index L, Eigen::Index n,
+/// `min_rows`. Returns the survivor mask (scratch of this thread: valid until its next call);
+/// `weights` (n) holds the new weights.
+const std::vector<char>& eliminate(const double* points, Eigen::Index L, Eigen::Index n,
                             Eigen::Index stride, double* weights, std::span<const long> sizes,
                             long min_rows);
 

@@ -117,6 +117,68 @@ void lift_sum_6(const double* J, const double* e, long rows, long begin, long en
     }
   }
 }
+/// Writes the ten accumulators of the r = 6 scheme (lo[j] = x_j [x0..x3] for j < 3, hi[j] =
+/// x_j [x3, x4, x5, e]) to out[0, 28) in lift order with ten overlapping 4-wide stores instead of
+/// 28 lane extracts: each store's lanes that fall outside its place hold either the very same
+/// product (x_j x3 is in both lo[j][3] and hi[j][0]) or are overwritten by a later store.
+__attribute__((always_inline)) inline void store_lift_6(const v4d* lo, const v4d* hi, double* out) {
+  __builtin_memcpy(out + 24, &hi[6], sizeof(v4d));  // [27] = e e
+  __builtin_memcpy(out + 23, &hi[5], sizeof(v4d));  // [25, 26] = x5 x5, x5 e
+  __builtin_memcpy(out + 21, &hi[4], sizeof(v4d));  // [22, 24]
+  __builtin_memcpy(out + 18, &hi[3], sizeof(v4d));  // [18, 21]
+  __builtin_memcpy(out + 14, &hi[2], sizeof(v4d));  // [15, 17]
+  __builtin_memcpy(out + 11, &lo[2], sizeof(v4d));  // [13, 14]
+  __builtin_memcpy(out + 9, &hi[1], sizeof(v4d));   // [10, 12]
+  __builtin_memcpy(out + 6, &lo[1], sizeof(v4d));   // [7, 9]
+  __builtin_memcpy(out + 3, &hi[0], sizeof(v4d));   // [4, 6]
+  __builtin_memcpy(out + 0, &lo[0], sizeof(v4d));   // [0, 3]
+}
+
+/// Chunk sums for r = 6 in one call: the lift_sum_6 scheme per chunk, the chunk's accumulators
+/// stored with store_lift_6 and added to running totals lane by lane (the same additions, in the
+/// same order, as adding each chunk's 28 sums to total). A call per 32-row chunk and 28 lane
+/// extracts per chunk had cost as much as the rows themselves.
+CARAT_MULTIVERSION
+void lift_chunk_sums_6(const double* J, const double* e, long rows, long chunk_rows,
+                       const int* position, double* out, double* total) {
+  constexpr int L = lifted_dim(6);
+  const long chunks = (rows + chunk_rows - 1) / chunk_rows;
+  v4d total_lo[3] = {};
+  v4d total_hi[7] = {};
+  for (long c = 0; c < chunks; ++c) {
+    const long begin = c * chunk_rows;
+    const long end = std::min(rows, begin + chunk_rows);
+    const long vector_end = std::min(end, rows - 1);
+    v4d lo[3] = {};
+    v4d hi[7] = {};
+    for (long i = begin; i < vector_end; ++i) {
+      const double* a = J + i * 6;
+      v4d x_lo;
+      v4d x_hi;
+      __builtin_memcpy(&x_lo, a, sizeof(x_lo));
+      __builtin_memcpy(&x_hi, a + 3, sizeof(x_hi));
+      x_hi[3] = e[i];
+      for (int j = 0; j < 3; ++j) lo[j] += a[j] * x_lo;
+      for (int j = 0; j < 6; ++j) hi[j] += a[j] * x_hi;
+      hi[6] += e[i] * x_hi;
+    }
+    if (vector_end < end) {  // the matrix's last row (the high load would read past it)
+      const double* a = J + vector_end * 6;
+      const double ev = e[vector_end];
+      const v4d x_lo = {a[0], a[1], a[2], a[3]};
+      const v4d x_hi = {a[3], a[4], a[5], ev};
+      for (int j = 0; j < 3; ++j) lo[j] += a[j] * x_lo;
+      for (int j = 0; j < 6; ++j) hi[j] += a[j] * x_hi;
+      hi[6] += ev * x_hi;
+    }
+    store_lift_6(lo, hi, out + static_cast<long>(position[c]) * L);
+    for (int j = 0; j < 3; ++j) total_lo[j] += lo[j];
+    for (int j = 0; j < 7; ++j) total_hi[j] += hi[j];
+  }
+  double sums[L];
+  store_lift_6(total_lo, total_hi, sums);
+  for (int l = 0; l < L; ++l) total[l] += sums[l];
+}
 CARAT_MULTIVERSION
 void lift_sum_12(const double* J, const double* e, long begin, long end, double* out) {
   lift_sum_lanes<12>(J, e, begin, end, out);
@@ -161,6 +223,22 @@ void lift_sum(const double* J, const double* e, int r, long rows, long begin, lo
     for (std::size_t j = 0; j < x.size(); ++j) {
       for (std::size_t k = j; k < x.size(); ++k) out[idx++] += x[j] * x[k];
     }
+  }
+}
+
+void lift_chunk_sums(const double* J, const double* e, int r, long rows, long chunk_rows,
+                     const int* position, double* out, double* total) {
+  if (r == 6) {
+    lift_chunk_sums_6(J, e, rows, chunk_rows, position, out, total);
+    return;
+  }
+  const int L = lifted_dim(r);
+  const long chunks = (rows + chunk_rows - 1) / chunk_rows;
+  for (long c = 0; c < chunks; ++c) {
+    const long begin = c * chunk_rows;
+    double* o = out + static_cast<long>(position[c]) * L;
+    lift_sum(J, e, r, rows, begin, std::min(rows, begin + chunk_rows), o);
+    for (int l = 0; l < L; ++l) total[l] += o[l];
   }
 }
 

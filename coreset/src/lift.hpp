@@ -14,6 +14,11 @@ constexpr int lifted_dim(int r) { return (r + 1) * (r + 2) / 2; }
 void lift_sum(const double* J, const double* e, int r, long rows, long begin, long end,
               double* out);
 
+/// Sums the lifts of consecutive chunks of `chunk_rows` rows (the last one may be shorter): chunk c
+/// goes to out[position[c] * L, ...) and every chunk sum is added to total[0, L) in chunk order.
+void lift_chunk_sums(const double* J, const double* e, int r, long rows, long chunk_rows,
+                     const int* position, double* out, double* total);
+
 /// Writes the lift of row ids[k] to out[k * L, (k + 1) * L) (item-major), k < count.
 void lift_rows(const double* J, const double* e, int r, const int* ids, int count, double* out);
 

@@ -119,9 +119,10 @@ void reduce_level(Items& items, int clusters, long min_rows) {
     }
   }
   new_weight = cluster_weight;
-  const std::vector<char> alive =
+  const std::vector<char>& alive =
       eliminate(means.data(), L, clusters, clusters, new_weight.data(), cluster_rows, min_rows);
-  std::vector<char> keep(static_cast<std::size_t>(n), 0);
+  thread_local std::vector<char> keep;
+  keep.assign(static_cast<std::size_t>(n), 0);
   for (std::size_t c = 0; c < K; ++c) {
     if (!alive[c]) continue;
     const double scale = new_weight[c] / cluster_weight[c];
@@ -150,7 +151,7 @@ void reduce_final(Items& items, long min_rows) {
     for (Eigen::Index l = 0; l < L; ++l)
       means[static_cast<std::size_t>(l * n + i)] = p[l] * inverse;
   }
-  const std::vector<char> alive =
+  const std::vector<char>& alive =
       eliminate(means.data(), L, n, n, total.data(), items.counts, min_rows);
   for (int i = 0; i < n; ++i) {
     if (alive[static_cast<std::size_t>(i)]) {

@@ -3,6 +3,7 @@
 #include <Eigen/Cholesky>
 #include <algorithm>
 #include <cmath>
+#include <deque>
 #include <limits>
 #include <numeric>
 #include <string>
@@ -27,9 +28,14 @@ void polish_weights(const double* J, const double* e, int r, const Eigen::Vector
                     internal::Items& rows) {
   const int m = rows.size();
   const Eigen::Index L = target.size() - 1;
-  Eigen::MatrixXd P(L + 1, m);
-  Eigen::VectorXd w(m);
-  std::vector<double> lifted(static_cast<std::size_t>(L));
+  // Scratch of this thread, reused (no heap traffic per call; see eliminate).
+  thread_local Eigen::MatrixXd P, gram;
+  thread_local Eigen::VectorXd w, scale, residual, delta, polished;
+  thread_local Eigen::LDLT<Eigen::MatrixXd> ldlt;
+  thread_local std::vector<double> lifted;
+  P.resize(L + 1, m);
+  w.resize(m);
+  lifted.resize(static_cast<std::size_t>(L));
   for (int k = 0; k < m; ++k) {
     internal::lift_rows(J, e, r, &rows.ids[static_cast<std::size_t>(k)], 1, lifted.data());
     for (Eigen::Index l = 0; l < L; ++l) P(l, k) = lifted[static_cast<std::size_t>(l)];
@@ -37,26 +43,31 @@ void polish_weights(const double* J, const double* e, int r, const Eigen::Vector
     w[k] = rows.weight[static_cast<std::size_t>(k)];
   }
   // Scale each equation to unit size so that every coordinate counts alike.
-  Eigen::VectorXd scale(L + 1);
+  scale.resize(L + 1);
   for (Eigen::Index l = 0; l <= L; ++l) {
     const double s = std::max(P.row(l).cwiseAbs().maxCoeff(), std::abs(target[l]));
     scale[l] = s > 0.0 ? 1.0 / s : 0.0;
   }
-  const Eigen::MatrixXd Ps = scale.asDiagonal() * P;
-  const Eigen::VectorXd residual = scale.asDiagonal() * target - Ps * w;
+  P = scale.asDiagonal() * P;
+  residual.noalias() = scale.cwiseProduct(target);
+  residual.noalias() -= P * w;
   // Minimum-norm correction through the (L+1) x (L+1) Gram matrix (semi-definite LDL^T: the
   // directions the rows do not span get no correction, and need none).
-  const Eigen::MatrixXd gram = Ps * Ps.transpose();
-  const Eigen::VectorXd delta = Ps.transpose() * gram.ldlt().solve(residual);
-  const Eigen::VectorXd polished = w + delta;
+  gram.noalias() = P * P.transpose();
+  ldlt.compute(gram);
+  delta.noalias() = P.transpose() * ldlt.solve(residual);
+  polished = w + delta;
   if (!polished.allFinite() || polished.minCoeff() <= 0.0) return;
-  const Eigen::VectorXd after = scale.asDiagonal() * target - Ps * polished;
-  if (!(after.norm() < residual.norm())) return;
+  const double before = residual.norm();
+  residual.noalias() = scale.cwiseProduct(target);
+  residual.noalias() -= P * polished;
+  if (!(residual.norm() < before)) return;
   for (int k = 0; k < m; ++k) rows.weight[static_cast<std::size_t>(k)] = polished[k];
 }
 
 /// Reduces single-row items to `target` rows (exactly, if exact and the data allow it).
-void reduce_rows(internal::Items& items, long target, bool exact, int clusters, int L) {
+void reduce_rows(internal::Items& items, long target, bool exact, int clusters, int L,
+                 int depth = 0) {
   while (items.size() > target) {
     const int n = items.size();
     if (n <= clusters) {
@@ -67,9 +78,15 @@ void reduce_rows(internal::Items& items, long target, bool exact, int clusters, 
       // The next level would undershoot: keep target - (L + 1) rows as they are and reduce the
       // excess to L + 1 rows.
       const int keep = static_cast<int>(target) - (L + 1);
-      internal::Items excess;
+      // One Items per recursion depth, reused across calls (the recursion is at most two deep;
+      // a deque keeps the shallower ones in place while a deeper one is added).
+      thread_local std::deque<internal::Items> excess_by_depth;
+      while (excess_by_depth.size() <= static_cast<std::size_t>(depth)) {
+        excess_by_depth.emplace_back();
+      }
+      internal::Items& excess = excess_by_depth[static_cast<std::size_t>(depth)];
       items.split_tail(keep, excess);
-      reduce_rows(excess, L + 1, true, clusters, L);
+      reduce_rows(excess, L + 1, true, clusters, L, depth + 1);
       items.append(excess);
       return;
     }
@@ -151,8 +168,9 @@ RowCoreset select_coreset_rows(const Eigen::Ref<const RowMatrix>& J_r,
   // Phase 1: chunks of kChunkRows consecutive rows, summed in one sequential pass, visited in
   // a seeded random order (clusters are contiguous runs of that order).
   const long chunks = (N + kChunkRows - 1) / kChunkRows;
-  const std::vector<int> chunk_order =
-      internal::seeded_permutation(static_cast<int>(chunks), options.seed);
+  // Scratch of this thread, reused: fresh heap pages cost a page fault each (see eliminate).
+  thread_local std::vector<int> chunk_order;
+  internal::seeded_permutation(static_cast<int>(chunks), options.seed, chunk_order);
   thread_local internal::Items items;  // reused: fresh memory costs page faults every call
   items.reset(L, static_cast<int>(chunks));
   std::fill(items.weight.begin(), items.weight.end(), 1.0);
@@ -163,20 +181,23 @@ RowCoreset select_coreset_rows(const Eigen::Ref<const RowMatrix>& J_r,
   for (long k = 0; k < chunks; ++k)
     position[static_cast<std::size_t>(chunk_order[static_cast<std::size_t>(k)])] =
         static_cast<int>(k);
+  internal::lift_chunk_sums(J, E, r, N, kChunkRows, position.data(), items.sums.data(),
+                            target.data());
   for (long c = 0; c < chunks; ++c) {
-    const long k = position[static_cast<std::size_t>(c)];
-    const long begin = c * kChunkRows;
-    const long end = std::min(N, begin + kChunkRows);
-    double* chunk_sum = items.item(k);
-    internal::lift_sum(J, E, r, N, begin, end, chunk_sum);
-    double check = 0.0;  // NaN or Inf if any coordinate is
-    for (int l = 0; l < L; ++l) {
-      target[l] += chunk_sum[l];
-      check += 0.0 * chunk_sum[l];
+    const auto k = static_cast<std::size_t>(position[static_cast<std::size_t>(c)]);
+    items.counts[k] = std::min(N, (c + 1) * kChunkRows) - c * kChunkRows;
+    items.ids[k] = static_cast<int>(c);
+  }
+  // A non-finite entry anywhere makes the total non-finite: only then look for the chunk.
+  if (!target.head(L).allFinite()) {
+    for (long c = 0; c < chunks; ++c) {
+      const double* chunk_sum = items.item(position[static_cast<std::size_t>(c)]);
+      if (!std::all_of(chunk_sum, chunk_sum + L, [](double v) { return std::isfinite(v); })) {
+        check_rows(c * kChunkRows, std::min(N, (c + 1) * kChunkRows));
+      }
     }
-    if (check != 0.0) check_rows(begin, end);
-    items.counts[static_cast<std::size_t>(k)] = end - begin;
-    items.ids[static_cast<std::size_t>(k)] = static_cast<int>(c);
+    throw Error("coreset: the sums of all " + std::to_string(N) +
+                " rows overflow (values too large for double)");
   }
   target[L] = static_cast<double>(N);
   const long row_phase = std::max<long>(8 * M, static_cast<long>(options.clusters) * kChunkRows);
@@ -187,8 +208,10 @@ RowCoreset select_coreset_rows(const Eigen::Ref<const RowMatrix>& J_r,
   }
 
   // Phase 2: the surviving chunks' rows become items of their own (shuffled again, seeded).
-  std::vector<int> row_ids;
-  std::vector<double> row_weight;
+  thread_local std::vector<int> row_ids;
+  thread_local std::vector<double> row_weight;
+  row_ids.clear();
+  row_weight.clear();
   for (int c = 0; c < items.size(); ++c) {
     const long begin = static_cast<long>(items.ids[static_cast<std::size_t>(c)]) * kChunkRows;
     const long end = std::min(N, begin + kChunkRows);
@@ -198,7 +221,8 @@ RowCoreset select_coreset_rows(const Eigen::Ref<const RowMatrix>& J_r,
     }
   }
   const auto survivors = static_cast<int>(row_ids.size());
-  const std::vector<int> row_order = internal::seeded_permutation(survivors, options.seed + 1);
+  thread_local std::vector<int> row_order;
+  internal::seeded_permutation(survivors, options.seed + 1, row_order);
   thread_local internal::Items rows;
   rows.reset(L, survivors);
   std::fill(rows.counts.begin(), rows.counts.end(), 1);
@@ -214,11 +238,14 @@ RowCoreset select_coreset_rows(const Eigen::Ref<const RowMatrix>& J_r,
 
   polish_weights(J, E, r, target, rows);
 
-  std::vector<int> idx(static_cast<std::size_t>(rows.size()));
+  thread_local std::vector<int> idx;
+  idx.resize(static_cast<std::size_t>(rows.size()));
   std::iota(idx.begin(), idx.end(), 0);
   std::sort(idx.begin(), idx.end(), [&](int a, int b) {
     return rows.ids[static_cast<std::size_t>(a)] < rows.ids[static_cast<std::size_t>(b)];
   });
+  out.rows.reserve(idx.size());
+  out.weights.reserve(idx.size());
   for (int k : idx) {
     out.rows.push_back(rows.ids[static_cast<std::size_t>(k)]);
     out.weights.push_back(rows.weight[static_cast<std::size_t>(k)]);
