@@ -63,6 +63,12 @@ void Items::filter(const std::vector<char>& keep) {
   ids.resize(static_cast<std::size_t>(out));
 }
 
+void Items::truncate(int count) {
+  counts.resize(static_cast<std::size_t>(count));
+  weight.resize(static_cast<std::size_t>(count));
+  ids.resize(static_cast<std::size_t>(count));
+}
+
 void Items::split_tail(int from, Items& tail) {
   const int n = size();
   tail.reset(dim, n - from);
@@ -121,17 +127,24 @@ void reduce_level(Items& items, int clusters, long min_rows) {
   new_weight = cluster_weight;
   const std::vector<char>& alive =
       eliminate(means.data(), L, clusters, clusters, new_weight.data(), cluster_rows, min_rows);
-  thread_local std::vector<char> keep;
-  keep.assign(static_cast<std::size_t>(n), 0);
+  // Kept clusters' items move down in place (clusters are contiguous and in order, so an item
+  // never moves up) with their weights rescaled: one pass, no mask.
+  int out = 0;
   for (std::size_t c = 0; c < K; ++c) {
     if (!alive[c]) continue;
     const double scale = new_weight[c] / cluster_weight[c];
-    for (int i = begin[c]; i < begin[c + 1]; ++i) {
-      keep[static_cast<std::size_t>(i)] = 1;
-      items.weight[static_cast<std::size_t>(i)] *= scale;
+    for (int i = begin[c]; i < begin[c + 1]; ++i, ++out) {
+      const auto o = static_cast<std::size_t>(out);
+      const auto s = static_cast<std::size_t>(i);
+      if (out != i) {
+        std::copy(items.item(i), items.item(i) + L, items.item(out));
+        items.counts[o] = items.counts[s];
+        items.ids[o] = items.ids[s];
+      }
+      items.weight[o] = items.weight[s] * scale;
     }
   }
-  items.filter(keep);
+  items.truncate(out);
 }
 
 void reduce_final(Items& items, long min_rows) {

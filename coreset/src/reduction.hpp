@@ -31,6 +31,8 @@ struct Items {
   const double* item(Eigen::Index i) const { return sums.data() + i * dim; }
   /// Keeps the items flagged in `keep` (in order).
   void filter(const std::vector<char>& keep);
+  /// Keeps the first `count` items.
+  void truncate(int count);
   /// Moves items [from, size()) to `tail` (replacing its contents).
   void split_tail(int from, Items& tail);
   /// Appends the items of `tail`.
