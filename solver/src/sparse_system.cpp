@@ -117,9 +117,10 @@ SparseSystem::SparseSystem(const Problem& problem, Ordering ordering)
       im.common.nmethods = 1;
       im.common.method[0].ordering = CHOLMOD_METIS;
     } else {
-      im.common.nmethods = 2;  // both; the one whose factor needs fewer flops wins
+      im.common.nmethods = 3;  // all three; the one whose factor needs fewer flops wins
       im.common.method[0].ordering = CHOLMOD_AMD;
       im.common.method[1].ordering = CHOLMOD_METIS;
+      im.common.method[2].ordering = CHOLMOD_NESDIS;
     }
     cholmod_factor* LG = cholmod_l_analyze(G, &im.common);
     cholmod_l_free_sparse(&G, &im.common);
@@ -131,7 +132,10 @@ SparseSystem::SparseSystem(const Problem& problem, Ordering ordering)
       position[static_cast<std::size_t>(perm[k])] = static_cast<int>(k);
     const int selected = im.common.method[im.common.selected].ordering;
     ordering_name_ =
-        selected == CHOLMOD_METIS ? "METIS" : (selected == CHOLMOD_AMD ? "AMD" : "natural");
+        selected == CHOLMOD_METIS    ? "METIS"
+        : selected == CHOLMOD_NESDIS ? "NESDIS"
+        : selected == CHOLMOD_AMD    ? "AMD"
+                                     : "natural";
     cholmod_l_free_factor(&LG, &im.common);
   } else {
     ordering_name_ = "natural";

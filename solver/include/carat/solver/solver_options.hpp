@@ -15,7 +15,7 @@ enum class Method {
 /// Fill-reducing ordering of the variables (computed once, on the variable-level graph, then
 /// expanded to scalars and postordered).
 enum class Ordering {
-  kAuto,   ///< both AMD and METIS; the one whose factor needs fewer flops wins
+  kAuto,   ///< AMD, METIS and CHOLMOD's NESDIS; the one whose factor needs fewer flops wins
   kAmd,    ///< approximate minimum degree
   kMetis,  ///< METIS nested dissection (good for large, mesh-like graphs)
 };
