@@ -17,7 +17,6 @@ CompressedBlock::CompressedBlock(std::shared_ptr<const ResidualBlock> inner, std
   }
   if (rows_.empty()) throw Error("CompressedBlock: no rows selected");
   const int n = inner_->num_rows();
-  sqrt_weights_.reserve(weights_.size());
   for (std::size_t k = 0; k < rows_.size(); ++k) {
     if (rows_[k] < 0 || rows_[k] >= n) {
       throw Error("CompressedBlock: row " + std::to_string(rows_[k]) +
@@ -27,7 +26,6 @@ CompressedBlock::CompressedBlock(std::shared_ptr<const ResidualBlock> inner, std
       throw Error("CompressedBlock: weight " + std::to_string(k) + " is " +
                   std::to_string(weights_[k]) + "; weights must be finite and > 0");
     }
-    sqrt_weights_.push_back(std::sqrt(weights_[k]));
   }
 }
 
@@ -39,7 +37,7 @@ void CompressedBlock::evaluate_rows(ParameterPointers params, std::span<const in
   inner_->evaluate_rows(params, inner_rows, residuals, jacobian);
   const auto r = static_cast<std::size_t>(inner_->reduced_dim());
   for (std::size_t k = 0; k < rows.size(); ++k) {
-    const double s = sqrt_weights_[static_cast<std::size_t>(rows[k])];
+    const double s = std::sqrt(weights_[static_cast<std::size_t>(rows[k])]);
     residuals[k] *= s;
     if (jacobian) {
       for (std::size_t c = 0; c < r; ++c) jacobian[k * r + c] *= s;
@@ -58,7 +56,7 @@ std::unique_ptr<ResidualBlock> CompressedBlock::extract_rows(std::span<const int
 }
 
 std::size_t CompressedBlock::memory_bytes() const {
-  return inner_->memory_bytes() + rows_.size() * sizeof(int) + 2 * weights_.size() * sizeof(double);
+  return inner_->memory_bytes() + rows_.size() * sizeof(int) + weights_.size() * sizeof(double);
 }
 
 }  // namespace carat

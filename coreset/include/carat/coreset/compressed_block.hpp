@@ -41,8 +41,7 @@ class CompressedBlock final : public ResidualBlock {
  private:
   std::shared_ptr<const ResidualBlock> inner_;
   std::vector<int> rows_;
-  std::vector<double> weights_;
-  std::vector<double> sqrt_weights_;
+  std::vector<double> weights_;  // square roots taken per evaluation: cheaper than their memory
 };
 
 }  // namespace carat

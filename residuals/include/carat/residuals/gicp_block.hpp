@@ -6,7 +6,9 @@
 /// T_ij *when the block is built* (the estimate at which correspondences were found) and stays
 /// fixed afterwards, so rows are exact functions of T_ij with exact Jacobians; scan matching
 /// rebuilds blocks as its estimate moves. Variables: target pose T_world_i, source pose
-/// T_world_j. Memory: 12 doubles (96 bytes) per correspondence.
+/// T_world_j. Memory: 12 doubles (96 bytes) per correspondence; an extract of single rows (the
+/// rows a coreset keeps) holds 7 doubles (56 bytes) per row instead: the whitening row l,
+/// l . mu_target and mu_source. An extract of whole correspondences keeps them whole.
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
@@ -51,7 +53,7 @@ class GicpBlock final : public ResidualBlock {
   std::unique_ptr<ResidualBlock> extract_rows(std::span<const int> rows) const override;
   std::size_t memory_bytes() const override;
 
-  /// Number of correspondences held.
+  /// Number of correspondences held (0 for an extract, which holds single rows).
   int num_correspondences() const { return static_cast<int>(points_.size()); }
 
   /// H_r, b_r, c of all rows at a relative pose (the fast path, deterministic chunked sums).
@@ -65,10 +67,16 @@ class GicpBlock final : public ResidualBlock {
     std::array<double, 3> source;
     std::array<double, 6> whitening;  // W = [w0 w1 w2; 0 w3 w4; 0 0 w5]
   };
+  /// One row of an extract: r = offset - l . (T mu_source), offset = l . mu_target, l a row of W.
+  struct Row {
+    std::array<double, 3> ell;
+    double offset;
+    std::array<double, 3> source;
+  };
   GicpBlock() = default;
   static constexpr std::array<int, 2> kDims{6, 6};
-  std::vector<Point> points_;
-  std::vector<std::int32_t> rows_;  // empty: row 3k+c; else (correspondence << 2) | component
+  std::vector<Point> points_;  // a full block: row 3k + c is component c of correspondence k
+  std::vector<Row> rows_;      // an extract (points_ empty): row k is rows_[k]
 };
 
 }  // namespace carat
