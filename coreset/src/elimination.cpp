@@ -244,7 +244,8 @@ const std::vector<char>& eliminate(const double* points, Eigen::Index L, Eigen::
   thread_local std::vector<double> bw, ratio;
   bw.assign(static_cast<std::size_t>(F.stride), 0.0);
   ratio.resize(static_cast<std::size_t>(F.stride));
-  for (Eigen::Index r = 0; r < rank; ++r) bw[static_cast<std::size_t>(r)] = weights[basic[static_cast<std::size_t>(r)]];
+  for (Eigen::Index r = 0; r < rank; ++r)
+    bw[static_cast<std::size_t>(r)] = weights[basic[static_cast<std::size_t>(r)]];
 
   long rows = 0;
   for (Eigen::Index i = 0; i < n; ++i) rows += size_of(i);
@@ -263,12 +264,12 @@ const std::vector<char>& eliminate(const double* points, Eigen::Index L, Eigen::
     rows -= size_of(j);
     if (j_row < 0) continue;
     // Basis exchange: f replaces j in row j_row.
-    weights[j] = 0.0;
     bw[static_cast<std::size_t>(j_row)] = weights[f];
     basic[static_cast<std::size_t>(j_row)] = f;
     if (k + 1 < m) exchange(F, m, j_row, k);
   }
-  for (Eigen::Index r = 0; r < rank; ++r) weights[basic[static_cast<std::size_t>(r)]] = bw[static_cast<std::size_t>(r)];
+  for (Eigen::Index r = 0; r < rank; ++r)
+    weights[basic[static_cast<std::size_t>(r)]] = bw[static_cast<std::size_t>(r)];
   // Points whose weight rounded to zero carry nothing: drop them (unless that would break the
   // row floor, in which case they keep their tiny non-negative weight).
   for (Eigen::Index i = 0; i < n; ++i) {

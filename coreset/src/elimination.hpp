@@ -17,7 +17,7 @@ namespace carat::internal {
 /// `min_rows`. Returns the survivor mask (scratch of this thread: valid until its next call);
 /// `weights` (n) holds the new weights.
 const std::vector<char>& eliminate(const double* points, Eigen::Index L, Eigen::Index n,
-                            Eigen::Index stride, double* weights, std::span<const long> sizes,
-                            long min_rows);
+                                   Eigen::Index stride, double* weights,
+                                   std::span<const long> sizes, long min_rows);
 
 }  // namespace carat::internal

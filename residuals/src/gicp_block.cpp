@@ -14,11 +14,6 @@ namespace {
 
 constexpr std::size_t kChunk = 512;
 
-struct Row {
-  std::size_t point;
-  int component;
-};
-
 /// The upper-triangular W (w0 w1 w2; 0 w3 w4; 0 0 w5) with W^T W = C^-1, in closed form: the
 /// inverse by cofactors, then its 3 x 3 Cholesky factor. False unless C is positive definite.
 bool whitening_of(const Eigen::Matrix3d& C, std::array<double, 6>* W) {
@@ -230,7 +225,7 @@ std::unique_ptr<ResidualBlock> GicpBlock::extract_rows(std::span<const int> rows
     const int c = row % 3;
     // Row c of the upper-triangular W = [w0 w1 w2; 0 w3 w4; 0 0 w5].
     const std::array<double, 3> ell =
-        c == 0 ? std::array<double, 3>{p.whitening[0], p.whitening[1], p.whitening[2]}
+        c == 0   ? std::array<double, 3>{p.whitening[0], p.whitening[1], p.whitening[2]}
         : c == 1 ? std::array<double, 3>{0.0, p.whitening[3], p.whitening[4]}
                  : std::array<double, 3>{0.0, 0.0, p.whitening[5]};
     Row r;

@@ -57,6 +57,8 @@ class GicpBlock final : public ResidualBlock {
   int num_correspondences() const { return static_cast<int>(points_.size()); }
 
   /// H_r, b_r, c of all rows at a relative pose (the fast path, deterministic chunked sums).
+  /// Covers the correspondences held: an extract of single rows holds none (its H_r, b_r, c
+  /// come from accumulate(), which evaluates its rows).
   double accumulate_at(const Eigen::Isometry3d& T_target_source, Eigen::Matrix<double, 6, 6>* H_r,
                        Eigen::Matrix<double, 6, 1>* b_r) const;
 
