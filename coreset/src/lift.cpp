@@ -83,16 +83,14 @@ CARAT_MULTIVERSION
 void lift_sum_3(const double* J, const double* e, long begin, long end, double* out) {
   lift_sum_lanes<3>(J, e, begin, end, out);
 }
-/// The r = 6 kernel: per row, two 4-wide outer-product updates, lo = a[0..3] against a[0..2]
-/// and hi = [a3, a4, a5, e] against all of x, which cover the 28 products x_j x_k (j <= k) with
-/// 10 multiply-adds. The last row of J is done on its own (hi reads one double past a row).
-CARAT_MULTIVERSION
-void lift_sum_6(const double* J, const double* e, long rows, long begin, long end, double* out) {
-  v4d lo[3] = {};
-  v4d hi[7] = {};
-  long i = begin;
+/// The r = 6 kernel: per row, two 4-wide outer-product updates, lo[j] += x_j [x0..x3] for
+/// j < 3 and hi[j] += x_j [x3, x4, x5, e] for all j, which cover the 28 products x_j x_k
+/// (j <= k) with 10 multiply-adds. The matrix's last row (of `rows`) builds its vectors element
+/// by element: the 4-wide load from a + 3 would read one double past it.
+__attribute__((always_inline)) inline void accumulate_6(const double* J, const double* e, long rows,
+                                                        long begin, long end, v4d* lo, v4d* hi) {
   const long vector_end = std::min(end, rows - 1);
-  for (; i < vector_end; ++i) {
+  for (long i = begin; i < vector_end; ++i) {
     const double* a = J + i * 6;
     v4d x_lo;
     v4d x_hi;
@@ -103,20 +101,17 @@ void lift_sum_6(const double* J, const double* e, long rows, long begin, long en
     for (int j = 0; j < 6; ++j) hi[j] += a[j] * x_hi;
     hi[6] += e[i] * x_hi;
   }
-  int idx = 0;
-  for (int j = 0; j <= 6; ++j) {
-    for (int k = j; k <= 6; ++k) out[idx++] = (j <= 2 && k <= 3) ? lo[j][k] : hi[j][k - 3];
-  }
-  for (; i < end; ++i) {
-    double x[7];
-    for (int j = 0; j < 6; ++j) x[j] = J[i * 6 + j];
-    x[6] = e[i];
-    idx = 0;
-    for (int j = 0; j <= 6; ++j) {
-      for (int k = j; k <= 6; ++k) out[idx++] += x[j] * x[k];
-    }
+  if (vector_end < end) {
+    const double* a = J + vector_end * 6;
+    const double ev = e[vector_end];
+    const v4d x_lo = {a[0], a[1], a[2], a[3]};
+    const v4d x_hi = {a[3], a[4], a[5], ev};
+    for (int j = 0; j < 3; ++j) lo[j] += a[j] * x_lo;
+    for (int j = 0; j < 6; ++j) hi[j] += a[j] * x_hi;
+    hi[6] += ev * x_hi;
   }
 }
+
 /// Writes the ten accumulators of the r = 6 scheme (lo[j] = x_j [x0..x3] for j < 3, hi[j] =
 /// x_j [x3, x4, x5, e]) to out[0, 28) in lift order with ten overlapping 4-wide stores instead of
 /// 28 lane extracts: each store's lanes that fall outside its place hold either the very same
@@ -134,10 +129,19 @@ __attribute__((always_inline)) inline void store_lift_6(const v4d* lo, const v4d
   __builtin_memcpy(out + 0, &lo[0], sizeof(v4d));   // [0, 3]
 }
 
-/// Chunk sums for r = 6 in one call: the lift_sum_6 scheme per chunk, the chunk's accumulators
-/// stored with store_lift_6 and added to running totals lane by lane (the same additions, in the
-/// same order, as adding each chunk's 28 sums to total). A call per 32-row chunk and 28 lane
-/// extracts per chunk had cost as much as the rows themselves.
+/// Sum of the lifts of rows [begin, end) for r = 6.
+CARAT_MULTIVERSION
+void lift_sum_6(const double* J, const double* e, long rows, long begin, long end, double* out) {
+  v4d lo[3] = {};
+  v4d hi[7] = {};
+  accumulate_6(J, e, rows, begin, end, lo, hi);
+  store_lift_6(lo, hi, out);
+}
+
+/// Chunk sums for r = 6 in one call: each chunk's accumulators stored with store_lift_6 and
+/// added to running totals lane by lane (the same additions, in the same order, as adding each
+/// chunk's 28 sums to total). A call per 32-row chunk and 28 lane extracts per chunk had cost as
+/// much as the rows themselves.
 CARAT_MULTIVERSION
 void lift_chunk_sums_6(const double* J, const double* e, long rows, long chunk_rows,
                        const int* position, double* out, double* total) {
@@ -147,30 +151,9 @@ void lift_chunk_sums_6(const double* J, const double* e, long rows, long chunk_r
   v4d total_hi[7] = {};
   for (long c = 0; c < chunks; ++c) {
     const long begin = c * chunk_rows;
-    const long end = std::min(rows, begin + chunk_rows);
-    const long vector_end = std::min(end, rows - 1);
     v4d lo[3] = {};
     v4d hi[7] = {};
-    for (long i = begin; i < vector_end; ++i) {
-      const double* a = J + i * 6;
-      v4d x_lo;
-      v4d x_hi;
-      __builtin_memcpy(&x_lo, a, sizeof(x_lo));
-      __builtin_memcpy(&x_hi, a + 3, sizeof(x_hi));
-      x_hi[3] = e[i];
-      for (int j = 0; j < 3; ++j) lo[j] += a[j] * x_lo;
-      for (int j = 0; j < 6; ++j) hi[j] += a[j] * x_hi;
-      hi[6] += e[i] * x_hi;
-    }
-    if (vector_end < end) {  // the matrix's last row (the high load would read past it)
-      const double* a = J + vector_end * 6;
-      const double ev = e[vector_end];
-      const v4d x_lo = {a[0], a[1], a[2], a[3]};
-      const v4d x_hi = {a[3], a[4], a[5], ev};
-      for (int j = 0; j < 3; ++j) lo[j] += a[j] * x_lo;
-      for (int j = 0; j < 6; ++j) hi[j] += a[j] * x_hi;
-      hi[6] += ev * x_hi;
-    }
+    accumulate_6(J, e, rows, begin, std::min(rows, begin + chunk_rows), lo, hi);
     store_lift_6(lo, hi, out + static_cast<long>(position[c]) * L);
     for (int j = 0; j < 3; ++j) total_lo[j] += lo[j];
     for (int j = 0; j < 7; ++j) total_hi[j] += hi[j];

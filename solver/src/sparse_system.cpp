@@ -131,11 +131,10 @@ SparseSystem::SparseSystem(const Problem& problem, Ordering ordering)
     for (std::size_t k = 0; k < nb; ++k)
       position[static_cast<std::size_t>(perm[k])] = static_cast<int>(k);
     const int selected = im.common.method[im.common.selected].ordering;
-    ordering_name_ =
-        selected == CHOLMOD_METIS    ? "METIS"
-        : selected == CHOLMOD_NESDIS ? "NESDIS"
-        : selected == CHOLMOD_AMD    ? "AMD"
-                                     : "natural";
+    ordering_name_ = selected == CHOLMOD_METIS    ? "METIS"
+                     : selected == CHOLMOD_NESDIS ? "NESDIS"
+                     : selected == CHOLMOD_AMD    ? "AMD"
+                                                  : "natural";
     cholmod_l_free_factor(&LG, &im.common);
   } else {
     ordering_name_ = "natural";

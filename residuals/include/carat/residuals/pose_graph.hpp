@@ -38,7 +38,7 @@ struct PoseGraph {
 /// How a pose graph becomes a Problem.
 struct PoseGraphProblemOptions {
   std::shared_ptr<const LossFunction> loss;  ///< robust loss on every edge (null: none)
-  bool fix_first_vertex = true;  ///< hold the first vertex constant when no FIX record exists
+  bool fix_first_vertex = true;   ///< hold the first vertex constant when no FIX record exists
   bool allow_unanchored = false;  ///< accept parts of the graph not linked to a fixed vertex
 };
 
