@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <limits>
 #include <numeric>
 #include <random>
 
@@ -134,6 +135,34 @@ TEST(GicpBlockTest, FastPathAndExtractedRowsAgree) {
   EXPECT_EQ(t1, t2);
 }
 
+TEST(GicpBlockTest, WholeCorrespondencesMatchRowByRowEvaluation) {
+  // Rows asked for as whole correspondences in order take a straight-line path; one row at a
+  // time takes the general one. Both must give the same bits, Jacobians included.
+  const auto pairs = random_correspondences(50, 4);
+  se3::Vector6d xi;
+  xi << -0.3, 0.2, 0.1, 0.5, -1.0, 0.25;
+  double pose_i[7], pose_j[7];
+  se3::to_storage(se3::exp(0.5 * xi), pose_i);
+  se3::to_storage(se3::exp(xi), pose_j);
+  const double* params[2] = {pose_i, pose_j};
+  const GicpBlock block(pairs, se3::exp(0.5 * xi).inverse() * se3::exp(xi));
+  const int n = block.num_rows();
+  std::vector<int> all(static_cast<std::size_t>(n));
+  std::iota(all.begin(), all.end(), 0);
+  // Also a run that starts mid-correspondence: rows 1..n-1 (the first group is partial).
+  for (const int first : {0, 1}) {
+    const std::span<const int> rows(all.data() + first, static_cast<std::size_t>(n - first));
+    std::vector<double> r_all(rows.size()), J_all(6 * rows.size());
+    block.evaluate_rows(params, rows, r_all.data(), J_all.data());
+    for (std::size_t k = 0; k < rows.size(); ++k) {
+      double r_one = 0.0, J_one[6];
+      block.evaluate_rows(params, rows.subspan(k, 1), &r_one, J_one);
+      EXPECT_EQ(r_all[k], r_one) << "row " << rows[k];
+      for (int j = 0; j < 6; ++j) EXPECT_EQ(J_all[6 * k + static_cast<std::size_t>(j)], J_one[j]);
+    }
+  }
+}
+
 TEST(GicpBlockTest, RejectsBadInput) {
   EXPECT_THROW(GicpBlock({}, Eigen::Isometry3d::Identity()), Error);
   auto pairs = random_correspondences(3, 1);
@@ -246,6 +275,52 @@ Prepared prepare(const PointCloud& raw, double voxel) {
   auto tree = std::make_unique<KdTree>(cloud);
   estimate_covariances(cloud, *tree);
   return Prepared{std::move(owned), std::move(tree), cloud};
+}
+
+TEST(KdTreeTest, NearestWithinMatchesBruteForce) {
+  std::mt19937 rng(17);
+  std::uniform_real_distribution<float> u(-5.0f, 5.0f);
+  PointCloud cloud;
+  for (int k = 0; k < 2000; ++k) cloud.points.emplace_back(u(rng), u(rng), u(rng));
+  const KdTree tree(cloud);
+  int found = 0, missing = 0;
+  for (int q = 0; q < 400; ++q) {
+    // Queries inside the cloud and up to 3 m outside it.
+    const Eigen::Vector3f query(1.6f * u(rng), 1.6f * u(rng), 1.6f * u(rng));
+    float best = std::numeric_limits<float>::infinity();
+    std::uint32_t best_index = 0;
+    for (std::uint32_t k = 0; k < cloud.points.size(); ++k) {
+      const float d = (cloud.points[k] - query).squaredNorm();
+      if (d < best) best = d, best_index = k;
+    }
+    // The tree's own squared distance (its summation order, the last bits can differ from
+    // squaredNorm()) as the exact bound: a point at the bound counts.
+    std::uint32_t nearest_index = 0;
+    float nearest_sq = 0.0f;
+    ASSERT_TRUE(tree.nearest(query, &nearest_index, &nearest_sq));
+    ASSERT_EQ(nearest_index, best_index);
+    for (const float bound : {0.01f, 0.25f, 1.0f, nearest_sq}) {
+      std::uint32_t index = 0;
+      float sq = -1.0f;
+      const bool hit = tree.nearest_within(query, bound, &index, &sq);
+      ASSERT_EQ(hit, nearest_sq <= bound) << "query " << q << " bound " << bound;
+      if (!hit) {
+        ++missing;
+        continue;
+      }
+      ++found;
+      EXPECT_EQ(index, best_index);
+      EXPECT_EQ(sq, nearest_sq);
+      EXPECT_FLOAT_EQ(sq, best);
+    }
+  }
+  EXPECT_GT(found, 400);  // both outcomes were exercised
+  EXPECT_GT(missing, 100);
+  std::uint32_t index = 0;
+  float sq = 0.0f;
+  EXPECT_FALSE(tree.nearest_within(Eigen::Vector3f::Zero(), -1.0f, &index, &sq));
+  const PointCloud empty;
+  EXPECT_FALSE(KdTree(empty).nearest_within(Eigen::Vector3f::Zero(), 1.0f, &index, &sq));
 }
 
 TEST(AlignTest, RecoversASyntheticMotion) {

@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <memory>
 #include <random>
@@ -331,6 +332,55 @@ TEST(SolveTest, NonFiniteInitialCostIsAFailureThatKeepsTheValues) {
   EXPECT_EQ(summary.termination, TerminationType::kFailure);
   EXPECT_EQ(summary.message, "residual block 0 produced a non-finite residual");
   EXPECT_EQ(problem.value(a)[0], 3.0);
+}
+
+TEST(SolveTest, TheLastPermittedIterateIsNotRelinearized) {
+  // A 1-D nonlinear residual r = x^2 - 2 that counts its linearizations.
+  class CountingBlock final : public ResidualBlock {
+   public:
+    int num_rows() const override { return 1; }
+    std::span<const int> tangent_dims() const override { return dims_; }
+    void evaluate_rows(ParameterPointers p, std::span<const int> rows, double* r,
+                       double* J) const override {
+      const double x = p[0][0];
+      for (std::size_t k = 0; k < rows.size(); ++k) {
+        r[k] = x * x - 2.0;
+        if (J) J[k] = 2.0 * x;
+      }
+    }
+    double accumulate(ParameterPointers p, Eigen::Ref<Eigen::MatrixXd> H,
+                      Eigen::Ref<Eigen::VectorXd> b) const override {
+      ++linearizations;
+      return ResidualBlock::accumulate(p, H, b);
+    }
+    std::size_t memory_bytes() const override { return 0; }
+    mutable int linearizations = 0;
+
+   private:
+    std::array<int, 1> dims_{1};
+  };
+  for (const int limit : {1, 3}) {
+    Problem problem;
+    const VariableId x = problem.add_euclidean(Eigen::VectorXd::Constant(1, 3.0));
+    auto block = std::make_shared<CountingBlock>();
+    problem.add_residual_block(block, {x});
+    SolverOptions options;
+    options.max_iterations = limit;
+    options.function_tolerance = 0.0;
+    options.gradient_tolerance = 0.0;
+    options.parameter_tolerance = 0.0;
+    const SolverSummary summary = solve(options, problem);
+    EXPECT_EQ(summary.termination, TerminationType::kNoConvergence) << summary.message;
+    EXPECT_EQ(summary.message,
+              "maximum number of iterations reached (" + std::to_string(limit) + ")");
+    EXPECT_EQ(summary.num_successful_steps, limit);
+    // One linearization at the start and one per accepted iterate but the last.
+    EXPECT_EQ(block->linearizations, limit);
+    // The reported cost is the returned iterate's.
+    const double v = problem.value(x)[0];
+    EXPECT_DOUBLE_EQ(summary.final_cost, 0.5 * (v * v - 2.0) * (v * v - 2.0));
+    EXPECT_LT(summary.final_cost, summary.initial_cost);
+  }
 }
 
 TEST(SolverOptionsTest, ValidateNamesTheBadSetting) {

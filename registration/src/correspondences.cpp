@@ -19,7 +19,7 @@ std::vector<GicpCorrespondence> find_correspondences(const PointCloud& target,
     for (std::size_t i = range.begin(); i != range.end(); ++i) {
       std::uint32_t index = 0;
       float sq = 0.0f;
-      if (target_tree.nearest(T * source.points[i], &index, &sq) && sq <= max_sq) match[i] = index;
+      if (target_tree.nearest_within(T * source.points[i], max_sq, &index, &sq)) match[i] = index;
     }
   });
   std::vector<GicpCorrespondence> out;

@@ -99,8 +99,44 @@ void GicpBlock::evaluate_rows(ParameterPointers params, std::span<const int> row
   std::size_t cached = static_cast<std::size_t>(-1);
   Eigen::Vector3d mu = Eigen::Vector3d::Zero(), d = Eigen::Vector3d::Zero();
   Eigen::Matrix3d W = Eigen::Matrix3d::Zero(), WR = Eigen::Matrix3d::Zero();
+  double r[9], t[3];  // R column-major and t, as scalars for the straight-line path
+  for (int i = 0; i < 9; ++i) r[i] = R.data()[i];
+  for (int i = 0; i < 3; ++i) t[i] = T.translation()[i];
   for (std::size_t k = 0; k < rows.size(); ++k) {
     const int row = rows[k];
+    if (row % 3 == 0 && k + 2 < rows.size() && rows[k + 1] == row + 1 && rows[k + 2] == row + 2) {
+      // A whole correspondence in order (every row of the block, as compress() asks for):
+      // straight-line, the same arithmetic as the row-by-row path below, so the same bits.
+      const Point& p = points_[static_cast<std::size_t>(row / 3)];
+      const double* w = p.whitening.data();
+      const double m0 = p.source[0], m1 = p.source[1], m2 = p.source[2];
+      // T mu in scalars (an Eigen temporary here costs a store-forwarding stall per point).
+      const double q0 = (r[0] * m0 + r[3] * m1 + r[6] * m2) + t[0];
+      const double q1 = (r[1] * m0 + r[4] * m1 + r[7] * m2) + t[1];
+      const double q2 = (r[2] * m0 + r[5] * m1 + r[8] * m2) + t[2];
+      const double d0 = p.target[0] - q0, d1 = p.target[1] - q1, d2 = p.target[2] - q2;
+      residuals[k] = w[0] * d0 + w[1] * d1 + w[2] * d2;
+      residuals[k + 1] = 0.0 * d0 + w[3] * d1 + w[4] * d2;
+      residuals[k + 2] = 0.0 * d0 + 0.0 * d1 + w[5] * d2;
+      if (jacobian) {
+        const double ell[3][3] = {{w[0], w[1], w[2]}, {0.0, w[3], w[4]}, {0.0, 0.0, w[5]}};
+        for (int c = 0; c < 3; ++c) {
+          // (W R).row(c) = l_c^T R, column by column.
+          const double a0 = ell[c][0] * r[0] + ell[c][1] * r[1] + ell[c][2] * r[2];
+          const double a1 = ell[c][0] * r[3] + ell[c][1] * r[4] + ell[c][2] * r[5];
+          const double a2 = ell[c][0] * r[6] + ell[c][1] * r[7] + ell[c][2] * r[8];
+          double* J = jacobian + 6 * (k + static_cast<std::size_t>(c));
+          J[0] = a1 * m2 - a2 * m1;
+          J[1] = a2 * m0 - a0 * m2;
+          J[2] = a0 * m1 - a1 * m0;
+          J[3] = -a0;
+          J[4] = -a1;
+          J[5] = -a2;
+        }
+      }
+      k += 2;
+      continue;
+    }
     const auto index = static_cast<std::size_t>(row / 3);
     const int c = row % 3;
     if (index != cached) {
@@ -112,7 +148,7 @@ void GicpBlock::evaluate_rows(ParameterPointers params, std::span<const int> row
           0.0, p.whitening[5];
       if (jacobian) WR.noalias() = W * R;
     }
-    residuals[k] = W.row(c).dot(d);
+    residuals[k] = W(c, 0) * d[0] + W(c, 1) * d[1] + W(c, 2) * d[2];
     if (!jacobian) continue;
     const Eigen::Vector3d w = WR.row(c).transpose();
     const Eigen::Vector3d d_omega = w.cross(mu);

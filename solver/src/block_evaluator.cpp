@@ -6,6 +6,8 @@
 #include <Eigen/Core>
 #include <cmath>
 
+#include "huge_pages.hpp"
+
 namespace carat::internal {
 namespace {
 
@@ -57,8 +59,8 @@ void BlockEvaluator::allocate(BlockLinearizations* out) const {
     h += static_cast<std::size_t>(D) * static_cast<std::size_t>(D);
     b += static_cast<std::size_t>(D);
   }
-  out->h.assign(h, 0.0);
-  out->b.assign(b, 0.0);
+  assign_on_huge_pages(out->h, h, 0.0);  // first touched in the first linearization
+  assign_on_huge_pages(out->b, b, 0.0);
 }
 
 bool BlockEvaluator::linearize(int which, BlockLinearizations* out, std::string* error) const {

@@ -278,7 +278,13 @@ void Solver::run() {
       row.trust_region_radius = radius;
       const double old_cost = cost_;
       current_ = trial;
-      if (!linearize()) {
+      // After the last permitted iteration the new iterate is not relinearized: nothing would
+      // use its H and b (a one-iteration solve, as align() runs per correspondence set, then
+      // costs one linearization instead of two). Its gradient is therefore not tested either.
+      const bool last = iteration >= options_.max_iterations;
+      if (last) {
+        cost_ = new_cost;
+      } else if (!linearize()) {
         record(row, iteration_start);
         break;
       }
@@ -287,6 +293,11 @@ void Solver::run() {
         finish(TerminationType::kConvergence,
                "function tolerance reached: |cost change| / cost = " +
                    std::to_string(old_cost > 0.0 ? std::abs(actual_decrease) / old_cost : 0.0));
+        break;
+      }
+      if (last) {
+        finish(TerminationType::kNoConvergence, "maximum number of iterations reached (" +
+                                                    std::to_string(options_.max_iterations) + ")");
         break;
       }
     } else {

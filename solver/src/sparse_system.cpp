@@ -10,6 +10,7 @@
 #include <tuple>
 
 #include "carat/solver/error.hpp"
+#include "huge_pages.hpp"
 
 namespace carat::internal {
 
@@ -211,7 +212,7 @@ SparseSystem::SparseSystem(const Problem& problem, Ordering ordering)
       colptr_[scalar_col + 1] = colptr_[scalar_col] + (dJ - c) + below;
     }
   }
-  rows_.resize(static_cast<std::size_t>(colptr_.back()));
+  assign_on_huge_pages(rows_, static_cast<std::size_t>(colptr_.back()), std::int64_t{0});
   scalar_col = 0;
   for (std::size_t J = 0; J < nb; ++J) {
     const int vJ = free_vars_[J];
@@ -229,7 +230,7 @@ SparseSystem::SparseSystem(const Problem& problem, Ordering ordering)
       }
     }
   }
-  values_.assign(rows_.size(), 0.0);
+  assign_on_huge_pages(values_, rows_.size(), 0.0);
   diag_pos_.assign(colptr_.begin(), colptr_.end() - 1);
 
   std::sort(grad_raw.begin(), grad_raw.end());
@@ -249,6 +250,8 @@ SparseSystem::SparseSystem(const Problem& problem, Ordering ordering)
   im.A = cholmod_l_allocate_sparse(static_cast<std::size_t>(n_), static_cast<std::size_t>(n_),
                                    rows_.size(), 1, 1, -1, CHOLMOD_REAL, &im.common);
   if (!im.A) throw Error("sparse system: CHOLMOD could not allocate the matrix (out of memory?)");
+  advise_huge_pages(im.A->i, rows_.size() * sizeof(std::int64_t));
+  advise_huge_pages(im.A->x, rows_.size() * sizeof(double));
   std::memcpy(im.A->p, colptr_.data(), colptr_.size() * sizeof(std::int64_t));
   std::memcpy(im.A->i, rows_.data(), rows_.size() * sizeof(std::int64_t));
   std::fill_n(static_cast<double*>(im.A->x), rows_.size(), 0.0);
@@ -267,6 +270,14 @@ SparseSystem::SparseSystem(const Problem& problem, Ordering ordering)
   if (!im.L)
     throw Error("sparse system: CHOLMOD symbolic analysis failed (status " +
                 std::to_string(im.common.status) + ")");
+  // The factor's numeric storage now rather than in the first factorization, so that it can be
+  // advised onto huge pages before CHOLMOD first writes it (see huge_pages.hpp).
+  if (!cholmod_l_change_factor(CHOLMOD_REAL, /*to_ll=*/1, /*to_super=*/1, /*to_packed=*/1,
+                               /*to_monotonic=*/1, im.L, &im.common)) {
+    throw Error("sparse system: CHOLMOD could not allocate the factor (status " +
+                std::to_string(im.common.status) + "; out of memory?)");
+  }
+  advise_huge_pages(im.L->x, im.L->xsize * sizeof(double));
   factor_nnz_ = static_cast<std::size_t>(im.common.lnz);
   factor_flops_ = im.common.fl;
   description_ = "cholmod supernodal, " + ordering_name_ + " ordering on the variable graph";

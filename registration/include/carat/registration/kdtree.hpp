@@ -28,6 +28,12 @@ class KdTree {
   /// The nearest point: its index and squared distance; false for an empty cloud.
   bool nearest(const Eigen::Vector3f& query, std::uint32_t* index, float* squared_distance) const;
 
+  /// The nearest point within max_squared_distance (inclusive) of `query`; false if there is
+  /// none. Same answer as nearest() followed by the distance test, but the search prunes every
+  /// branch beyond the bound from the start (much faster for queries far from the cloud).
+  bool nearest_within(const Eigen::Vector3f& query, float max_squared_distance,
+                      std::uint32_t* index, float* squared_distance) const;
+
  private:
   struct Impl;
   std::unique_ptr<Impl> impl_;
