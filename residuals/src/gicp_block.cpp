@@ -42,6 +42,56 @@ bool whitening_of(const Eigen::Matrix3d& C, std::array<double, 6>* W) {
   return std::isfinite(w0 + w1 + w2 + w3 + w4 + (*W)[5]);
 }
 
+/// T_ij as scalars: an Eigen temporary per point costs a store-forwarding stall in these loops.
+struct Pose {
+  explicit Pose(const Eigen::Isometry3d& T) {
+    const Eigen::Matrix3d R = T.linear();            // (a block of the 4 x 4 matrix: copy it first)
+    for (int i = 0; i < 9; ++i) r[i] = R.data()[i];  // column-major
+    for (int i = 0; i < 3; ++i) t[i] = T.translation()[i];
+  }
+  /// T mu.
+  std::array<double, 3> apply(const std::array<double, 3>& mu) const {
+    return {(r[0] * mu[0] + r[3] * mu[1] + r[6] * mu[2]) + t[0],
+            (r[1] * mu[0] + r[4] * mu[1] + r[7] * mu[2]) + t[1],
+            (r[2] * mu[0] + r[5] * mu[1] + r[8] * mu[2]) + t[2]};
+  }
+  /// mu_target - T mu_source.
+  std::array<double, 3> difference(const std::array<double, 3>& target,
+                                   const std::array<double, 3>& source) const {
+    const std::array<double, 3> q = apply(source);
+    return {target[0] - q[0], target[1] - q[1], target[2] - q[2]};
+  }
+  double r[9];
+  double t[3];
+};
+
+double dot3(const std::array<double, 3>& a, const std::array<double, 3>& b) {
+  return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+}
+
+/// Row c of the upper-triangular W = [w0 w1 w2; 0 w3 w4; 0 0 w5], zeros included.
+std::array<double, 3> whitening_row(const std::array<double, 6>& w, int c) {
+  if (c == 0) return {w[0], w[1], w[2]};
+  if (c == 1) return {0.0, w[3], w[4]};
+  return {0.0, 0.0, w[5]};
+}
+
+/// Jacobian of r = l . (mu_target - T Exp(xi) mu) w.r.t. xi = [omega, v]: [a x mu, -a] with
+/// a = R^T l.
+void jacobian_row(const Pose& T, const std::array<double, 3>& ell, const std::array<double, 3>& mu,
+                  double* J) {
+  const double* r = T.r;
+  const double a0 = ell[0] * r[0] + ell[1] * r[1] + ell[2] * r[2];
+  const double a1 = ell[0] * r[3] + ell[1] * r[4] + ell[2] * r[5];
+  const double a2 = ell[0] * r[6] + ell[1] * r[7] + ell[2] * r[8];
+  J[0] = a1 * mu[2] - a2 * mu[1];
+  J[1] = a2 * mu[0] - a0 * mu[2];
+  J[2] = a0 * mu[1] - a1 * mu[0];
+  J[3] = -a0;
+  J[4] = -a1;
+  J[5] = -a2;
+}
+
 }  // namespace
 
 GicpBlock::GicpBlock(std::span<const GicpCorrespondence> correspondences,
@@ -75,88 +125,46 @@ void GicpBlock::reduced_map(ParameterPointers params, double* A) const {
 
 void GicpBlock::evaluate_rows(ParameterPointers params, std::span<const int> rows,
                               double* residuals, double* jacobian) const {
-  const Eigen::Isometry3d T = relative_pose(params);
-  const Eigen::Matrix3d R = T.linear();
-  if (!rows_.empty()) {  // an extract: r = offset - l . (T mu), dr/dxi = [w x mu, -w], w = R^T l
+  const Pose T(relative_pose(params));
+  if (!rows_.empty()) {  // an extract: r = offset - l . (T mu)
     for (std::size_t k = 0; k < rows.size(); ++k) {
       const Row& row = rows_[static_cast<std::size_t>(rows[k])];
-      const Eigen::Vector3d ell(row.ell[0], row.ell[1], row.ell[2]);
-      const Eigen::Vector3d mu(row.source[0], row.source[1], row.source[2]);
-      residuals[k] = row.offset - ell.dot(T * mu);
-      if (!jacobian) continue;
-      const Eigen::Vector3d w = R.transpose() * ell;
-      const Eigen::Vector3d d_omega = w.cross(mu);
-      double* J = jacobian + 6 * k;
-      for (int i = 0; i < 3; ++i) {
-        J[i] = d_omega[i];
-        J[3 + i] = -w[i];
-      }
+      const std::array<double, 3> q = T.apply(row.source);
+      residuals[k] = row.offset - dot3(row.ell, q);
+      if (jacobian) jacobian_row(T, row.ell, row.source, jacobian + 6 * k);
     }
     return;
   }
-  // Rows come in groups of up to three per correspondence: the transformed point, the
-  // difference and W R are computed once per correspondence and reused by its rows.
+  // Rows come in groups of up to three per correspondence: the difference mu_target - T mu is
+  // computed once per correspondence and reused by its rows. Every path below goes through the
+  // same scalar helpers, so a row has the same bits whichever way it was asked for.
   std::size_t cached = static_cast<std::size_t>(-1);
-  Eigen::Vector3d mu = Eigen::Vector3d::Zero(), d = Eigen::Vector3d::Zero();
-  Eigen::Matrix3d W = Eigen::Matrix3d::Zero(), WR = Eigen::Matrix3d::Zero();
-  double r[9], t[3];  // R column-major and t, as scalars for the straight-line path
-  for (int i = 0; i < 9; ++i) r[i] = R.data()[i];
-  for (int i = 0; i < 3; ++i) t[i] = T.translation()[i];
+  std::array<double, 3> d{};
   for (std::size_t k = 0; k < rows.size(); ++k) {
     const int row = rows[k];
+    const auto index = static_cast<std::size_t>(row / 3);
+    const Point& p = points_[index];
     if (row % 3 == 0 && k + 2 < rows.size() && rows[k + 1] == row + 1 && rows[k + 2] == row + 2) {
-      // A whole correspondence in order (every row of the block, as compress() asks for):
-      // straight-line, the same arithmetic as the row-by-row path below, so the same bits.
-      const Point& p = points_[static_cast<std::size_t>(row / 3)];
-      const double* w = p.whitening.data();
-      const double m0 = p.source[0], m1 = p.source[1], m2 = p.source[2];
-      // T mu in scalars (an Eigen temporary here costs a store-forwarding stall per point).
-      const double q0 = (r[0] * m0 + r[3] * m1 + r[6] * m2) + t[0];
-      const double q1 = (r[1] * m0 + r[4] * m1 + r[7] * m2) + t[1];
-      const double q2 = (r[2] * m0 + r[5] * m1 + r[8] * m2) + t[2];
-      const double d0 = p.target[0] - q0, d1 = p.target[1] - q1, d2 = p.target[2] - q2;
-      residuals[k] = w[0] * d0 + w[1] * d1 + w[2] * d2;
-      residuals[k + 1] = 0.0 * d0 + w[3] * d1 + w[4] * d2;
-      residuals[k + 2] = 0.0 * d0 + 0.0 * d1 + w[5] * d2;
-      if (jacobian) {
-        const double ell[3][3] = {{w[0], w[1], w[2]}, {0.0, w[3], w[4]}, {0.0, 0.0, w[5]}};
-        for (int c = 0; c < 3; ++c) {
-          // (W R).row(c) = l_c^T R, column by column.
-          const double a0 = ell[c][0] * r[0] + ell[c][1] * r[1] + ell[c][2] * r[2];
-          const double a1 = ell[c][0] * r[3] + ell[c][1] * r[4] + ell[c][2] * r[5];
-          const double a2 = ell[c][0] * r[6] + ell[c][1] * r[7] + ell[c][2] * r[8];
-          double* J = jacobian + 6 * (k + static_cast<std::size_t>(c));
-          J[0] = a1 * m2 - a2 * m1;
-          J[1] = a2 * m0 - a0 * m2;
-          J[2] = a0 * m1 - a1 * m0;
-          J[3] = -a0;
-          J[4] = -a1;
-          J[5] = -a2;
+      // A whole correspondence in order (every row of the block, as compress() asks for).
+      d = T.difference(p.target, p.source);
+      for (int c = 0; c < 3; ++c) {
+        const std::array<double, 3> ell = whitening_row(p.whitening, c);
+        residuals[k + static_cast<std::size_t>(c)] = dot3(ell, d);
+        if (jacobian) {
+          jacobian_row(T, ell, p.source, jacobian + 6 * (k + static_cast<std::size_t>(c)));
         }
       }
+      cached = index;
       k += 2;
       continue;
     }
-    const auto index = static_cast<std::size_t>(row / 3);
-    const int c = row % 3;
     if (index != cached) {
       cached = index;
-      const Point& p = points_[index];
-      mu = Eigen::Vector3d(p.source[0], p.source[1], p.source[2]);
-      d = Eigen::Vector3d(p.target[0], p.target[1], p.target[2]) - T * mu;
-      W << p.whitening[0], p.whitening[1], p.whitening[2], 0.0, p.whitening[3], p.whitening[4], 0.0,
-          0.0, p.whitening[5];
-      if (jacobian) WR.noalias() = W * R;
+      d = T.difference(p.target, p.source);
     }
-    residuals[k] = W(c, 0) * d[0] + W(c, 1) * d[1] + W(c, 2) * d[2];
-    if (!jacobian) continue;
-    const Eigen::Vector3d w = WR.row(c).transpose();
-    const Eigen::Vector3d d_omega = w.cross(mu);
-    double* J = jacobian + 6 * k;
-    for (int i = 0; i < 3; ++i) {
-      J[i] = d_omega[i];
-      J[3 + i] = -w[i];
-    }
+    const std::array<double, 3> ell = whitening_row(p.whitening, row % 3);
+    residuals[k] = dot3(ell, d);
+    if (jacobian) jacobian_row(T, ell, p.source, jacobian + 6 * k);
   }
 }
 
@@ -259,14 +267,10 @@ std::unique_ptr<ResidualBlock> GicpBlock::extract_rows(std::span<const int> rows
     }
     const Point& p = points_[static_cast<std::size_t>(row / 3)];
     const int c = row % 3;
-    // Row c of the upper-triangular W = [w0 w1 w2; 0 w3 w4; 0 0 w5].
-    const std::array<double, 3> ell =
-        c == 0   ? std::array<double, 3>{p.whitening[0], p.whitening[1], p.whitening[2]}
-        : c == 1 ? std::array<double, 3>{0.0, p.whitening[3], p.whitening[4]}
-                 : std::array<double, 3>{0.0, 0.0, p.whitening[5]};
+    const std::array<double, 3> ell = whitening_row(p.whitening, c);
     Row r;
     r.ell = ell;
-    r.offset = ell[0] * p.target[0] + ell[1] * p.target[1] + ell[2] * p.target[2];
+    r.offset = dot3(ell, p.target);
     r.source = p.source;
     out->rows_.push_back(r);
   }

@@ -59,7 +59,7 @@ void BlockEvaluator::allocate(BlockLinearizations* out) const {
     h += static_cast<std::size_t>(D) * static_cast<std::size_t>(D);
     b += static_cast<std::size_t>(D);
   }
-  assign_on_huge_pages(out->h, h, 0.0);  // first touched in the first linearization
+  assign_on_huge_pages(out->h, h, 0.0);  // advised before assign() first touches it
   assign_on_huge_pages(out->b, b, 0.0);
 }
 

@@ -14,7 +14,7 @@
 
 namespace carat::internal {
 
-/// Advises the kernel to back the whole 4 KiB pages inside [data, data + bytes) with huge pages.
+/// Advises the kernel to back the whole pages inside [data, data + bytes) with huge pages.
 /// Only useful before the pages are first touched; buffers under 2 MiB are left alone.
 void advise_huge_pages(void* data, std::size_t bytes);
 

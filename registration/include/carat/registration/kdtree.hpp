@@ -29,8 +29,8 @@ class KdTree {
   bool nearest(const Eigen::Vector3f& query, std::uint32_t* index, float* squared_distance) const;
 
   /// The nearest point within max_squared_distance (inclusive) of `query`; false if there is
-  /// none. Same answer as nearest() followed by the distance test, but the search prunes every
-  /// branch beyond the bound from the start (much faster for queries far from the cloud).
+  /// none. The same answer as nearest() followed by the distance test (up to rounding when the
+  /// nearest distance is within an ulp of the bound), but branches beyond the bound are pruned.
   bool nearest_within(const Eigen::Vector3f& query, float max_squared_distance,
                       std::uint32_t* index, float* squared_distance) const;
 
