@@ -14,11 +14,11 @@ namespace {
 
 constexpr std::size_t kChunk = 512;
 
-/// The upper-triangular W (w0 w1 w2; 0 w3 w4; 0 0 w5) with W^T W = C^-1, in closed form: the
-/// inverse by cofactors, then its 3 x 3 Cholesky factor. False unless C is positive definite.
-bool whitening_of(const Eigen::Matrix3d& C, std::array<double, 6>* W) {
-  const double c00 = C(0, 0), c01 = 0.5 * (C(0, 1) + C(1, 0)), c02 = 0.5 * (C(0, 2) + C(2, 0));
-  const double c11 = C(1, 1), c12 = 0.5 * (C(1, 2) + C(2, 1)), c22 = C(2, 2);
+/// The upper-triangular W (w0 w1 w2; 0 w3 w4; 0 0 w5) with W^T W = C^-1 for the symmetric C
+/// given by its upper triangle (c00 c01 c02 c11 c12 c22), in closed form: the inverse by
+/// cofactors, then its 3 x 3 Cholesky factor. False unless C is positive definite.
+bool whitening_of(const std::array<double, 6>& C, std::array<double, 6>* W) {
+  const double c00 = C[0], c01 = C[1], c02 = C[2], c11 = C[3], c12 = C[4], c22 = C[5];
   // Cofactors of the symmetric C.
   const double a00 = c11 * c22 - c12 * c12, a01 = c02 * c12 - c01 * c22,
                a02 = c01 * c12 - c02 * c11;
@@ -101,11 +101,36 @@ GicpBlock::GicpBlock(std::span<const GicpCorrespondence> correspondences,
   points_.reserve(correspondences.size());
   for (std::size_t k = 0; k < correspondences.size(); ++k) {
     const auto& c = correspondences[k];
-    if (!c.mean_target.allFinite() || !c.mean_source.allFinite() ||
-        !c.covariance_target.allFinite() || !c.covariance_source.allFinite()) {
+    // One sum catches any NaN or infinity (and, rarely, finite values whose sum overflows: the
+    // exact test below then decides).
+    const double sum = c.mean_target.sum() + c.mean_source.sum() + c.covariance_target.sum() +
+                       c.covariance_source.sum();
+    if (!std::isfinite(sum) &&
+        (!c.mean_target.allFinite() || !c.mean_source.allFinite() ||
+         !c.covariance_target.allFinite() || !c.covariance_source.allFinite())) {
       throw Error("GicpBlock: correspondence " + std::to_string(k) + " has a non-finite value");
     }
-    const Eigen::Matrix3d fused = c.covariance_target + R * c.covariance_source * R.transpose();
+    // fused = sym(C_target) + R sym(C_source) R^T, upper triangle only, in scalars.
+    const Eigen::Matrix3d& A = c.covariance_source;
+    const double s00 = A(0, 0), s11 = A(1, 1), s22 = A(2, 2);
+    const double s01 = 0.5 * (A(0, 1) + A(1, 0)), s02 = 0.5 * (A(0, 2) + A(2, 0)),
+                 s12 = 0.5 * (A(1, 2) + A(2, 1));
+    double M[3][3];  // R sym(C_source)
+    for (int i = 0; i < 3; ++i) {
+      M[i][0] = R(i, 0) * s00 + R(i, 1) * s01 + R(i, 2) * s02;
+      M[i][1] = R(i, 0) * s01 + R(i, 1) * s11 + R(i, 2) * s12;
+      M[i][2] = R(i, 0) * s02 + R(i, 1) * s12 + R(i, 2) * s22;
+    }
+    const auto rotated = [&](int i, int j) {
+      return M[i][0] * R(j, 0) + M[i][1] * R(j, 1) + M[i][2] * R(j, 2);
+    };
+    const Eigen::Matrix3d& B = c.covariance_target;
+    const std::array<double, 6> fused = {B(0, 0) + rotated(0, 0),
+                                         0.5 * (B(0, 1) + B(1, 0)) + rotated(0, 1),
+                                         0.5 * (B(0, 2) + B(2, 0)) + rotated(0, 2),
+                                         B(1, 1) + rotated(1, 1),
+                                         0.5 * (B(1, 2) + B(2, 1)) + rotated(1, 2),
+                                         B(2, 2) + rotated(2, 2)};
     std::array<double, 6> W;
     if (!whitening_of(fused, &W)) {
       throw Error("GicpBlock: correspondence " + std::to_string(k) +
