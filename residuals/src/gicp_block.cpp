@@ -65,12 +65,14 @@ struct Pose {
   double t[3];
 };
 
-double dot3(const std::array<double, 3>& a, const std::array<double, 3>& b) {
+[[gnu::always_inline]] inline double dot3(const std::array<double, 3>& a,
+                                          const std::array<double, 3>& b) {
   return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
 }
 
 /// Row c of the upper-triangular W = [w0 w1 w2; 0 w3 w4; 0 0 w5], zeros included.
-std::array<double, 3> whitening_row(const std::array<double, 6>& w, int c) {
+[[gnu::always_inline]] inline std::array<double, 3> whitening_row(const std::array<double, 6>& w,
+                                                                  int c) {
   if (c == 0) return {w[0], w[1], w[2]};
   if (c == 1) return {0.0, w[3], w[4]};
   return {0.0, 0.0, w[5]};
@@ -78,15 +80,19 @@ std::array<double, 3> whitening_row(const std::array<double, 6>& w, int c) {
 
 /// Jacobian of r = l . (mu_target - T Exp(xi) mu) w.r.t. xi = [omega, v]: [a x mu, -a] with
 /// a = R^T l.
-void jacobian_row(const Pose& T, const std::array<double, 3>& ell, const std::array<double, 3>& mu,
-                  double* J) {
+/// (Forced inline and written with every load before the first store: as a call, and with J
+/// possibly aliasing R or mu, it was a quarter of a compression.)
+[[gnu::always_inline]] inline void jacobian_row(const Pose& T, const std::array<double, 3>& ell,
+                                                const std::array<double, 3>& mu, double* J) {
   const double* r = T.r;
+  const double m0 = mu[0], m1 = mu[1], m2 = mu[2];
   const double a0 = ell[0] * r[0] + ell[1] * r[1] + ell[2] * r[2];
   const double a1 = ell[0] * r[3] + ell[1] * r[4] + ell[2] * r[5];
   const double a2 = ell[0] * r[6] + ell[1] * r[7] + ell[2] * r[8];
-  J[0] = a1 * mu[2] - a2 * mu[1];
-  J[1] = a2 * mu[0] - a0 * mu[2];
-  J[2] = a0 * mu[1] - a1 * mu[0];
+  const double j0 = a1 * m2 - a2 * m1, j1 = a2 * m0 - a0 * m2, j2 = a0 * m1 - a1 * m0;
+  J[0] = j0;
+  J[1] = j1;
+  J[2] = j2;
   J[3] = -a0;
   J[4] = -a1;
   J[5] = -a2;
