@@ -52,6 +52,11 @@ double free_parameter_norm(const Problem& problem, const std::vector<int>& var_o
   return std::sqrt(sum);
 }
 
+/// The termination message when max_iterations ends the solve.
+std::string iteration_limit_message(const SolverOptions& options) {
+  return "maximum number of iterations reached (" + std::to_string(options.max_iterations) + ")";
+}
+
 class Solver {
  public:
   Solver(const SolverOptions& options, Problem& problem, SolverSummary& summary)
@@ -172,8 +177,7 @@ void Solver::run() {
       break;
     }
     if (iteration > options_.max_iterations) {
-      finish(TerminationType::kNoConvergence, "maximum number of iterations reached (" +
-                                                  std::to_string(options_.max_iterations) + ")");
+      finish(TerminationType::kNoConvergence, iteration_limit_message(options_));
       break;
     }
     const auto iteration_start = Clock::now();
@@ -296,8 +300,7 @@ void Solver::run() {
         break;
       }
       if (last) {
-        finish(TerminationType::kNoConvergence, "maximum number of iterations reached (" +
-                                                    std::to_string(options_.max_iterations) + ")");
+        finish(TerminationType::kNoConvergence, iteration_limit_message(options_));
         break;
       }
     } else {
