@@ -1,5 +1,6 @@
 // carat solve-g2o FILE [--out FILE] [--max-iterations N] [--threads T] [--method lm|gn]
-//                      [--loss none|huber|cauchy] [--loss-scale S] [--json]
+//                      [--loss none|huber|cauchy] [--loss-scale S] [--no-factor-reuse]
+//                      [--trust-region-growth G] [--json]
 #include <cstdio>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -23,6 +24,8 @@ struct SolveG2oArgs {
   std::string ordering = "auto";
   std::string loss = "none";
   double loss_scale = 1.0;
+  bool no_factor_reuse = false;
+  double trust_region_growth = SolverOptions{}.max_trust_region_growth;
   bool json = false;
 };
 
@@ -45,6 +48,8 @@ int run_solve_g2o(const SolveG2oArgs& args) {
   options.ordering = args.ordering == "amd"     ? Ordering::kAmd
                      : args.ordering == "metis" ? Ordering::kMetis
                                                 : Ordering::kAuto;
+  options.reuse_factorization = !args.no_factor_reuse;
+  options.max_trust_region_growth = args.trust_region_growth;
   const SolverSummary summary = solve(options, built.problem);
   if (summary.termination == TerminationType::kFailure) {
     throw Error(args.input + ": the solve failed: " + summary.message);
@@ -94,6 +99,12 @@ void register_solve_g2o(CLI::App& app, CommandRegistry& registry) {
       ->capture_default_str();
   cmd->add_option("--loss-scale", args->loss_scale, "scale of the robust loss (whitened units)")
       ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  cmd->add_flag("--no-factor-reuse", args->no_factor_reuse,
+               "factorize afresh every iteration (no steps on an earlier factorization)");
+  cmd->add_option("--trust-region-growth", args->trust_region_growth,
+                  "most the LM radius grows after one step (Ceres: 3)")
+      ->check(CLI::Range(1.0, 1e6))
       ->capture_default_str();
   cmd->add_flag("--json", args->json, "print one JSON object instead of the report");
   registry.add(cmd, [args] { return run_solve_g2o(*args); });

@@ -59,8 +59,8 @@ void BlockEvaluator::allocate(BlockLinearizations* out) const {
     h += static_cast<std::size_t>(D) * static_cast<std::size_t>(D);
     b += static_cast<std::size_t>(D);
   }
-  assign_on_huge_pages(out->h, h, 0.0);  // advised before assign() first touches it
-  assign_on_huge_pages(out->b, b, 0.0);
+  out->h.assign(h, 0.0);  // huge pages (see huge_pages.hpp)
+  out->b.assign(b, 0.0);
 }
 
 bool BlockEvaluator::linearize(int which, BlockLinearizations* out, std::string* error) const {

@@ -1,6 +1,7 @@
 #include "huge_pages.hpp"
 
 #include <cstdint>
+#include <new>
 
 #if defined(__linux__)
 #include <sys/mman.h>
@@ -8,10 +9,17 @@
 #endif
 
 namespace carat::internal {
+namespace {
+
+constexpr std::size_t kHugePage = std::size_t{2} << 20;
+/// From this size on, allocate_huge rounds up to whole huge pages (at most 2x the memory, and
+/// one fault instead of up to 512).
+constexpr std::size_t kHugeFrom = std::size_t{1} << 20;
+
+}  // namespace
 
 void advise_huge_pages(void* data, std::size_t bytes) {
 #if defined(__linux__) && defined(MADV_HUGEPAGE)
-  constexpr std::size_t kHugePage = std::size_t{2} << 20;
   if (data == nullptr || bytes < kHugePage) return;
   static const long page_size = sysconf(_SC_PAGESIZE);
   if (page_size <= 0) return;
@@ -25,6 +33,24 @@ void advise_huge_pages(void* data, std::size_t bytes) {
   (void)data;
   (void)bytes;
 #endif
+}
+
+void* allocate_huge(std::size_t bytes) {
+  if (bytes < kHugeFrom) return ::operator new(bytes);
+  // Whole huge pages, so that the last one is not shared with another allocation.
+  const std::size_t rounded = (bytes + kHugePage - 1) / kHugePage * kHugePage;
+  void* data = ::operator new(rounded, std::align_val_t{kHugePage});
+  advise_huge_pages(data, rounded);
+  return data;
+}
+
+void deallocate_huge(void* data, std::size_t bytes) noexcept {
+  if (data == nullptr) return;
+  if (bytes < kHugeFrom) {
+    ::operator delete(data);
+    return;
+  }
+  ::operator delete(data, std::align_val_t{kHugePage});
 }
 
 }  // namespace carat::internal

@@ -7,7 +7,9 @@
 // expensive (measured on the 2-core VM carat is benchmarked on: ~12 us per fault, 62 ms to first
 // touch 21 MB, 13-23 ms with huge pages). A solve touches its factor, matrix and per-block
 // buffers for the first time in the symbolic analysis and the first iteration, where this was
-// up to a fifth of a pose-graph solve's total time.
+// up to a fifth of a pose-graph solve's total time. The kernel backs only 2 MiB-aligned 2 MiB
+// ranges with a huge page, so a buffer gains fully only if it is itself 2 MiB-aligned: the
+// allocator below gives large buffers that alignment.
 
 #include <cstddef>
 #include <vector>
@@ -18,13 +20,32 @@ namespace carat::internal {
 /// Only useful before the pages are first touched; buffers under 2 MiB are left alone.
 void advise_huge_pages(void* data, std::size_t bytes);
 
-/// v = n copies of value, in fresh storage advised as above (for buffers of 2 MiB and more).
+/// Storage of `bytes` bytes: from 1 MiB on, whole 2 MiB-aligned huge pages advised as above;
+/// below, plain operator new.
+void* allocate_huge(std::size_t bytes);
+
+/// Releases storage from allocate_huge(bytes) (the same byte count).
+void deallocate_huge(void* data, std::size_t bytes) noexcept;
+
+/// An allocator whose large allocations come from allocate_huge.
 template <class T>
-void assign_on_huge_pages(std::vector<T>& v, std::size_t n, const T& value) {
-  std::vector<T>().swap(v);  // release the old storage so the new one is fresh
-  v.reserve(n);
-  advise_huge_pages(v.data(), n * sizeof(T));
-  v.assign(n, value);
-}
+struct HugePageAllocator {
+  using value_type = T;  ///< element type
+
+  HugePageAllocator() = default;
+  /// Rebinding copy (stateless).
+  template <class U>
+  HugePageAllocator(const HugePageAllocator<U>&) noexcept {}
+  /// Storage for n elements.
+  T* allocate(std::size_t n) { return static_cast<T*>(allocate_huge(n * sizeof(T))); }
+  /// Releases storage for n elements.
+  void deallocate(T* p, std::size_t n) noexcept { deallocate_huge(p, n * sizeof(T)); }
+  /// Stateless: all instances are interchangeable.
+  friend bool operator==(const HugePageAllocator&, const HugePageAllocator&) { return true; }
+};
+
+/// A vector whose storage, from 1 MiB on, lies on huge pages.
+template <class T>
+using HugeVector = std::vector<T, HugePageAllocator<T>>;
 
 }  // namespace carat::internal

@@ -70,6 +70,10 @@ class Solver {
 
  private:
   bool linearize();
+  bool take_step(IterationSummary& row, double new_cost, int iteration,
+                 Clock::time_point iteration_start);
+  bool try_reused_factorization(IterationSummary& row, int iteration,
+                                Clock::time_point iteration_start, bool* stop);
   void record(IterationSummary row, Clock::time_point iteration_start);
   bool finish(TerminationType type, std::string message);
 
@@ -83,7 +87,11 @@ class Solver {
   std::vector<double> buffers_[2];
   int current_ = 0;
   double cost_ = 0.0;
+  double fresh_decrease_ = 0.0;  ///< cost decrease of the last step from a fresh factorization
   Eigen::VectorXd gradient_;
+  Eigen::VectorXd delta_;    ///< scratch: the step
+  Eigen::VectorXd rhs_;      ///< scratch: -gradient
+  Eigen::VectorXd h_delta_;  ///< scratch: H delta
 };
 
 bool Solver::finish(TerminationType type, std::string message) {
@@ -111,6 +119,82 @@ bool Solver::linearize() {
   summary_.time.assembly_s += seconds_since(t0);
   cost_ = 0.0;
   for (double c : lin_.cost) cost_ += c;
+  return true;
+}
+
+/// Moves to the trial iterate (cost new_cost) and relinearizes there, except after the last
+/// permitted iteration: nothing would use that H and b (a one-iteration solve, as align() runs
+/// per correspondence set, then costs one linearization instead of two), so its gradient is not
+/// tested either. Records the row and tests the function tolerance. True: the solve ends.
+bool Solver::take_step(IterationSummary& row, double new_cost, int iteration,
+                       Clock::time_point iteration_start) {
+  const double old_cost = cost_;
+  const double decrease = old_cost - new_cost;
+  if (!row.reused_factorization) fresh_decrease_ = decrease;
+  current_ = 1 - current_;
+  const bool last = iteration >= options_.max_iterations;
+  if (last) {
+    cost_ = new_cost;
+  } else if (!linearize()) {
+    record(row, iteration_start);
+    return true;
+  }
+  record(row, iteration_start);
+  if (std::abs(decrease) <= options_.function_tolerance * old_cost) {
+    finish(TerminationType::kConvergence,
+           "function tolerance reached: |cost change| / cost = " +
+               std::to_string(old_cost > 0.0 ? std::abs(decrease) / old_cost : 0.0));
+    return true;
+  }
+  if (last) {
+    finish(TerminationType::kNoConvergence, iteration_limit_message(options_));
+    return true;
+  }
+  return false;
+}
+
+/// A step solved with the factorization of an earlier iterate: no numeric factorization, only
+/// a triangular solve, H delta for the model at the current iterate, and one cost evaluation.
+/// Kept only if its gain ratio against the current (undamped) model exceeds 1/2 and it lowers
+/// the cost by more than the function tolerance and by at least half as much as the step of
+/// the fresh factorization did: a run of reused steps ends once they fall to half of what a
+/// fresh one achieved. Then returns true (*stop: the solve ends); otherwise nothing is
+/// recorded and the caller factorizes afresh.
+bool Solver::try_reused_factorization(IterationSummary& row, int iteration,
+                                      Clock::time_point iteration_start, bool* stop) {
+  const auto ts = Clock::now();
+  rhs_ = -gradient_;
+  system_->solve(rhs_, &delta_);
+  summary_.time.solve_s += seconds_since(ts);
+  if (!delta_.allFinite()) {
+    ++summary_.num_refused_reuses;
+    return false;
+  }
+  system_->multiply(delta_, &h_delta_);
+  const double model_decrease = -gradient_.dot(delta_) - 0.5 * delta_.dot(h_delta_);
+  const int trial = 1 - current_;
+  apply_step(problem_, system_->variable_offset(), buffers_[current_].data(), delta_,
+             buffers_[trial].data());
+  const auto tc = Clock::now();
+  const double new_cost = evaluator_->cost(trial);
+  summary_.time.cost_s += seconds_since(tc);
+  const double decrease = cost_ - new_cost;
+  const double ratio = model_decrease > 0.0 ? decrease / model_decrease : -1.0;
+  // Each test is false for a NaN cost.
+  if (!(ratio > 0.5) || !(decrease >= 0.5 * fresh_decrease_) ||
+      !(decrease > options_.function_tolerance * cost_)) {
+    ++summary_.num_refused_reuses;
+    return false;
+  }
+  ++summary_.num_successful_steps;
+  ++summary_.num_reused_factorizations;
+  row.step_norm = delta_.norm();
+  row.relative_decrease = ratio;
+  row.cost_change = decrease;
+  row.cost = new_cost;
+  row.step_is_successful = true;
+  row.reused_factorization = true;
+  *stop = take_step(row, new_cost, iteration, iteration_start);
   return true;
 }
 
@@ -165,9 +249,10 @@ void Solver::run() {
   double radius = options_.initial_trust_region_radius;
   double decrease_factor = 2.0;
   Eigen::VectorXd damping(system_->size());
-  Eigen::VectorXd delta;
-  Eigen::VectorXd rhs;
+  Eigen::VectorXd& delta = delta_;
+  Eigen::VectorXd& rhs = rhs_;
   const std::vector<int>& var_offset = system_->variable_offset();
+  bool reuse_next = false;  // try the next step with the current factorization
 
   for (int iteration = 1;; ++iteration) {
     const double gradient_max = gradient_.cwiseAbs().maxCoeff();
@@ -186,6 +271,17 @@ void Solver::run() {
     row.iteration = iteration;
     row.gradient_max_norm = gradient_max;
     row.cost = cost_;
+
+    if (reuse_next) {
+      reuse_next = false;
+      row.trust_region_radius = radius;
+      bool stop = false;
+      if (try_reused_factorization(row, iteration, iteration_start, &stop)) {
+        if (stop) break;
+        reuse_next = true;
+        continue;
+      }
+    }
 
     // Damping: LM uses diag(H) clamped, scaled by 1/radius; GN none unless indefinite.
     const Eigen::VectorXd diag = system_->diagonal();
@@ -276,33 +372,15 @@ void Solver::run() {
       if (lm) {
         const double t = 2.0 * ratio - 1.0;
         radius = std::min(options_.max_trust_region_radius,
-                          radius / std::max(1.0 / 3.0, 1.0 - t * t * t));
+                          radius / std::max(1.0 / options_.max_trust_region_growth, 1.0 - t * t * t));
         decrease_factor = 2.0;
       }
       row.trust_region_radius = radius;
-      const double old_cost = cost_;
-      current_ = trial;
-      // After the last permitted iteration the new iterate is not relinearized: nothing would
-      // use its H and b (a one-iteration solve, as align() runs per correspondence set, then
-      // costs one linearization instead of two). Its gradient is therefore not tested either.
-      const bool last = iteration >= options_.max_iterations;
-      if (last) {
-        cost_ = new_cost;
-      } else if (!linearize()) {
-        record(row, iteration_start);
-        break;
-      }
-      record(row, iteration_start);
-      if (std::abs(actual_decrease) <= options_.function_tolerance * old_cost) {
-        finish(TerminationType::kConvergence,
-               "function tolerance reached: |cost change| / cost = " +
-                   std::to_string(old_cost > 0.0 ? std::abs(actual_decrease) / old_cost : 0.0));
-        break;
-      }
-      if (last) {
-        finish(TerminationType::kNoConvergence, iteration_limit_message(options_));
-        break;
-      }
+      // A gain ratio well above 1 (the cost fell faster than the model said, as in a slow,
+      // linearly converging tail): the exact H buys little over this one, so the next step
+      // first tries this factorization.
+      reuse_next = lm && options_.reuse_factorization && ratio > options_.factor_reuse_ratio;
+      if (take_step(row, new_cost, iteration, iteration_start)) break;
     } else {
       ++summary_.num_unsuccessful_steps;
       if (!lm) {

@@ -38,10 +38,18 @@ bool SolverOptions::validate(std::string* error) const {
   if (!(max_trust_region_radius >= initial_trust_region_radius)) {
     return fail(error, "max_trust_region_radius must be >= initial_trust_region_radius");
   }
+  if (!(max_trust_region_growth >= 1.0) || !std::isfinite(max_trust_region_growth)) {
+    return fail(error, "max_trust_region_growth must be finite and >= 1, got " +
+                           std::to_string(max_trust_region_growth));
+  }
   if (!(max_lm_diagonal >= min_lm_diagonal)) {
     return fail(error, "max_lm_diagonal must be >= min_lm_diagonal");
   }
   if (min_relative_decrease >= 1.0) return fail(error, "min_relative_decrease must be < 1");
+  if (!(factor_reuse_ratio >= 0.0) || !std::isfinite(factor_reuse_ratio)) {
+    return fail(error, "factor_reuse_ratio must be finite and >= 0, got " +
+                           std::to_string(factor_reuse_ratio));
+  }
   return true;
 }
 

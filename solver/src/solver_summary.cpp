@@ -38,12 +38,17 @@ std::string SolverSummary::iteration_table() const {
       "iter      cost      cost_change  |gradient|   |step|    tr_ratio  tr_radius  iter_time  "
       "total_time\n";
   for (const auto& it : iterations) {
+    const char* note = "";
+    if (it.linear_solver_failed) {
+      note = "  (not positive definite)";
+    } else if (it.iteration > 0 && !it.step_is_successful) {
+      note = "  (rejected)";
+    } else if (it.reused_factorization) {
+      note = "  (reused factorization)";
+    }
     out += format("%4d % 8.6e % 3.2e % 3.2e % 3.2e % 3.2e % 3.2e % 4.2e % 4.2e%s\n", it.iteration,
                   it.cost, it.cost_change, it.gradient_max_norm, it.step_norm, it.relative_decrease,
-                  it.trust_region_radius, it.iteration_time_s, it.cumulative_time_s,
-                  it.linear_solver_failed
-                      ? "  (not positive definite)"
-                      : (it.iteration > 0 && !it.step_is_successful ? "  (rejected)" : ""));
+                  it.trust_region_radius, it.iteration_time_s, it.cumulative_time_s, note);
   }
   return out;
 }
@@ -66,6 +71,8 @@ std::string SolverSummary::full_report() const {
   out += format("  %-28s %d (%d accepted, %d rejected, %d not positive definite)\n", "iterations",
                 num_iterations, num_successful_steps, num_unsuccessful_steps,
                 num_linear_solver_failures);
+  out += format("  %-28s %d kept, %d refused\n", "steps on a reused factor",
+                num_reused_factorizations, num_refused_reuses);
   out += "\nTime (seconds)\n";
   out += format("  %-28s %.6f\n", "symbolic analysis", time.symbolic_s);
   out += format("  %-28s %.6f\n", "linearization", time.linearize_s);
@@ -87,6 +94,8 @@ std::string SolverSummary::to_json() const {
   j["iterations"] = num_iterations;
   j["successful_steps"] = num_successful_steps;
   j["unsuccessful_steps"] = num_unsuccessful_steps;
+  j["reused_factorizations"] = num_reused_factorizations;
+  j["refused_reuses"] = num_refused_reuses;
   j["linear_solver_failures"] = num_linear_solver_failures;
   j["variables"] = num_variables;
   j["free_variables"] = num_free_variables;
@@ -115,6 +124,7 @@ std::string SolverSummary::to_json() const {
                     {"trust_region_radius", it.trust_region_radius},
                     {"step_is_successful", it.step_is_successful},
                     {"linear_solver_failed", it.linear_solver_failed},
+                    {"reused_factorization", it.reused_factorization},
                     {"iteration_time_s", it.iteration_time_s},
                     {"cumulative_time_s", it.cumulative_time_s}});
   }

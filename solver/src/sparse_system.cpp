@@ -16,7 +16,9 @@ namespace carat::internal {
 
 struct SparseSystem::Impl {
   cholmod_common common{};
+  cholmod_sparse A_storage{};  ///< header over the system's own arrays (never freed here)
   cholmod_sparse* A = nullptr;
+  std::vector<double> saved_diagonal;  ///< undamped diagonal during a factorization
   cholmod_factor* L = nullptr;
   cholmod_dense* B = nullptr;
   cholmod_dense* X = nullptr;
@@ -31,7 +33,6 @@ struct SparseSystem::Impl {
     cholmod_l_free_dense(&Y, &common);
     cholmod_l_free_dense(&E, &common);
     cholmod_l_free_factor(&L, &common);
-    cholmod_l_free_sparse(&A, &common);
     cholmod_l_finish(&common);
   }
 };
@@ -212,7 +213,7 @@ SparseSystem::SparseSystem(const Problem& problem, Ordering ordering)
       colptr_[scalar_col + 1] = colptr_[scalar_col] + (dJ - c) + below;
     }
   }
-  assign_on_huge_pages(rows_, static_cast<std::size_t>(colptr_.back()), std::int64_t{0});
+  rows_.assign(static_cast<std::size_t>(colptr_.back()), 0);
   scalar_col = 0;
   for (std::size_t J = 0; J < nb; ++J) {
     const int vJ = free_vars_[J];
@@ -230,7 +231,7 @@ SparseSystem::SparseSystem(const Problem& problem, Ordering ordering)
       }
     }
   }
-  assign_on_huge_pages(values_, rows_.size(), 0.0);
+  values_.assign(rows_.size(), 0.0);
   diag_pos_.assign(colptr_.begin(), colptr_.end() - 1);
 
   std::sort(grad_raw.begin(), grad_raw.end());
@@ -247,14 +248,24 @@ SparseSystem::SparseSystem(const Problem& problem, Ordering ordering)
   if (n_ == 0) return;
 
   // 5. CHOLMOD supernodal symbolic analysis, natural ordering on the pre-ordered matrix.
-  im.A = cholmod_l_allocate_sparse(static_cast<std::size_t>(n_), static_cast<std::size_t>(n_),
-                                   rows_.size(), 1, 1, -1, CHOLMOD_REAL, &im.common);
-  if (!im.A) throw Error("sparse system: CHOLMOD could not allocate the matrix (out of memory?)");
-  advise_huge_pages(im.A->i, rows_.size() * sizeof(std::int64_t));
-  advise_huge_pages(im.A->x, rows_.size() * sizeof(double));
-  std::memcpy(im.A->p, colptr_.data(), colptr_.size() * sizeof(std::int64_t));
-  std::memcpy(im.A->i, rows_.data(), rows_.size() * sizeof(std::int64_t));
-  std::fill_n(static_cast<double*>(im.A->x), rows_.size(), 0.0);
+  // A is a header over this object's own arrays (CHOLMOD only reads them): no copy, and the
+  // values it factorizes are the assembled ones (factorize() adds the damping to the diagonal
+  // in place and restores it).
+  im.A_storage.nrow = static_cast<std::size_t>(n_);
+  im.A_storage.ncol = static_cast<std::size_t>(n_);
+  im.A_storage.nzmax = rows_.size();
+  im.A_storage.p = colptr_.data();
+  im.A_storage.i = rows_.data();
+  im.A_storage.nz = nullptr;
+  im.A_storage.x = values_.data();
+  im.A_storage.z = nullptr;
+  im.A_storage.stype = -1;  // lower triangle
+  im.A_storage.itype = CHOLMOD_LONG;
+  im.A_storage.xtype = CHOLMOD_REAL;
+  im.A_storage.dtype = CHOLMOD_DOUBLE;
+  im.A_storage.sorted = 1;
+  im.A_storage.packed = 1;
+  im.A = &im.A_storage;
   im.common.supernodal = CHOLMOD_SUPERNODAL;
   im.common.nmethods = 1;
   im.common.method[0].ordering = CHOLMOD_NATURAL;
@@ -343,9 +354,13 @@ Eigen::VectorXd SparseSystem::diagonal() const {
 
 bool SparseSystem::factorize(const Eigen::VectorXd& damping) {
   Impl& im = *impl_;
-  auto* x = static_cast<double*>(im.A->x);
-  std::copy(values_.begin(), values_.end(), x);
-  for (int k = 0; k < n_; ++k) x[diag_pos_[static_cast<std::size_t>(k)]] += damping[k];
+  // Damping added to the assembled diagonal in place, and the undamped values put back after.
+  im.saved_diagonal.resize(static_cast<std::size_t>(n_));
+  for (int k = 0; k < n_; ++k) {
+    double& d = values_[static_cast<std::size_t>(diag_pos_[static_cast<std::size_t>(k)])];
+    im.saved_diagonal[static_cast<std::size_t>(k)] = d;
+    d += damping[k];
+  }
   // Debian's CHOLMOD runs some loops of its supernodal factorization under OpenMP with a fixed
   // team size; on small machines that oversubscribes the cores and costs more in thread wake-ups
   // than it gains (measured: torus3D 1.6 s vs 1.0 s of factorization). Run those regions
@@ -354,7 +369,34 @@ bool SparseSystem::factorize(const Eigen::VectorXd& damping) {
   omp_set_max_active_levels(0);
   const int ok = cholmod_l_factorize(im.A, im.L, &im.common);
   omp_set_max_active_levels(saved_levels);
+  for (int k = 0; k < n_; ++k) {
+    values_[static_cast<std::size_t>(diag_pos_[static_cast<std::size_t>(k)])] =
+        im.saved_diagonal[static_cast<std::size_t>(k)];
+  }
   return ok && im.common.status == CHOLMOD_OK && im.L->minor == static_cast<std::size_t>(n_);
+}
+
+void SparseSystem::multiply(const Eigen::VectorXd& x, Eigen::VectorXd* y) const {
+  y->setZero(n_);
+  double* out = y->data();
+  const double* in = x.data();
+  // Lower triangle by columns: each off-diagonal entry (r, c) adds to rows r and c.
+  for (int c = 0; c < n_; ++c) {
+    const double x_c = in[c];
+    double column_dot = 0.0;
+    for (auto p = static_cast<std::size_t>(colptr_[static_cast<std::size_t>(c)]);
+         p < static_cast<std::size_t>(colptr_[static_cast<std::size_t>(c) + 1]); ++p) {
+      const auto r = static_cast<std::size_t>(rows_[p]);
+      const double v = values_[p];
+      if (r == static_cast<std::size_t>(c)) {
+        column_dot += v * x_c;
+      } else {
+        out[r] += v * x_c;
+        column_dot += v * in[r];
+      }
+    }
+    out[c] += column_dot;
+  }
 }
 
 void SparseSystem::solve(const Eigen::VectorXd& rhs, Eigen::VectorXd* x) {

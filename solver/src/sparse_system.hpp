@@ -16,6 +16,7 @@
 
 #include "carat/solver/problem.hpp"
 #include "carat/solver/solver_options.hpp"
+#include "huge_pages.hpp"
 
 namespace carat::internal {
 
@@ -24,8 +25,8 @@ struct BlockLinearizations {
   std::vector<std::size_t> h_offset;  ///< start of block i's H in h
   std::vector<std::size_t> b_offset;  ///< start of block i's b in b
   std::vector<int> dim;               ///< D of block i
-  std::vector<double> h;              ///< all blocks' H
-  std::vector<double> b;              ///< all blocks' b
+  HugeVector<double> h;               ///< all blocks' H
+  HugeVector<double> b;               ///< all blocks' b
   std::vector<double> cost;           ///< 1/2 rho(s) per block
 };
 
@@ -59,6 +60,9 @@ class SparseSystem {
   /// Factorizes H + diag(damping) numerically; false if not positive definite.
   bool factorize(const Eigen::VectorXd& damping);
 
+  /// y = H x with the undamped values of the last assembly.
+  void multiply(const Eigen::VectorXd& x, Eigen::VectorXd* y) const;
+
   /// Solves (H + diag(damping)) x = rhs with the last successful factorization.
   void solve(const Eigen::VectorXd& rhs, Eigen::VectorXd* x);
 
@@ -73,8 +77,9 @@ class SparseSystem {
   std::vector<int> var_dim_;
   // Lower-triangular CSC pattern, columns in elimination order.
   std::vector<std::int64_t> colptr_;
-  std::vector<std::int64_t> rows_;
-  std::vector<double> values_;
+  // CHOLMOD's matrix A points at these arrays (no copy of the pattern or the values).
+  HugeVector<std::int64_t> rows_;
+  HugeVector<double> values_;
   std::vector<std::int64_t> diag_pos_;
   // Gather lists for H: per block column J (elimination position), the block rows I >= J with
   // their offset below the diagonal block, and for each such pair a list of contributions.

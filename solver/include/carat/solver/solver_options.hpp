@@ -30,10 +30,18 @@ struct SolverOptions {
   double parameter_tolerance = 1e-8;            ///< stop when |step| < this * (|x| + this)
   double initial_trust_region_radius = 1e4;     ///< LM: initial radius mu (damping is 1/mu)
   double max_trust_region_radius = 1e16;        ///< LM: largest radius
+  /// LM: most the radius can grow after one step: radius / max(1 / this, 1 - (2 rho - 1)^3)
+  /// for gain ratio rho (Ceres uses 3; a larger factor reaches undamped steps sooner when the
+  /// model keeps predicting the decrease exactly).
+  double max_trust_region_growth = 10.0;
   double min_trust_region_radius = 1e-32;       ///< LM: stop when the radius falls below this
   double min_relative_decrease = 1e-3;          ///< LM: smallest gain ratio that accepts a step
   double min_lm_diagonal = 1e-6;                ///< LM: lower clamp of diag(H) in the damping
   double max_lm_diagonal = 1e32;                ///< LM: upper clamp of diag(H) in the damping
+  /// LM: after an accepted step whose gain ratio exceeded factor_reuse_ratio, try the next step
+  /// with the previous numeric factorization (see solve.hpp); false always factorizes afresh.
+  bool reuse_factorization = true;
+  double factor_reuse_ratio = 1.1;  ///< LM: gain ratio above which the factorization is reused
   int num_threads = 1;  ///< threads for linearization (>= 1; capped at the machine's cores)
   bool record_iterations = true;  ///< keep one IterationSummary per iteration
 

@@ -29,6 +29,7 @@ struct IterationSummary {
   double trust_region_radius = 0.0;   ///< LM radius mu after this iteration
   bool step_is_successful = false;    ///< step accepted
   bool linear_solver_failed = false;  ///< the damped system was not positive definite
+  bool reused_factorization = false;  ///< step solved with an earlier iterate's factorization
   double iteration_time_s = 0.0;      ///< wall time of this iteration
   double cumulative_time_s = 0.0;     ///< wall time since solve() started
 };
@@ -53,6 +54,8 @@ struct SolverSummary {
   int num_iterations = 0;                    ///< iterations run (accepted + rejected)
   int num_successful_steps = 0;              ///< accepted steps
   int num_unsuccessful_steps = 0;            ///< rejected steps
+  int num_reused_factorizations = 0;         ///< accepted steps solved with an earlier factorization
+  int num_refused_reuses = 0;  ///< steps with an earlier factorization tried and not kept
   int num_linear_solver_failures = 0;        ///< factorizations that were not positive definite
   int num_variables = 0;                     ///< variables in the problem
   int num_free_variables = 0;                ///< variables not held constant
