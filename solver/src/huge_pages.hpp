@@ -32,6 +32,7 @@ template <class T>
 struct HugePageAllocator {
   using value_type = T;  ///< element type
 
+  /// Stateless: nothing to set up.
   HugePageAllocator() = default;
   /// Rebinding copy (stateless).
   template <class U>

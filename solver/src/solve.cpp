@@ -52,6 +52,12 @@ double free_parameter_norm(const Problem& problem, const std::vector<int>& var_o
   return std::sqrt(sum);
 }
 
+/// An upper bound on the rounding error of a cost near `cost` (a sum of many terms): cost
+/// changes below it are not measurable.
+double cost_rounding(double cost) {
+  return 64.0 * std::numeric_limits<double>::epsilon() * std::abs(cost);
+}
+
 /// The termination message when max_iterations ends the solve.
 std::string iteration_limit_message(const SolverOptions& options) {
   return "maximum number of iterations reached (" + std::to_string(options.max_iterations) + ")";
@@ -165,12 +171,12 @@ bool Solver::try_reused_factorization(IterationSummary& row, int iteration,
   const auto ts = Clock::now();
   rhs_ = -gradient_;
   system_->solve(rhs_, &delta_);
+  if (delta_.allFinite()) system_->multiply(delta_, &h_delta_);
   summary_.time.solve_s += seconds_since(ts);
   if (!delta_.allFinite()) {
     ++summary_.num_refused_reuses;
     return false;
   }
-  system_->multiply(delta_, &h_delta_);
   const double model_decrease = -gradient_.dot(delta_) - 0.5 * delta_.dot(h_delta_);
   const int trial = 1 - current_;
   apply_step(problem_, system_->variable_offset(), buffers_[current_].data(), delta_,
@@ -360,8 +366,15 @@ void Solver::run() {
     const double model_decrease =
         0.5 * (-gradient_.dot(delta) + delta.dot(damping.cwiseProduct(delta)));
     const double actual_decrease = cost_ - new_cost;
-    const double ratio = model_decrease > 0.0 ? actual_decrease / model_decrease : -1.0;
+    double ratio = model_decrease > 0.0 ? actual_decrease / model_decrease : -1.0;
     row.relative_decrease = ratio;
+    // A predicted decrease below the rounding of the cost cannot be checked against the cost:
+    // such a step is taken if the cost did not rise by more than that rounding, and counts as
+    // a gain ratio of 1 (the gradient and parameter tests then decide convergence).
+    const double rounding = cost_rounding(cost_);
+    const bool below_rounding = model_decrease > 0.0 && model_decrease <= rounding &&
+                                std::isfinite(new_cost) && actual_decrease >= -rounding;
+    if (below_rounding) ratio = 1.0;
     const bool accept = std::isfinite(new_cost) &&
                         (lm ? ratio > options_.min_relative_decrease : new_cost <= cost_);
     if (accept) {
@@ -379,7 +392,9 @@ void Solver::run() {
       // A gain ratio well above 1 (the cost fell faster than the model said, as in a slow,
       // linearly converging tail): the exact H buys little over this one, so the next step
       // first tries this factorization.
-      reuse_next = lm && options_.reuse_factorization && ratio > options_.factor_reuse_ratio;
+      // The ratio must be measured, not noise: its model decrease far above the rounding.
+      reuse_next = lm && options_.reuse_factorization && ratio > options_.factor_reuse_ratio &&
+                   model_decrease > 1e3 * rounding;
       if (take_step(row, new_cost, iteration, iteration_start)) break;
     } else {
       ++summary_.num_unsuccessful_steps;

@@ -354,12 +354,25 @@ Eigen::VectorXd SparseSystem::diagonal() const {
 
 bool SparseSystem::factorize(const Eigen::VectorXd& damping) {
   Impl& im = *impl_;
-  // Damping added to the assembled diagonal in place, and the undamped values put back after.
+  // Damping added to the assembled diagonal in place; the undamped values go back however this
+  // function is left.
   im.saved_diagonal.resize(static_cast<std::size_t>(n_));
+  struct RestoreDiagonal {
+    SparseSystem& system;
+    ~RestoreDiagonal() {
+      for (int k = 0; k < system.n_; ++k) {
+        system.values_[static_cast<std::size_t>(system.diag_pos_[static_cast<std::size_t>(k)])] =
+            system.impl_->saved_diagonal[static_cast<std::size_t>(k)];
+      }
+    }
+  };
   for (int k = 0; k < n_; ++k) {
     double& d = values_[static_cast<std::size_t>(diag_pos_[static_cast<std::size_t>(k)])];
     im.saved_diagonal[static_cast<std::size_t>(k)] = d;
-    d += damping[k];
+  }
+  const RestoreDiagonal restore{*this};
+  for (int k = 0; k < n_; ++k) {
+    values_[static_cast<std::size_t>(diag_pos_[static_cast<std::size_t>(k)])] += damping[k];
   }
   // Debian's CHOLMOD runs some loops of its supernodal factorization under OpenMP with a fixed
   // team size; on small machines that oversubscribes the cores and costs more in thread wake-ups
@@ -369,10 +382,6 @@ bool SparseSystem::factorize(const Eigen::VectorXd& damping) {
   omp_set_max_active_levels(0);
   const int ok = cholmod_l_factorize(im.A, im.L, &im.common);
   omp_set_max_active_levels(saved_levels);
-  for (int k = 0; k < n_; ++k) {
-    values_[static_cast<std::size_t>(diag_pos_[static_cast<std::size_t>(k)])] =
-        im.saved_diagonal[static_cast<std::size_t>(k)];
-  }
   return ok && im.common.status == CHOLMOD_OK && im.L->minor == static_cast<std::size_t>(n_);
 }
 

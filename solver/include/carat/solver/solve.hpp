@@ -14,6 +14,15 @@ namespace carat {
 /// non-finite costs or unusable steps end the solve with a reason in the summary. The iterate
 /// accepted in the last of max_iterations is returned without being relinearized (so its
 /// gradient is not tested): a one-iteration solve costs one linearization.
+///
+/// LM details beyond Ceres's trust region: after an accepted step whose gain ratio exceeds
+/// options.factor_reuse_ratio (the cost fell faster than the model predicted, as in a slow,
+/// linearly converging tail), the next step is first tried with the previous numeric
+/// factorization (a triangular solve instead of a factorization) and kept only if its gain
+/// ratio against the current model exceeds 1/2 and it lowers the cost by at least half as much
+/// as the last freshly factorized step did; otherwise H is factorized afresh. Steps whose
+/// predicted decrease is below the rounding of the cost are taken unless the cost rose by more
+/// than that rounding.
 SolverSummary solve(const SolverOptions& options, Problem& problem);
 
 }  // namespace carat

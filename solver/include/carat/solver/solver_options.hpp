@@ -39,9 +39,9 @@ struct SolverOptions {
   double min_lm_diagonal = 1e-6;                ///< LM: lower clamp of diag(H) in the damping
   double max_lm_diagonal = 1e32;                ///< LM: upper clamp of diag(H) in the damping
   /// LM: after an accepted step whose gain ratio exceeded factor_reuse_ratio, try the next step
-  /// with the previous numeric factorization (see solve.hpp); false always factorizes afresh.
+  /// with the previous numeric factorization (see solve()); false always factorizes afresh.
   bool reuse_factorization = true;
-  double factor_reuse_ratio = 1.1;  ///< LM: gain ratio above which the factorization is reused
+  double factor_reuse_ratio = 1.1;  ///< LM: gain ratio above which a reuse is tried
   int num_threads = 1;  ///< threads for linearization (>= 1; capped at the machine's cores)
   bool record_iterations = true;  ///< keep one IterationSummary per iteration
 
