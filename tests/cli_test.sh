@@ -87,6 +87,12 @@ ls "$scratch" | grep -q "\.tmp-" && { echo "FAIL a temporary file was left behin
 check unknown_flag 2 "" -- "$CARAT" solve-g2o "$scratch/tiny.g2o" --bogus
 check out_of_range 2 "" -- "$CARAT" solve-g2o "$scratch/tiny.g2o" --threads 0
 check bad_method 2 "" -- "$CARAT" solve-g2o "$scratch/tiny.g2o" --method newton
+check bad_growth 2 "" -- "$CARAT" solve-g2o "$scratch/tiny.g2o" --trust-region-growth 0.5
+check ceres_like_lm 0 "" -- "$CARAT" solve-g2o "$scratch/tiny.g2o" --json --no-factor-reuse --trust-region-growth 3
+cp "$scratch/out" "$scratch/ceres_like.json"
+if [[ $(json_field "$scratch/ceres_like.json" "j['reused_factorizations'] == 0 and j['refused_reuses'] == 0 and j['final_cost'] < 1e-12") != "True" ]]; then
+  echo "FAIL solve-g2o --no-factor-reuse"; fail=$((fail + 1))
+else pass=$((pass + 1)); fi
 check no_subcommand 2 "" -- "$CARAT"
 check demo_bad_frames 2 "" -- "$CARAT" demo --frames 3
 
