@@ -7,7 +7,6 @@
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
 #include <memory>
 #include <string>
 #include <vector>
@@ -16,25 +15,13 @@
 #include "carat/registration/covariance.hpp"
 #include "carat/registration/kdtree.hpp"
 #include "carat/registration/kitti_io.hpp"
+#include "carat/registration/trajectory_io.hpp"
 #include "carat/registration/voxel_grid.hpp"
 #include "carat/solver/se3.hpp"
 
 namespace {
 
 const std::filesystem::path kDir = std::filesystem::path(CARAT_DATA_DIR) / "kitti07_seq5";
-
-/// graph.txt: "vN tx ty tz qx qy qz qw" per line, T_world_frameN.
-std::vector<Eigen::Isometry3d> read_reference(const std::filesystem::path& path) {
-  std::ifstream in(path);
-  std::vector<Eigen::Isometry3d> poses;
-  std::string id;
-  double t[3], q[4];
-  while (in >> id >> t[0] >> t[1] >> t[2] >> q[0] >> q[1] >> q[2] >> q[3]) {
-    poses.push_back(carat::se3::make(Eigen::Quaterniond(q[3], q[0], q[1], q[2]),
-                                     Eigen::Vector3d(t[0], t[1], t[2])));
-  }
-  return poses;
-}
 
 }  // namespace
 
@@ -43,7 +30,8 @@ int main() {
     std::printf("kitti07_pairs_sweep: %s is absent; skipped\n", kDir.c_str());
     return 0;
   }
-  const auto reference = read_reference(kDir / "graph.txt");
+  const auto reference =
+      carat::read_trajectory(kDir / "graph.txt", carat::TrajectoryFormat::kGraph).poses;
   std::vector<carat::PointCloud> raw;
   for (int i = 0; i < 5; ++i) {
     char name[32];

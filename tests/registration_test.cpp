@@ -15,6 +15,7 @@
 #include "carat/registration/covariance.hpp"
 #include "carat/registration/kdtree.hpp"
 #include "carat/registration/kitti_io.hpp"
+#include "carat/registration/trajectory_io.hpp"
 #include "carat/registration/voxel_grid.hpp"
 #include "carat/residuals/gicp_block.hpp"
 #include "carat/solver/error.hpp"
@@ -448,22 +449,10 @@ TEST(AlignTest, Kitti00PairMatchesTheReference) {
   EXPECT_LE(std::abs(r.squaredNorm() - rc.squaredNorm()) / r.squaredNorm(), 1e-12);
 }
 
-/// graph.txt of kitti07_seq5: "vN tx ty tz qx qy qz qw" per line, T_world_frameN.
-std::vector<Eigen::Isometry3d> read_graph_txt(const std::filesystem::path& path) {
-  std::ifstream in(path);
-  std::vector<Eigen::Isometry3d> poses;
-  std::string id;
-  double t[3], q[4];
-  while (in >> id >> t[0] >> t[1] >> t[2] >> q[0] >> q[1] >> q[2] >> q[3]) {
-    poses.push_back(
-        se3::make(Eigen::Quaterniond(q[3], q[0], q[1], q[2]), Eigen::Vector3d(t[0], t[1], t[2])));
-  }
-  return poses;
-}
-
 TEST(AlignTest, Kitti07PairsRecoverTheReferenceFromAPerturbedStart) {
   CARAT_REQUIRE_DATA("kitti07_seq5/graph.txt");
-  const auto poses = read_graph_txt(test::data_dir() / "kitti07_seq5/graph.txt");
+  const auto poses =
+      read_trajectory(test::data_dir() / "kitti07_seq5/graph.txt", TrajectoryFormat::kGraph).poses;
   ASSERT_EQ(poses.size(), 5u);
   std::vector<Prepared> frames;
   for (int i = 0; i < 5; ++i) {

@@ -478,22 +478,21 @@ TEST(SolverOptionsTest, ValidateNamesTheBadSetting) {
   std::string error;
   SolverOptions options;
   EXPECT_TRUE(options.validate(&error));
-  options.num_threads = 0;
-  EXPECT_FALSE(options.validate(&error));
-  EXPECT_EQ(error, "num_threads must be >= 1, got 0");
-  options = SolverOptions{};
-  options.function_tolerance = -1.0;
-  EXPECT_FALSE(options.validate(&error));
-  EXPECT_NE(error.find("function_tolerance must be finite and >= 0"), std::string::npos);
-  options = SolverOptions{};
-  options.max_trust_region_growth = 0.5;
-  EXPECT_FALSE(options.validate(&error));
-  EXPECT_EQ(error, "max_trust_region_growth must be finite and >= 1, got 0.500000");
-  options = SolverOptions{};
-  options.factor_reuse_ratio = -1.0;
-  EXPECT_FALSE(options.validate(&error));
-  EXPECT_EQ(error, "factor_reuse_ratio must be finite and >= 0, got -1.000000");
-  options = SolverOptions{};
+  // One bad setting at a time: validate() fails with exactly this message.
+  const auto expect_invalid = [](void (*change)(SolverOptions&), const std::string& message) {
+    SolverOptions bad;
+    change(bad);
+    std::string why;
+    EXPECT_FALSE(bad.validate(&why)) << message;
+    EXPECT_EQ(why, message);
+  };
+  expect_invalid([](SolverOptions& o) { o.num_threads = 0; }, "num_threads must be >= 1, got 0");
+  expect_invalid([](SolverOptions& o) { o.function_tolerance = -1.0; },
+                 "function_tolerance must be finite and >= 0, got -1.000000");
+  expect_invalid([](SolverOptions& o) { o.max_trust_region_growth = 0.5; },
+                 "max_trust_region_growth must be finite and >= 1, got 0.500000");
+  expect_invalid([](SolverOptions& o) { o.factor_reuse_ratio = -1.0; },
+                 "factor_reuse_ratio must be finite and >= 0, got -1.000000");
   options.initial_trust_region_radius = 0.0;
   EXPECT_FALSE(options.validate(&error));
   // solve() reports invalid options through the summary instead of throwing.
