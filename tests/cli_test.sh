@@ -236,30 +236,30 @@ if [[ -e "$scratch/never_g2o.g2o" ]]; then echo "FAIL solve-g2o left an output a
 check simulate 0 "" -- "$CARAT" simulate --out "$scratch/seq" --frames 20 --laps 1
 if [[ ! -s "$scratch/seq/000019.bin" ]] || [[ $(grep -c . "$scratch/seq/poses.txt") -ne 20 ]]; then
   echo "FAIL simulate did not write 20 frames and 20 poses"; fail=$((fail + 1)); else pass=$((pass + 1)); fi
-check map_synthetic 0 "" -- "$CARAT" map --frames "$scratch/seq" --poses "$scratch/seq/poses.txt" --bin-format xyz --perturb-m 0.1 --perturb-deg 1 --out "$scratch/map_out.txt" --json
+check map_synthetic 0 "" -- "$CARAT" map --frames "$scratch/seq" --poses "$scratch/seq/poses.txt" --perturb-m 0.1 --perturb-deg 1 --out "$scratch/map_out.txt" --json
 cp "$scratch/out" "$scratch/map.json"
 if [[ $(json_field "$scratch/map.json" "j['ate_rmse'] < 0.25 * j['initial_ate_rmse'] and j['frames'] == 20") != "True" ]]; then
   echo "FAIL map on the simulated drive: $(head -c 400 "$scratch/map.json")"; fail=$((fail + 1)); else pass=$((pass + 1)); fi
 if [[ $(grep -c . "$scratch/map_out.txt") -ne 20 ]]; then echo "FAIL map --out"; fail=$((fail + 1)); else pass=$((pass + 1)); fi
-check map_pgo 0 "" -- "$CARAT" map --frames "$scratch/seq" --poses "$scratch/seq/poses.txt" --bin-format xyz --perturb-m 0.1 --perturb-deg 1 --method pgo --json
+check map_pgo 0 "" -- "$CARAT" map --frames "$scratch/seq" --poses "$scratch/seq/poses.txt" --perturb-m 0.1 --perturb-deg 1 --method pgo --json
 # Bad input: clear one-line errors, exit 1, no output file left behind.
 mkdir -p "$scratch/empty_frames"
 check map_empty_folder 1 "empty_frames: no frames" -- "$CARAT" map --frames "$scratch/empty_frames" --poses "$scratch/seq/poses.txt" --out "$scratch/never.txt"
 head -n 19 "$scratch/seq/poses.txt" >"$scratch/short.txt"
-check map_count_mismatch 1 "holds 20 frames but $scratch/short.txt has 19 poses" -- "$CARAT" map --frames "$scratch/seq" --poses "$scratch/short.txt" --bin-format xyz --out "$scratch/never.txt"
+check map_count_mismatch 1 "holds 20 frames but $scratch/short.txt has 19 poses" -- "$CARAT" map --frames "$scratch/seq" --poses "$scratch/short.txt" --out "$scratch/never.txt"
 sed '3s/^[^ ]*/nan/' "$scratch/seq/poses.txt" >"$scratch/nan.txt"
-check map_nan_pose 1 "nan.txt:3:" -- "$CARAT" map --frames "$scratch/seq" --poses "$scratch/nan.txt" --bin-format xyz --out "$scratch/never.txt"
+check map_nan_pose 1 "nan.txt:3:" -- "$CARAT" map --frames "$scratch/seq" --poses "$scratch/nan.txt" --out "$scratch/never.txt"
 cp -r "$scratch/seq" "$scratch/small_seq"
-head -c 240 "$scratch/seq/000004.bin" >"$scratch/small_seq/000004.bin"
-check map_tiny_frame 1 "000004.bin: only 20 points" -- "$CARAT" map --frames "$scratch/small_seq" --poses "$scratch/seq/poses.txt" --bin-format xyz --out "$scratch/never.txt"
+head -c 320 "$scratch/seq/000004.bin" >"$scratch/small_seq/000004.bin"
+check map_tiny_frame 1 "000004.bin: only 20 points" -- "$CARAT" map --frames "$scratch/small_seq" --poses "$scratch/seq/poses.txt" --out "$scratch/never.txt"
 head -c 1001 "$scratch/seq/000002.bin" >"$scratch/small_seq/000004.bin"
-check map_truncated_frame 1 "000004.bin" -- "$CARAT" map --frames "$scratch/small_seq" --poses "$scratch/seq/poses.txt" --bin-format xyz --out "$scratch/never.txt"
+check map_truncated_frame 1 "000004.bin" -- "$CARAT" map --frames "$scratch/small_seq" --poses "$scratch/seq/poses.txt" --out "$scratch/never.txt"
 if [[ -e "$scratch/never.txt" ]]; then echo "FAIL map left an output file after an error"; fail=$((fail + 1)); else pass=$((pass + 1)); fi
 awk 'NR == 11 { $4 += 500 } { print }' "$scratch/seq/poses.txt" >"$scratch/far.txt"
-check map_disconnected 1 "pair (9, 10) has only 0 correspondences" -- "$CARAT" map --frames "$scratch/seq" --poses "$scratch/far.txt" --bin-format xyz --out "$scratch/never.txt"
-check map_missing_poses 1 "nope.txt" -- "$CARAT" map --frames "$scratch/seq" --poses "$scratch/nope.txt" --bin-format xyz
+check map_disconnected 1 "pair (9, 10) has only 0 correspondences" -- "$CARAT" map --frames "$scratch/seq" --poses "$scratch/far.txt" --out "$scratch/never.txt"
+check map_missing_poses 1 "nope.txt" -- "$CARAT" map --frames "$scratch/seq" --poses "$scratch/nope.txt"
 : >"$scratch/empty_poses.txt"
-check map_empty_poses 1 "empty_poses.txt: no KITTI poses" -- "$CARAT" map --frames "$scratch/seq" --poses "$scratch/empty_poses.txt" --bin-format xyz
+check map_empty_poses 1 "empty_poses.txt: no KITTI poses" -- "$CARAT" map --frames "$scratch/seq" --poses "$scratch/empty_poses.txt"
 check map_missing_frames 1 "nowhere: not a folder of frames" -- "$CARAT" map --frames "$scratch/nowhere" --poses "$scratch/seq/poses.txt"
 check map_unknown_flag 2 "" -- "$CARAT" map --frames "$scratch/seq" --poses "$scratch/seq/poses.txt" --frobnicate
 check map_out_of_range 2 "" -- "$CARAT" map --frames "$scratch/seq" --poses "$scratch/seq/poses.txt" --residuals 5
@@ -268,9 +268,9 @@ check simulate_out_of_range 2 "" -- "$CARAT" simulate --out "$scratch/x" --frame
 check paper_unknown_flag 2 "" -- "$CARAT" paper --fast
 check demo_out_of_range 2 "" -- "$CARAT" demo --residuals 10
 cp -r "$scratch/seq" "$scratch/nan_seq"
-python3 -c "import struct,sys; f=open(sys.argv[1],'r+b'); f.seek(12*5); f.write(struct.pack('<3f', float('nan'), 0, 0))" "$scratch/nan_seq/000003.bin"
-check map_non_finite_point 1 "000003.bin" -- "$CARAT" map --frames "$scratch/nan_seq" --poses "$scratch/seq/poses.txt" --bin-format xyz --out "$scratch/never.txt"
-check map_drop_non_finite 0 "" -- "$CARAT" map --frames "$scratch/nan_seq" --poses "$scratch/seq/poses.txt" --bin-format xyz --drop-non-finite --rounds 1
+python3 -c "import struct,sys; f=open(sys.argv[1],'r+b'); f.seek(16*5); f.write(struct.pack('<3f', float('nan'), 0, 0))" "$scratch/nan_seq/000003.bin"
+check map_non_finite_point 1 "000003.bin: point 5 is not finite" -- "$CARAT" map --frames "$scratch/nan_seq" --poses "$scratch/seq/poses.txt" --out "$scratch/never.txt"
+check map_drop_non_finite 0 "" -- "$CARAT" map --frames "$scratch/nan_seq" --poses "$scratch/seq/poses.txt" --drop-non-finite --rounds 1
 check map_bad_sampling 2 "" -- "$CARAT" map --frames "$scratch/seq" --poses "$scratch/seq/poses.txt" --sampling most
 if [[ -f "${CARAT_DATA_DIR:-}/kitti07_seq5/graph.txt" ]]; then
   check map_kitti07 0 "" -- "$CARAT" map --frames "$CARAT_DATA_DIR/kitti07_seq5" --poses "$CARAT_DATA_DIR/kitti07_seq5/graph.txt" --poses-format graph --perturb-m 0.3 --perturb-deg 3 --json

@@ -226,7 +226,8 @@ TEST(SyntheticWorld, WritesAKittiStyleSequence) {
   for (std::size_t k = 0; k < 3; ++k) {
     char name[32];
     std::snprintf(name, sizeof(name), "%06zu.bin", k);
-    const PointCloud back = read_kitti_bin(dir / name, KittiFormat::kXyz);
+    EXPECT_EQ(std::filesystem::file_size(dir / name), 16 * sequence.scans[k].size()) << name;
+    const PointCloud back = read_kitti_bin(dir / name, KittiFormat::kXyzi);
     EXPECT_TRUE(same_points(back, sequence.scans[k])) << name;
   }
   std::ifstream in(dir / "poses.txt");
@@ -244,10 +245,10 @@ TEST(SyntheticWorld, WritesAKittiStyleSequence) {
   }
   EXPECT_EQ(lines, 3u);
 
-  // kXyzi writes zero intensity and reads back the same points.
-  write_kitti_bin(dir / "xyzi.bin", sequence.scans[0], KittiFormat::kXyzi);
-  EXPECT_EQ(std::filesystem::file_size(dir / "xyzi.bin"), 16 * sequence.scans[0].size());
-  EXPECT_TRUE(same_points(read_kitti_bin(dir / "xyzi.bin", KittiFormat::kXyzi), sequence.scans[0]));
+  // kXyz (12 bytes per point) reads back the same points too.
+  write_kitti_bin(dir / "xyz.bin", sequence.scans[0], KittiFormat::kXyz);
+  EXPECT_EQ(std::filesystem::file_size(dir / "xyz.bin"), 12 * sequence.scans[0].size());
+  EXPECT_TRUE(same_points(read_kitti_bin(dir / "xyz.bin", KittiFormat::kXyz), sequence.scans[0]));
 
   SyntheticSequence mismatched = sequence;
   mismatched.T_world_frame.pop_back();

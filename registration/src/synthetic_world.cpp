@@ -756,7 +756,7 @@ void write_synthetic_sequence(const std::filesystem::path& dir, const SyntheticS
   for (std::size_t k = 0; k < sequence.scans.size(); ++k) {
     char name[32];
     std::snprintf(name, sizeof(name), "%06zu.bin", k);
-    write_kitti_bin(dir / name, sequence.scans[k], KittiFormat::kXyz);
+    write_kitti_bin(dir / name, sequence.scans[k], KittiFormat::kXyzi);
   }
   std::string text;
   for (const Eigen::Isometry3d& T : sequence.T_world_frame) {

@@ -135,7 +135,8 @@ struct DriftOptions {
 std::vector<Eigen::Isometry3d> apply_drift(std::span<const Eigen::Isometry3d> T_world_frame,
                                            const DriftOptions& options);
 
-/// Writes a sequence KITTI-style: DIR/NNNNNN.bin (x y z float32, KittiFormat::kXyz) and
+/// Writes a sequence as KITTI lays it out: DIR/NNNNNN.bin (x y z intensity float32, intensity
+/// 0, KittiFormat::kXyzi, what `carat map` reads by default) and
 /// DIR/poses.txt (12 numbers per line, row-major 3x4 of T_world_frame, %.9g). Creates DIR;
 /// every file is written atomically. Throws carat::Error when scans and poses differ in number
 /// or a file cannot be written.
