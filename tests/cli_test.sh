@@ -138,6 +138,11 @@ if [[ -f "${CARAT_DATA_DIR:-}/posegraph/sphere2500.g2o" ]]; then
     echo "FAIL align on kitti00_pair"; fail=$((fail + 1))
   else pass=$((pass + 1)); fi
   check cubicle_indefinite 1 "cubicle.g2o:5753: information matrix" -- "$CARAT" solve-g2o "$CARAT_DATA_DIR/posegraph/cubicle.g2o"
+  check cubicle_repaired 0 "" -- "$CARAT" solve-g2o "$CARAT_DATA_DIR/posegraph/cubicle.g2o" --repair-information --json
+  cp "$scratch/out" "$scratch/cubicle.json"
+  if [[ $(json_field "$scratch/cubicle.json" "j['termination'] == 'CONVERGENCE' and j['repaired_information'] == 5021 and j['final_cost'] < 1e-3 * j['initial_cost']") != "True" ]]; then
+    echo "FAIL cubicle with --repair-information"; fail=$((fail + 1))
+  else pass=$((pass + 1)); fi
 else
   echo "skipping real-data CLI checks: ${CARAT_DATA_DIR:-<unset>}/posegraph not found"
 fi

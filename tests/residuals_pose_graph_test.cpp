@@ -3,6 +3,8 @@
 // real data is present).
 #include <gtest/gtest.h>
 
+#include <Eigen/Cholesky>
+#include <Eigen/QR>
 #include <fstream>
 #include <random>
 #include <sstream>
@@ -163,6 +165,58 @@ TEST(G2oTest, MalformedFilesNameTheLineAndTheProblem) {
   expect_parse_error(v0 + v1 + edge_line("1 1", kIdentityInfo),
                      "graph.g2o:3: edge joins vertex 1 to itself");
   expect_parse_error(v0 + "FIX 3\n", "graph.g2o: FIX names vertex 3, which is not defined");
+}
+
+TEST(G2oTest, IndefiniteInformationIsRepairedOnlyWhenAsked) {
+  // Information V diag(4, -1, 2, 3, 5, 6) V^T with a random orthonormal V: the nearest
+  // positive-definite matrix the reader makes is V diag(4, 6e-9, 2, 3, 5, 6) V^T.
+  std::mt19937_64 rng(3);
+  std::normal_distribution<double> normal;
+  se3::Matrix6d random;
+  for (int i = 0; i < 36; ++i) random.data()[i] = normal(rng);
+  const Eigen::HouseholderQR<se3::Matrix6d> qr(random);
+  const se3::Matrix6d V = qr.householderQ();
+  se3::Vector6d lambda;
+  lambda << 4.0, -1.0, 2.0, 3.0, 5.0, 6.0;
+  const se3::Matrix6d indefinite = V * lambda.asDiagonal() * V.transpose();
+  std::string info;
+  char number[40];
+  for (int r = 0; r < 6; ++r) {
+    for (int c = r; c < 6; ++c) {
+      std::snprintf(number, sizeof(number), "%.17g ", indefinite(r, c));
+      info += number;
+    }
+  }
+  const std::string text = "VERTEX_SE3:QUAT 0 0 0 0 0 0 0 1\nVERTEX_SE3:QUAT 1 1 0 0 0 0 0 1\n" +
+                           edge_line("0 1", kIdentityInfo) + edge_line("0 1", info.c_str());
+  expect_parse_error(text,
+                     "graph.g2o:4: information matrix: information matrix is not positive definite");
+
+  G2oReadOptions options;
+  options.information = InformationRepair::kNearest;
+  G2oReadReport report;
+  std::istringstream in(text);
+  const PoseGraph graph = parse_g2o(in, "graph.g2o", options, &report);
+  ASSERT_EQ(graph.edges.size(), 2u);
+  EXPECT_EQ(report.repaired_lines, std::vector<std::size_t>{4});
+  // A positive-definite matrix is kept bit for bit.
+  EXPECT_EQ(graph.edges[0].information, se3::Matrix6d::Identity());
+  lambda[1] = 6e-9;
+  const se3::Matrix6d expected = V * lambda.asDiagonal() * V.transpose();
+  EXPECT_LT((graph.edges[1].information - expected).norm(), 1e-12 * expected.norm());
+  EXPECT_EQ(Eigen::LLT<se3::Matrix6d>(graph.edges[1].information).info(), Eigen::Success);
+
+  // Nothing positive to keep: still an error, even when asked to repair.
+  std::istringstream negative(
+      "VERTEX_SE3:QUAT 0 0 0 0 0 0 0 1\nVERTEX_SE3:QUAT 1 1 0 0 0 0 0 1\n" +
+      edge_line("0 1", "-1 0 0 0 0 0 -1 0 0 0 0 -1 0 0 0 -1 0 0 -1 0 -1"));
+  try {
+    parse_g2o(negative, "graph.g2o", options);
+    FAIL() << "expected an error";
+  } catch (const Error& e) {
+    EXPECT_STREQ(e.what(),
+                 "graph.g2o:3: information matrix has no positive eigenvalue; cannot repair it");
+  }
 }
 
 TEST(G2oTest, MissingFileAndDirectory) {

@@ -1,6 +1,6 @@
 // carat solve-g2o FILE [--out FILE] [--max-iterations N] [--threads T] [--method lm|gn]
 //                      [--loss none|huber|cauchy] [--loss-scale S] [--no-factor-reuse]
-//                      [--trust-region-growth G] [--json]
+//                      [--trust-region-growth G] [--repair-information] [--json]
 #include <cstdio>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -25,12 +25,16 @@ struct SolveG2oArgs {
   std::string loss = "none";
   double loss_scale = 1.0;
   bool no_factor_reuse = false;
+  bool repair_information = false;
   double trust_region_growth = SolverOptions{}.max_trust_region_growth;
   bool json = false;
 };
 
 int run_solve_g2o(const SolveG2oArgs& args) {
-  PoseGraph graph = read_g2o(args.input);
+  G2oReadOptions read_options;
+  if (args.repair_information) read_options.information = InformationRepair::kNearest;
+  G2oReadReport read_report;
+  PoseGraph graph = read_g2o(args.input, read_options, &read_report);
   PoseGraphProblemOptions problem_options;
   if (args.loss == "huber") problem_options.loss = std::make_shared<HuberLoss>(args.loss_scale);
   if (args.loss == "cauchy") problem_options.loss = std::make_shared<CauchyLoss>(args.loss_scale);
@@ -63,11 +67,17 @@ int run_solve_g2o(const SolveG2oArgs& args) {
     j["input"] = args.input;
     j["vertices"] = graph.vertices.size();
     j["edges"] = graph.edges.size();
+    j["repaired_information"] = read_report.repaired_lines.size();
     if (!args.output.empty()) j["output"] = args.output;
     std::printf("%s\n", j.dump(2).c_str());
   } else {
-    std::printf("%s: %zu vertices, %zu edges\n\n", args.input.c_str(), graph.vertices.size(),
+    std::printf("%s: %zu vertices, %zu edges", args.input.c_str(), graph.vertices.size(),
                 graph.edges.size());
+    if (!read_report.repaired_lines.empty()) {
+      std::printf(" (%zu information matrices replaced by the nearest positive-definite one)",
+                  read_report.repaired_lines.size());
+    }
+    std::printf("\n\n");
     std::printf("%s\n%s\n", summary.full_report().c_str(), summary.brief_report().c_str());
     if (!args.output.empty()) std::printf("wrote %s\n", args.output.c_str());
   }
@@ -106,6 +116,9 @@ void register_solve_g2o(CLI::App& app, CommandRegistry& registry) {
                   "most the LM radius grows after one step (Ceres: 3)")
       ->check(CLI::Range(1.0, 1e6))
       ->capture_default_str();
+  cmd->add_flag("--repair-information", args->repair_information,
+               "replace an information matrix that is not positive definite by the nearest one "
+               "(eigenvalues raised to 1e-9 of the largest) instead of failing");
   cmd->add_flag("--json", args->json, "print one JSON object instead of the report");
   registry.add(cmd, [args] { return run_solve_g2o(*args); });
 }

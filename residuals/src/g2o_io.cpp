@@ -1,5 +1,7 @@
 #include "carat/residuals/g2o_io.hpp"
 
+#include <Eigen/Eigenvalues>
+#include <algorithm>
 #include <charconv>
 #include <cmath>
 #include <cstdio>
@@ -81,9 +83,34 @@ void expect_count(const LineParser& p, const std::vector<std::string_view>& t, s
   }
 }
 
+bool is_symmetric(const se3::Matrix6d& m) {
+  const double scale = std::max(1.0, m.cwiseAbs().maxCoeff());
+  return (m - m.transpose()).cwiseAbs().maxCoeff() <= 1e-9 * scale;
+}
+
+/// V max(Lambda, 1e-9 lambda_max) V^T of a symmetric matrix (see G2oReadOptions).
+se3::Matrix6d nearest_positive_definite(const se3::Matrix6d& information, const LineParser& p) {
+  const Eigen::SelfAdjointEigenSolver<se3::Matrix6d> eigen(information);
+  if (eigen.info() != Eigen::Success) p.fail("information matrix: eigen-decomposition failed");
+  const double largest = eigen.eigenvalues().maxCoeff();
+  if (!(largest > 0.0)) p.fail("information matrix has no positive eigenvalue; cannot repair it");
+  const se3::Vector6d clamped = eigen.eigenvalues().cwiseMax(1e-9 * largest);
+  se3::Matrix6d repaired =
+      eigen.eigenvectors() * clamped.asDiagonal() * eigen.eigenvectors().transpose();
+  repaired = 0.5 * (repaired + repaired.transpose()).eval();
+  try {
+    (void)sqrt_information(repaired, "information matrix");
+  } catch (const Error& error) {
+    p.fail(std::string(error.what()) + " (even after repair)");
+  }
+  return repaired;
+}
+
 }  // namespace
 
-PoseGraph parse_g2o(std::istream& in, const std::string& name) {
+PoseGraph parse_g2o(std::istream& in, const std::string& name, const G2oReadOptions& options,
+                    G2oReadReport* report) {
+  if (report) report->repaired_lines.clear();
   PoseGraph graph;
   std::unordered_map<std::int64_t, std::size_t> vertex_line;
   std::vector<std::size_t> edge_lines;
@@ -122,7 +149,12 @@ PoseGraph parse_g2o(std::istream& in, const std::string& name) {
       try {
         (void)sqrt_information(e.information, "information matrix");
       } catch (const Error& error) {
-        p.fail(error.what());
+        if (options.information != InformationRepair::kNearest ||
+            !is_symmetric(e.information)) {
+          p.fail(error.what());
+        }
+        e.information = nearest_positive_definite(e.information, p);
+        if (report) report->repaired_lines.push_back(line);
       }
       graph.edges.push_back(e);
       edge_lines.push_back(line);
@@ -154,14 +186,15 @@ PoseGraph parse_g2o(std::istream& in, const std::string& name) {
   return graph;
 }
 
-PoseGraph read_g2o(const std::filesystem::path& path) {
+PoseGraph read_g2o(const std::filesystem::path& path, const G2oReadOptions& options,
+                   G2oReadReport* report) {
   std::error_code ec;
   if (!std::filesystem::exists(path, ec)) throw Error(path.string() + ": no such file");
   if (std::filesystem::is_directory(path, ec))
     throw Error(path.string() + ": is a directory, not a g2o file");
   std::ifstream in(path);
   if (!in) throw Error(path.string() + ": cannot open for reading");
-  return parse_g2o(in, path.string());
+  return parse_g2o(in, path.string(), options, report);
 }
 
 void write_g2o(const std::filesystem::path& path, const PoseGraph& graph) {
