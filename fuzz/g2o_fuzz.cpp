@@ -1,5 +1,5 @@
-// Fuzzes the g2o reader and the pose-graph builder: any input must either parse or throw
-// carat::Error, never crash, hang or leak.
+// Fuzzes the g2o reader (rejecting and repairing indefinite information) and the pose-graph
+// builder: any input must either parse or throw carat::Error, never crash, hang or leak.
 #include <cstddef>
 #include <cstdint>
 #include <sstream>
@@ -10,13 +10,19 @@
 #include "carat/solver/error.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
-  std::istringstream in(std::string(reinterpret_cast<const char*>(data), size));
-  try {
-    const carat::PoseGraph graph = carat::parse_g2o(in, "fuzz.g2o");
-    if (graph.vertices.size() < 64 && graph.edges.size() < 256) {
-      (void)carat::build_pose_graph_problem(graph);
+  const std::string text(reinterpret_cast<const char*>(data), size);
+  // Both ways of treating an indefinite information matrix: reject, and repair.
+  for (const auto repair : {carat::InformationRepair::kReject, carat::InformationRepair::kNearest}) {
+    std::istringstream in(text);
+    carat::G2oReadOptions options;
+    options.information = repair;
+    try {
+      const carat::PoseGraph graph = carat::parse_g2o(in, "fuzz.g2o", options);
+      if (graph.vertices.size() < 64 && graph.edges.size() < 256) {
+        (void)carat::build_pose_graph_problem(graph);
+      }
+    } catch (const carat::Error&) {
     }
-  } catch (const carat::Error&) {
   }
   return 0;
 }
