@@ -56,8 +56,8 @@ int main() {
         carat::estimate_covariances(*clouds.back(), *trees.back(), options);
       }
       for (double max_distance : {0.5, 1.0, 2.0}) {
-        for (auto method : {carat::RegistrationMethod::kGicp,
-                            carat::RegistrationMethod::kPointToPlane}) {
+        for (auto method :
+             {carat::RegistrationMethod::kGicp, carat::RegistrationMethod::kPointToPlane}) {
           std::printf("voxel %.2f k %2d max %.1f %-5s", voxel, k, max_distance,
                       method == carat::RegistrationMethod::kGicp ? "gicp" : "p2pl");
           for (int p = 0; p < kPairs; ++p) {

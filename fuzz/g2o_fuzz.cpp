@@ -12,7 +12,8 @@
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const std::string text(reinterpret_cast<const char*>(data), size);
   // Both ways of treating an indefinite information matrix: reject, and repair.
-  for (const auto repair : {carat::InformationRepair::kReject, carat::InformationRepair::kNearest}) {
+  for (const auto repair :
+       {carat::InformationRepair::kReject, carat::InformationRepair::kNearest}) {
     std::istringstream in(text);
     carat::G2oReadOptions options;
     options.information = repair;

@@ -189,8 +189,8 @@ TEST(G2oTest, IndefiniteInformationIsRepairedOnlyWhenAsked) {
   }
   const std::string text = "VERTEX_SE3:QUAT 0 0 0 0 0 0 0 1\nVERTEX_SE3:QUAT 1 1 0 0 0 0 0 1\n" +
                            edge_line("0 1", kIdentityInfo) + edge_line("0 1", info.c_str());
-  expect_parse_error(text,
-                     "graph.g2o:4: information matrix: information matrix is not positive definite");
+  expect_parse_error(
+      text, "graph.g2o:4: information matrix: information matrix is not positive definite");
 
   G2oReadOptions options;
   options.information = InformationRepair::kNearest;
@@ -207,9 +207,8 @@ TEST(G2oTest, IndefiniteInformationIsRepairedOnlyWhenAsked) {
   EXPECT_EQ(Eigen::LLT<se3::Matrix6d>(graph.edges[1].information).info(), Eigen::Success);
 
   // Nothing positive to keep: still an error, even when asked to repair.
-  std::istringstream negative(
-      "VERTEX_SE3:QUAT 0 0 0 0 0 0 0 1\nVERTEX_SE3:QUAT 1 1 0 0 0 0 0 1\n" +
-      edge_line("0 1", "-1 0 0 0 0 0 -1 0 0 0 0 -1 0 0 0 -1 0 0 -1 0 -1"));
+  std::istringstream negative("VERTEX_SE3:QUAT 0 0 0 0 0 0 0 1\nVERTEX_SE3:QUAT 1 1 0 0 0 0 0 1\n" +
+                              edge_line("0 1", "-1 0 0 0 0 0 -1 0 0 0 0 -1 0 0 0 -1 0 0 -1 0 -1"));
   try {
     parse_g2o(negative, "graph.g2o", options);
     FAIL() << "expected an error";

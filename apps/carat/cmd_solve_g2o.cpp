@@ -111,14 +111,14 @@ void register_solve_g2o(CLI::App& app, CommandRegistry& registry) {
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
   cmd->add_flag("--no-factor-reuse", args->no_factor_reuse,
-               "factorize afresh every iteration (no steps on an earlier factorization)");
+                "factorize afresh every iteration (no steps on an earlier factorization)");
   cmd->add_option("--trust-region-growth", args->trust_region_growth,
                   "most the LM radius grows after one step (Ceres: 3)")
       ->check(CLI::Range(1.0, 1e6))
       ->capture_default_str();
   cmd->add_flag("--repair-information", args->repair_information,
-               "replace an information matrix that is not positive definite by the nearest one "
-               "(eigenvalues raised to 1e-9 of the largest) instead of failing");
+                "replace an information matrix that is not positive definite by the nearest one "
+                "(eigenvalues raised to 1e-9 of the largest) instead of failing");
   cmd->add_flag("--json", args->json, "print one JSON object instead of the report");
   registry.add(cmd, [args] { return run_solve_g2o(*args); });
 }

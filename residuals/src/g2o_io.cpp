@@ -149,8 +149,7 @@ PoseGraph parse_g2o(std::istream& in, const std::string& name, const G2oReadOpti
       try {
         (void)sqrt_information(e.information, "information matrix");
       } catch (const Error& error) {
-        if (options.information != InformationRepair::kNearest ||
-            !is_symmetric(e.information)) {
+        if (options.information != InformationRepair::kNearest || !is_symmetric(e.information)) {
           p.fail(error.what());
         }
         e.information = nearest_positive_definite(e.information, p);

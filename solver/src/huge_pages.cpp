@@ -39,7 +39,7 @@ void* allocate_huge(std::size_t bytes) {
   if (bytes < kHugeFrom) return ::operator new(bytes);
   // Whole huge pages, so that the last one is not shared with another allocation.
   const std::size_t rounded = (bytes + kHugePage - 1) / kHugePage * kHugePage;
-  void* data = ::operator new(rounded, std::align_val_t{kHugePage});
+  void* data = ::operator new (rounded, std::align_val_t{kHugePage});
   advise_huge_pages(data, rounded);
   return data;
 }
@@ -50,7 +50,7 @@ void deallocate_huge(void* data, std::size_t bytes) noexcept {
     ::operator delete(data);
     return;
   }
-  ::operator delete(data, std::align_val_t{kHugePage});
+  ::operator delete (data, std::align_val_t{kHugePage});
 }
 
 }  // namespace carat::internal

@@ -384,8 +384,9 @@ void Solver::run() {
       row.cost = new_cost;
       if (lm) {
         const double t = 2.0 * ratio - 1.0;
-        radius = std::min(options_.max_trust_region_radius,
-                          radius / std::max(1.0 / options_.max_trust_region_growth, 1.0 - t * t * t));
+        radius =
+            std::min(options_.max_trust_region_radius,
+                     radius / std::max(1.0 / options_.max_trust_region_growth, 1.0 - t * t * t));
         decrease_factor = 2.0;
       }
       row.trust_region_radius = radius;

@@ -34,10 +34,10 @@ struct SolverOptions {
   /// for gain ratio rho (Ceres uses 3; a larger factor reaches undamped steps sooner when the
   /// model keeps predicting the decrease exactly).
   double max_trust_region_growth = 10.0;
-  double min_trust_region_radius = 1e-32;       ///< LM: stop when the radius falls below this
-  double min_relative_decrease = 1e-3;          ///< LM: smallest gain ratio that accepts a step
-  double min_lm_diagonal = 1e-6;                ///< LM: lower clamp of diag(H) in the damping
-  double max_lm_diagonal = 1e32;                ///< LM: upper clamp of diag(H) in the damping
+  double min_trust_region_radius = 1e-32;  ///< LM: stop when the radius falls below this
+  double min_relative_decrease = 1e-3;     ///< LM: smallest gain ratio that accepts a step
+  double min_lm_diagonal = 1e-6;           ///< LM: lower clamp of diag(H) in the damping
+  double max_lm_diagonal = 1e32;           ///< LM: upper clamp of diag(H) in the damping
   /// LM: after an accepted step whose gain ratio exceeded factor_reuse_ratio, try the next step
   /// with the previous numeric factorization (see solve()); false always factorizes afresh.
   bool reuse_factorization = true;

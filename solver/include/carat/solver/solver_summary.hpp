@@ -51,19 +51,19 @@ struct SolverSummary {
   std::string message;                                      ///< human-readable reason
   double initial_cost = 0.0;                                ///< cost at the start
   double final_cost = 0.0;                                  ///< cost of the returned (best) iterate
-  int num_iterations = 0;                    ///< iterations run (accepted + rejected)
-  int num_successful_steps = 0;              ///< accepted steps
-  int num_unsuccessful_steps = 0;            ///< rejected steps
-  int num_reused_factorizations = 0;         ///< accepted steps solved with an earlier factorization
-  int num_refused_reuses = 0;  ///< steps with an earlier factorization tried and not kept
-  int num_linear_solver_failures = 0;        ///< factorizations that were not positive definite
-  int num_variables = 0;                     ///< variables in the problem
-  int num_free_variables = 0;                ///< variables not held constant
-  int num_tangent_parameters = 0;            ///< size of the linear system
-  int num_residual_blocks = 0;               ///< residual blocks
-  std::size_t num_residual_rows = 0;         ///< scalar residual rows
-  std::size_t factor_nonzeros = 0;           ///< nonzeros of the Cholesky factor
-  std::size_t hessian_nonzeros = 0;          ///< stored nonzeros of the upper triangle of H
+  int num_iterations = 0;              ///< iterations run (accepted + rejected)
+  int num_successful_steps = 0;        ///< accepted steps
+  int num_unsuccessful_steps = 0;      ///< rejected steps
+  int num_reused_factorizations = 0;   ///< accepted steps solved with an earlier factorization
+  int num_refused_reuses = 0;          ///< steps with an earlier factorization tried and not kept
+  int num_linear_solver_failures = 0;  ///< factorizations that were not positive definite
+  int num_variables = 0;               ///< variables in the problem
+  int num_free_variables = 0;          ///< variables not held constant
+  int num_tangent_parameters = 0;      ///< size of the linear system
+  int num_residual_blocks = 0;         ///< residual blocks
+  std::size_t num_residual_rows = 0;   ///< scalar residual rows
+  std::size_t factor_nonzeros = 0;     ///< nonzeros of the Cholesky factor
+  std::size_t hessian_nonzeros = 0;    ///< stored nonzeros of the upper triangle of H
   std::size_t residual_memory_bytes = 0;     ///< bytes held by residual blocks
   int num_threads = 1;                       ///< threads used for linearization
   std::string method;                        ///< "levenberg_marquardt" or "gauss_newton"
