@@ -95,6 +95,7 @@ if [[ $(json_field "$scratch/ceres_like.json" "j['reused_factorizations'] == 0 a
 else pass=$((pass + 1)); fi
 check no_subcommand 2 "" -- "$CARAT"
 check demo_bad_frames 2 "" -- "$CARAT" demo --frames 3
+check demo_two_kernels 2 "excludes" -- "$CARAT" demo --frames 24 --gre-cauchy 1 --gre-excess-cauchy 1
 
 # coreset-check: exact and of the requested size; JSON has the documented fields.
 check coreset_check 0 "" -- "$CARAT" coreset-check --rows 5000 --target 29 --trials 3 --json
@@ -246,6 +247,12 @@ cp "$scratch/out" "$scratch/map.json"
 if [[ $(json_field "$scratch/map.json" "j['ate_rmse'] < 0.25 * j['initial_ate_rmse'] and j['frames'] == 20") != "True" ]]; then
   echo "FAIL map on the simulated drive: $(head -c 400 "$scratch/map.json")"; fail=$((fail + 1)); else pass=$((pass + 1)); fi
 if [[ $(grep -c . "$scratch/map_out.txt") -ne 20 ]]; then echo "FAIL map --out"; fail=$((fail + 1)); else pass=$((pass + 1)); fi
+check map_excess_kernel 0 "" -- "$CARAT" map --frames "$scratch/seq" --poses "$scratch/seq/poses.txt" --perturb-m 0.1 --perturb-deg 1 --gre-excess-cauchy 1 --json
+cp "$scratch/out" "$scratch/map_excess.json"
+if [[ $(json_field "$scratch/map_excess.json" "j['ate_rmse'] < 0.25 * j['initial_ate_rmse'] and j['time_breakdown']['factor_minimum_s'] > 0") != "True" ]]; then
+  echo "FAIL map with the excess kernel: $(head -c 400 "$scratch/map_excess.json")"; fail=$((fail + 1)); else pass=$((pass + 1)); fi
+if [[ $(json_field "$scratch/map.json" "j['time_breakdown']['factor_minimum_s'] == 0") != "True" ]]; then
+  echo "FAIL map without the excess kernel reports factor minima"; fail=$((fail + 1)); else pass=$((pass + 1)); fi
 check map_pgo 0 "" -- "$CARAT" map --frames "$scratch/seq" --poses "$scratch/seq/poses.txt" --perturb-m 0.1 --perturb-deg 1 --method pgo --json
 # Bad input: clear one-line errors, exit 1, no output file left behind.
 mkdir -p "$scratch/empty_frames"

@@ -3,10 +3,12 @@
 // assembly against a dense reference.
 #include "carat/solver/solve.hpp"
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <array>
 #include <cmath>
+#include <limits>
 #include <memory>
 #include <random>
 
@@ -262,6 +264,36 @@ TEST(LossTest, DerivativesMatchFiniteDifferences) {
   }
   EXPECT_THROW(HuberLoss(0.0), Error);
   EXPECT_THROW(CauchyLoss(-1.0), Error);
+}
+
+TEST(LossTest, ExcessLossIsPlainUpToTheOffsetAndTheInnerLossBeyond) {
+  const auto cauchy = std::make_shared<CauchyLoss>(1.3);
+  const ExcessLoss excess(5.0, cauchy);
+  EXPECT_EQ(excess.offset(), 5.0);
+  for (double s : {0.0, 2.0, 5.0}) {  // at and below the offset: s itself
+    const LossValue v = excess.evaluate(s);
+    EXPECT_EQ(v.rho, s);
+    EXPECT_EQ(v.rho1, 1.0);
+    EXPECT_EQ(v.rho2, 0.0);
+  }
+  for (double s : {5.5, 7.0, 60.0}) {  // beyond: offset + inner(s - offset), inner's derivatives
+    const LossValue v = excess.evaluate(s);
+    const LossValue inner = cauchy->evaluate(s - 5.0);
+    EXPECT_DOUBLE_EQ(v.rho, 5.0 + inner.rho);
+    EXPECT_EQ(v.rho1, inner.rho1);
+    EXPECT_EQ(v.rho2, inner.rho2);
+    const double h = 1e-6 * s;
+    EXPECT_NEAR(v.rho1, (excess.evaluate(s + h).rho - excess.evaluate(s - h).rho) / (2 * h), 1e-6);
+  }
+  // Continuous with a continuous slope at the offset.
+  EXPECT_NEAR(excess.evaluate(5.0 + 1e-9).rho, 5.0, 1e-8);
+  EXPECT_NEAR(excess.evaluate(5.0 + 1e-9).rho1, 1.0, 1e-8);
+  EXPECT_THAT([&] { ExcessLoss(-1.0, cauchy); },
+              ::testing::ThrowsMessage<Error>(
+                  ::testing::HasSubstr("offset must be finite and >= 0, got -1")));
+  EXPECT_THROW(ExcessLoss(std::numeric_limits<double>::infinity(), cauchy), Error);
+  EXPECT_THAT([&] { ExcessLoss(1.0, nullptr); },
+              ::testing::ThrowsMessage<Error>(::testing::HasSubstr("inner loss is null")));
 }
 
 TEST(SolveTest, BitIdenticalAcrossThreadCounts) {

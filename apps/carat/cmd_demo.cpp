@@ -46,6 +46,7 @@ struct DemoArgs {
   double max_distance = 1.0;
   double pgo_cauchy = 1.0;
   double gre_cauchy = 0.0;
+  double gre_excess_cauchy = 0.0;
   int threads = 0;
   bool json = false;
 };
@@ -79,6 +80,7 @@ int run_demo(const DemoArgs& args) {
   input.max_correspondence_distance = args.max_distance;
   input.pgo_cauchy_scale = args.pgo_cauchy;
   input.gre_cauchy_scale = args.gre_cauchy;
+  input.gre_excess_cauchy_scale = args.gre_excess_cauchy;
   {
     ProgressBar bar("preprocessing scans", true);
     input.frames = preprocess_frames(
@@ -231,9 +233,16 @@ void register_demo(CLI::App& app, CommandRegistry& registry) {
                   "Cauchy scale of the PGO baselines on the whitened error (0: no kernel)")
       ->check(CLI::Range(0.0, 1e9))
       ->capture_default_str();
-  cmd->add_option("--gre-cauchy", args->gre_cauchy,
-                  "Cauchy scale on each GRE factor's whole error (0: none, as in the paper)")
+  CLI::Option* gre_cauchy =
+      cmd->add_option("--gre-cauchy", args->gre_cauchy,
+                      "Cauchy scale on each GRE factor's whole error (0: none, as in the paper)")
+          ->check(CLI::Range(0.0, 1e9))
+          ->capture_default_str();
+  cmd->add_option("--gre-excess-cauchy", args->gre_excess_cauchy,
+                  "Cauchy scale on each GRE factor's error above its own minimum, in the units of "
+                  "the PGO kernel (0: none, as in the paper)")
       ->check(CLI::Range(0.0, 1e9))
+      ->excludes(gre_cauchy)
       ->capture_default_str();
   cmd->add_option("--threads", args->threads, "threads (0: all cores)")
       ->check(CLI::Range(0, 1024))

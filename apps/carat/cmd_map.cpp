@@ -47,6 +47,7 @@ struct MapArgs {
   double overlap = 0.2;
   double max_distance = 1.0;
   int rounds = 10;
+  double gre_excess_cauchy = 0.0;
   double perturb_m = 0.0;
   double perturb_deg = 0.0;
   std::uint64_t seed = 1;
@@ -118,6 +119,7 @@ int run_map(const MapArgs& args) {
   input.residuals = args.residuals;
   input.max_correspondence_distance = args.max_distance;
   input.rounds = args.rounds;
+  input.gre_excess_cauchy_scale = args.gre_excess_cauchy;
   PreprocessOptions preprocess;
   preprocess.voxel_size = args.voxel;
   {
@@ -220,6 +222,11 @@ void register_map(CLI::App& app, CommandRegistry& registry) {
       ->capture_default_str();
   cmd->add_option("--rounds", args->rounds, "gre: correspondence rounds (1: fixed at the start)")
       ->check(CLI::Range(1, 1000))
+      ->capture_default_str();
+  cmd->add_option("--gre-excess-cauchy", args->gre_excess_cauchy,
+                  "gre: Cauchy scale on each factor's error above its own minimum (0: none, as "
+                  "in the paper)")
+      ->check(CLI::Range(0.0, 1e9))
       ->capture_default_str();
   cmd->add_option("--perturb-m", args->perturb_m, "perturb poses 1.. by this translation (m)")
       ->check(CLI::Range(0.0, 100.0))

@@ -69,6 +69,7 @@ MethodResult run_registration(const MappingInput& input, ResidualSampling sampli
   options.num_threads = input.threads;
   options.rounds = input.rounds;
   options.factor_cauchy_scale = input.gre_cauchy_scale;
+  options.factor_excess_cauchy_scale = input.gre_excess_cauchy_scale;
   options.solver = mapping_solver(input.threads);
   MethodResult out;
   out.key = std::string("gre_") + to_string(sampling);
@@ -87,13 +88,15 @@ MethodResult run_registration(const MappingInput& input, ResidualSampling sampli
   const TimeBreakdown& t = result.summary.time;
   out.breakdown = {{"correspondences_s", result.stats.correspondence_s},
                    {"compression_s", result.stats.compression_s},
+                   {"factor_minimum_s", result.stats.minimum_s},
                    {"linearization_s", t.linearize_s},
                    {"cost_evaluation_s", t.cost_s},
                    {"linear_solve_s", t.assembly_s + t.symbolic_s + t.numeric_s + t.solve_s},
                    {"optimization_s", t.total_s}};
-  // Optimization time as in the paper's Fig. 7: compressing the factors plus the LM solve; the
-  // correspondence search is the same for every sampling and is reported on its own.
-  out.time_s = result.stats.compression_s + t.total_s;
+  // Optimization time as in the paper's Fig. 7: compressing the factors (and, with the excess
+  // kernel, each factor's model minimum) plus the LM solve; the correspondence search is the
+  // same for every sampling and is reported on its own.
+  out.time_s = result.stats.compression_s + result.stats.minimum_s + t.total_s;
   out.total_s = result.stats.correspondence_s + out.time_s;
   out.memory_bytes = result.stats.residual_bytes;
   out.correspondence_bytes = result.stats.correspondence_bytes;

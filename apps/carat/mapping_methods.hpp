@@ -33,7 +33,8 @@ struct MappingInput {
   int rounds = 1;                                    // GRE correspondence rounds
   double pgo_cauchy_scale = 1.0;                     // Cauchy scale of the PGO baselines
   double gre_cauchy_scale = 0.0;                     // Cauchy scale per GRE factor (0: none)
-  bool progress = true;                              // progress bars on a terminal
+  double gre_excess_cauchy_scale = 0.0;  // Cauchy scale on each GRE factor's excess (0: none)
+  bool progress = true;                  // progress bars on a terminal
 };
 
 /// One method's result and costs.

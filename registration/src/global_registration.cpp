@@ -4,11 +4,14 @@
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <array>
 #include <atomic>
 #include <chrono>
+#include <cmath>
 #include <string>
+#include <utility>
 
 #include "carat/coreset/compress.hpp"
 #include "carat/coreset/row_coreset.hpp"
@@ -44,6 +47,17 @@ void check_options(const GlobalRegistrationOptions& options) {
     throw Error("global registration: max_correspondence_distance must be > 0");
   if (options.min_correspondences < 1)
     throw Error("global registration: min_correspondences must be >= 1");
+  for (const auto& [name, scale] :
+       {std::pair{"factor_cauchy_scale", options.factor_cauchy_scale},
+        std::pair{"factor_excess_cauchy_scale", options.factor_excess_cauchy_scale}}) {
+    if (!(scale >= 0.0) || !std::isfinite(scale))
+      throw Error(std::string("global registration: ") + name +
+                  " must be finite and >= 0 (0: no kernel), got " + std::to_string(scale));
+  }
+  if (options.factor_cauchy_scale > 0.0 && options.factor_excess_cauchy_scale > 0.0)
+    throw Error(
+        "global registration: factor_cauchy_scale and factor_excess_cauchy_scale are both set; "
+        "a factor takes one kernel");
   std::string why;
   if (!options.solver.validate(&why)) throw Error("global registration: " + why);
 }
@@ -55,7 +69,50 @@ struct BuiltFactor {
   std::size_t correspondence_bytes = 0;
   double correspondence_s = 0.0;
   double compression_s = 0.0;
+  double minimum_s = 0.0;
+  double minimum = 0.0;  ///< the block's least squared norm over its relative pose (excess kernel)
 };
+
+/// The least squared norm of a binary registration block over its relative pose T_ij, by
+/// Gauss-Newton steps from `values` (the source pose moves: T_j <- T_j Exp(delta) moves T_ij by
+/// the same right perturbation, the block's reduced tangent). Steps use the pseudo-inverse over
+/// eigenvalues above 1e-12 of the largest; it stops when a step no longer lowers the norm or
+/// lowers it by less than 1e-12 relative. Returns the lowest norm met (<= the starting one).
+double block_minimum(const ResidualBlock& block, ParameterPointers values) {
+  const int r = block.reduced_dim();
+  std::array<double, 7> source{};
+  std::copy(values[1], values[1] + 7, source.begin());
+  const double* current[2] = {values[0], source.data()};
+  Eigen::MatrixXd H(r, r);
+  Eigen::VectorXd b(r);
+  H.setZero();
+  b.setZero();
+  double best = block.accumulate(current, H, b);
+  constexpr int kMaxSteps = 20;
+  for (int step = 0; step < kMaxSteps; ++step) {
+    const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(H);
+    const Eigen::VectorXd lambda = eigen.eigenvalues();
+    const Eigen::VectorXd projected = eigen.eigenvectors().transpose() * b;
+    const double floor = 1e-12 * lambda.cwiseAbs().maxCoeff();
+    Eigen::VectorXd scaled = Eigen::VectorXd::Zero(r);
+    for (int k = 0; k < r; ++k) {
+      if (lambda[k] > floor) scaled[k] = -projected[k] / lambda[k];
+    }
+    const se3::Vector6d delta = eigen.eigenvectors() * scaled;
+    std::array<double, 7> trial{};
+    se3::to_storage(se3::from_storage(source.data()) * se3::exp(delta), trial.data());
+    const double* moved[2] = {values[0], trial.data()};
+    H.setZero();
+    b.setZero();
+    const double cost = block.accumulate(moved, H, b);
+    if (!(cost < best)) break;
+    const bool converged = best - cost <= 1e-12 * best;
+    best = cost;
+    source = trial;
+    if (converged) break;
+  }
+  return best;
+}
 
 /// Adds one round's solve and build statistics to the running result.
 void accumulate_round(const SolverSummary& summary, const RegistrationFactorStats& stats,
@@ -84,6 +141,7 @@ void accumulate_round(const SolverSummary& summary, const RegistrationFactorStat
                           summary.iterations.end());
   out->stats.correspondence_s += stats.correspondence_s;
   out->stats.compression_s += stats.compression_s;
+  out->stats.minimum_s += stats.minimum_s;
   out->stats.num_correspondences = stats.num_correspondences;
   out->stats.num_rows = stats.num_rows;
   out->stats.correspondence_bytes =
@@ -197,18 +255,31 @@ RegistrationProblem build_registration_problem(
         }
       }
       factor.compression_s = seconds_since(t0);
+      if (options.factor_excess_cauchy_scale > 0.0) {
+        t0 = Clock::now();
+        const double* values[2] = {storage[i].data(), storage[j].data()};
+        factor.minimum = block_minimum(*factor.block, values);
+        factor.minimum_s = seconds_since(t0);
+      }
       if (progress) progress(done.fetch_add(1) + 1, pairs.size());
     });
   });
   std::shared_ptr<const LossFunction> loss;
   if (options.factor_cauchy_scale > 0.0)
     loss = std::make_shared<CauchyLoss>(options.factor_cauchy_scale);
+  std::shared_ptr<const LossFunction> excess_inner;
+  if (options.factor_excess_cauchy_scale > 0.0)
+    excess_inner = std::make_shared<CauchyLoss>(options.factor_excess_cauchy_scale);
   for (std::size_t k = 0; k < pairs.size(); ++k) {
     const FramePair& pair = pairs[k];
+    std::shared_ptr<const LossFunction> factor_loss = loss;
+    if (options.factor_excess_cauchy_scale > 0.0) {
+      factor_loss = std::make_shared<ExcessLoss>(built[k].minimum, excess_inner);
+    }
     out.problem.add_residual_block(built[k].block,
                                    {out.frame_variables[static_cast<std::size_t>(pair.target)],
                                     out.frame_variables[static_cast<std::size_t>(pair.source)]},
-                                   loss);
+                                   std::move(factor_loss));
     RegistrationFactorStats& s = out.stats;
     s.num_factors += 1;
     s.num_correspondences += built[k].correspondences;
@@ -217,14 +288,16 @@ RegistrationProblem build_registration_problem(
     s.residual_bytes += built[k].block->memory_bytes();
     s.correspondence_s += built[k].correspondence_s;
     s.compression_s += built[k].compression_s;
+    s.minimum_s += built[k].minimum_s;
     out.factor_correspondences.push_back(built[k].correspondences);
   }
   // The stage ran in parallel: split its wall time in proportion to the per-factor CPU times.
   const double wall = seconds_since(stage_start);
-  const double cpu = out.stats.correspondence_s + out.stats.compression_s;
+  const double cpu = out.stats.correspondence_s + out.stats.compression_s + out.stats.minimum_s;
   if (cpu > 0.0) {
     out.stats.correspondence_s *= wall / cpu;
     out.stats.compression_s *= wall / cpu;
+    out.stats.minimum_s *= wall / cpu;
   }
   return out;
 }

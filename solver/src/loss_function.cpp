@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <string>
+#include <utility>
 
 #include "carat/solver/error.hpp"
 
@@ -31,6 +32,20 @@ LossValue CauchyLoss::evaluate(double s) const {
   const double sum = 1.0 + s * inv;
   const double rho1 = 1.0 / sum;
   return {c2_ * std::log1p(s * inv), rho1, -inv * rho1 * rho1};
+}
+
+ExcessLoss::ExcessLoss(double offset, std::shared_ptr<const LossFunction> inner)
+    : offset_(offset), inner_(std::move(inner)) {
+  if (!(offset >= 0.0) || !std::isfinite(offset)) {
+    throw Error("ExcessLoss: offset must be finite and >= 0, got " + std::to_string(offset));
+  }
+  if (!inner_) throw Error("ExcessLoss: the inner loss is null");
+}
+
+LossValue ExcessLoss::evaluate(double s) const {
+  if (!(s > offset_)) return {s, 1.0, 0.0};
+  const LossValue v = inner_->evaluate(s - offset_);
+  return {offset_ + v.rho, v.rho1, v.rho2};
 }
 
 }  // namespace carat

@@ -44,6 +44,13 @@ struct GlobalRegistrationOptions {
   int num_threads = 1;                       ///< threads for building, compressing, solving
   double factor_cauchy_scale = 0.0;          ///< Cauchy kernel on each factor's whole squared error
                                              ///< (exactness is kept); 0: none, as in the paper
+  double factor_excess_cauchy_scale = 0.0;   ///< Cauchy kernel on each factor's squared error
+                                             ///< above the factor's own least squared norm over
+                                             ///< its relative pose (Gauss-Newton on the kept
+                                             ///< rows from the initial poses; ExcessLoss): the
+                                             ///< GRE analogue of a PGO edge's Cauchy kernel on
+                                             ///< its Mahalanobis error. 0: none, as in the
+                                             ///< paper. At most one of the two kernels is set.
   int rounds = 1;  ///< 1: correspondences fixed at the initial poses (the paper); more: search
                    ///< again at each round's result and solve again, until a round moves no
                    ///< pose more than the tolerances below
@@ -61,6 +68,8 @@ struct RegistrationFactorStats {
   std::size_t residual_bytes = 0;        ///< bytes the kept blocks hold during the solve
   double correspondence_s = 0.0;  ///< wall time of the searches and full blocks (share of stage)
   double compression_s = 0.0;     ///< wall time of compressing (share of the same stage)
+  double minimum_s = 0.0;         ///< wall time of the factors' model minima for the excess kernel
+                                  ///< (share of the same stage; 0 without that kernel)
 };
 
 /// The assembled problem: one SE(3) variable per frame, one block per pair.

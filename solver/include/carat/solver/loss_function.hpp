@@ -48,4 +48,21 @@ class CauchyLoss final : public LossFunction {
   double c2_;
 };
 
+/// A kernel on the excess over an offset: rho(s) = s for s <= offset and
+/// offset + inner(s - offset) beyond, so the first `offset` of the squared norm (e.g. a factor's
+/// own minimum) stays plain least squares and only what lies above it is robustified.
+class ExcessLoss final : public LossFunction {
+ public:
+  /// offset >= 0 and finite; inner is not null.
+  ExcessLoss(double offset, std::shared_ptr<const LossFunction> inner);
+  LossValue evaluate(double s) const override;
+  const char* name() const override { return "excess"; }
+  /// The squared norm below which the loss is plain least squares.
+  double offset() const { return offset_; }
+
+ private:
+  double offset_;
+  std::shared_ptr<const LossFunction> inner_;
+};
+
 }  // namespace carat
