@@ -14,6 +14,7 @@
 #include "carat/registration/frame.hpp"
 #include "carat/registration/synthetic_world.hpp"
 #include "carat/residuals/gicp_block.hpp"
+#include "carat/residuals/lossless_block.hpp"
 #include "carat/solver/se3.hpp"
 
 namespace {
@@ -119,6 +120,39 @@ void BM_CompressRandom(benchmark::State& state) {
   set_counters(state);
 }
 
+void BM_SummarizeLossless(benchmark::State& state) {
+  const Graph& g = graph();
+  std::size_t k = 0;
+  for (auto _ : state) {
+    const std::size_t i = k++ % g.pairs.size();
+    const auto T = g.poses[g.pairs[i].target].inverse() * g.poses[g.pairs[i].source];
+    auto lossless = carat::make_lossless_block(*g.blocks[i], T);
+    benchmark::DoNotOptimize(lossless->num_rows());
+  }
+  set_counters(state);
+}
+
+void BM_LinearizeLossless(benchmark::State& state) {
+  const Graph& g = graph();
+  std::vector<std::shared_ptr<const carat::LosslessRegistrationBlock>> lossless;
+  for (std::size_t i = 0; i < g.pairs.size(); ++i) {
+    lossless.push_back(carat::make_lossless_block(
+        *g.blocks[i], g.poses[g.pairs[i].target].inverse() * g.poses[g.pairs[i].source]));
+  }
+  std::size_t k = 0;
+  Eigen::MatrixXd H(6, 6);
+  Eigen::VectorXd b(6);
+  for (auto _ : state) {
+    const std::size_t i = k++ % g.pairs.size();
+    const double* values[2] = {g.storage[g.pairs[i].target].data(),
+                               g.storage[g.pairs[i].source].data()};
+    H.setZero();
+    b.setZero();
+    benchmark::DoNotOptimize(lossless[i]->accumulate(values, H, b));
+  }
+  set_counters(state);
+}
+
 void BM_LinearizeExact(benchmark::State& state) {
   const Graph& g = graph();
   std::vector<std::shared_ptr<carat::CompressedBlock>> compressed;
@@ -147,6 +181,8 @@ BENCHMARK(BM_LinearizeFull)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_CompressExact)->Arg(64)->Arg(96)->Arg(128)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_CompressRandom)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_LinearizeExact)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_SummarizeLossless)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_LinearizeLossless)->Unit(benchmark::kMicrosecond);
 
 }  // namespace
 

@@ -36,10 +36,13 @@ check demo_runs 0 "" -- "$CARAT" demo --frames 24 --out "$scratch/demo-text"
 grep -q "GRE exact (M=29)" "$scratch/out" || { echo "FAIL demo report lacks the GRE exact row"; fail=$((fail + 1)); }
 check demo_json 0 "" -- "$CARAT" demo --frames 24 --json --out "$scratch/demo"
 cp "$scratch/out" "$scratch/demo.json"
-demo_ok=$(json_field "$scratch/demo.json" "all(k in m for m in j['methods'] for k in ('ate_mean','ate_std','ate_rmse','time_s','time_breakdown','memory_bytes','iterations')) and j['frames'] == 24 and j['factors'] >= 23 and [m['method'] for m in j['methods']] == ['pgo_identity','pgo_hessian','gre_full','gre_exact','gre_random']")
+demo_ok=$(json_field "$scratch/demo.json" "all(k in m for m in j['methods'] for k in ('ate_mean','ate_std','ate_rmse','time_s','time_breakdown','memory_bytes','iterations')) and j['frames'] == 24 and j['factors'] >= 23 and [m['method'] for m in j['methods']] == ['pgo_identity','pgo_hessian','gre_full','gre_exact','gre_random','gre_lossless']")
 if [[ $demo_ok != "True" ]]; then echo "FAIL demo JSON fields: $demo_ok"; fail=$((fail + 1)); else pass=$((pass + 1)); fi
 demo_better=$(json_field "$scratch/demo.json" "all(m['ate_rmse'] < j['initial_ate_rmse'] for m in j['methods'][:4])")
 if [[ $demo_better != "True" ]]; then echo "FAIL demo: a method did not improve on the initial guess"; fail=$((fail + 1)); else pass=$((pass + 1)); fi
+# GRE lossless: the full factors' optimum (same ATE to 1e-9 relative) in < 0.5 % of their memory.
+demo_lossless=$(json_field "$scratch/demo.json" "(lambda m: abs(m['gre_lossless']['ate_rmse'] - m['gre_full']['ate_rmse']) <= 1e-9 * m['gre_full']['ate_rmse'] and m['gre_lossless']['memory_bytes'] * 200 < m['gre_full']['memory_bytes'] and m['gre_lossless']['iterations'] == m['gre_full']['iterations'])({m['method']: m for m in j['methods']})")
+if [[ $demo_lossless != "True" ]]; then echo "FAIL demo: GRE lossless is not the full optimum in < 0.5 % of the memory"; fail=$((fail + 1)); else pass=$((pass + 1)); fi
 for f in ground_truth_kitti.txt ground_truth_tum.txt initial_kitti.txt gre_exact_kitti.txt gre_exact_tum.txt pgo_hessian_tum.txt trajectories_before.svg trajectories_after.svg graph.svg demo.json; do
   if [[ ! -s "$scratch/demo/$f" ]]; then echo "FAIL demo did not write $f"; fail=$((fail + 1)); else pass=$((pass + 1)); fi
 done
@@ -253,6 +256,14 @@ if [[ $(json_field "$scratch/map_excess.json" "j['ate_rmse'] < 0.25 * j['initial
   echo "FAIL map with the excess kernel: $(head -c 400 "$scratch/map_excess.json")"; fail=$((fail + 1)); else pass=$((pass + 1)); fi
 if [[ $(json_field "$scratch/map.json" "j['time_breakdown']['factor_minimum_s'] == 0") != "True" ]]; then
   echo "FAIL map without the excess kernel reports factor minima"; fail=$((fail + 1)); else pass=$((pass + 1)); fi
+# map --sampling full and lossless: the same optimum (lossless rows have the full cost everywhere).
+check map_full 0 "" -- "$CARAT" map --frames "$scratch/seq" --poses "$scratch/seq/poses.txt" --perturb-m 0.1 --perturb-deg 1 --sampling full --json
+cp "$scratch/out" "$scratch/map_full.json"
+check map_lossless 0 "" -- "$CARAT" map --frames "$scratch/seq" --poses "$scratch/seq/poses.txt" --perturb-m 0.1 --perturb-deg 1 --sampling lossless --json
+cp "$scratch/out" "$scratch/map_lossless.json"
+full_ate=$(json_field "$scratch/map_full.json" "j['ate_rmse']")
+if [[ $(json_field "$scratch/map_lossless.json" "abs(j['ate_rmse'] - $full_ate) <= 1e-9 * $full_ate and j['ate_rmse'] < 0.25 * j['initial_ate_rmse'] and j['method'] == 'gre_lossless'") != "True" ]]; then
+  echo "FAIL map --sampling lossless differs from full: $(head -c 300 "$scratch/map_lossless.json")"; fail=$((fail + 1)); else pass=$((pass + 1)); fi
 check map_pgo 0 "" -- "$CARAT" map --frames "$scratch/seq" --poses "$scratch/seq/poses.txt" --perturb-m 0.1 --perturb-deg 1 --method pgo --json
 # Bad input: clear one-line errors, exit 1, no output file left behind.
 mkdir -p "$scratch/empty_frames"

@@ -9,6 +9,7 @@
 
 #include <cmath>
 #include <memory>
+#include <random>
 #include <string>
 #include <utility>
 #include <vector>
@@ -211,6 +212,71 @@ TEST(GlobalRegistrationTest, ExactGraphModelEqualsTheFullOne) {
   const RegistrationProblem random =
       build_registration_problem(w.frames, pairs, w.initial, options);
   EXPECT_GT((a.H - dense_model(random.problem).H).norm(), 1e-3 * a.H.norm());
+}
+
+TEST(GlobalRegistrationTest, LosslessGraphModelEqualsTheFullOneAtEveryPose) {
+  const SmallWorld& w = small_world();
+  const auto pairs = build_dense_graph(w.frames, w.initial);
+  GlobalRegistrationOptions options;
+  options.num_threads = 2;
+  options.sampling = ResidualSampling::kFull;
+  RegistrationProblem full = build_registration_problem(w.frames, pairs, w.initial, options);
+  options.sampling = ResidualSampling::kLossless;
+  RegistrationProblem lossless = build_registration_problem(w.frames, pairs, w.initial, options);
+  options.sampling = ResidualSampling::kExact;
+  RegistrationProblem exact = build_registration_problem(w.frames, pairs, w.initial, options);
+  EXPECT_LE(lossless.stats.num_rows, 13 * pairs.size());
+  EXPECT_LT(lossless.stats.residual_bytes, exact.stats.residual_bytes / 2);
+  EXPECT_LT(lossless.stats.residual_bytes * 200, full.stats.residual_bytes);  // < 0.5 %
+  // At the poses the factors were built at, and with every pose but the first moved by up to
+  // 0.3 m / 3 degrees: the lossless graph has the full one's H, b and c; the coreset only at
+  // the first.
+  std::mt19937_64 rng(17);
+  std::normal_distribution<double> normal;
+  for (int trial = 0; trial < 2; ++trial) {
+    if (trial == 1) {
+      for (std::size_t k = 1; k < w.initial.size(); ++k) {
+        se3::Vector6d xi;
+        for (int i = 0; i < 3; ++i) xi[i] = 0.03 * normal(rng);
+        for (int i = 3; i < 6; ++i) xi[i] = 0.1 * normal(rng);
+        const Eigen::Isometry3d moved = w.initial[k] * se3::exp(xi);
+        for (RegistrationProblem* p : {&full, &lossless, &exact})
+          p->problem.set_se3(p->frame_variables[k], moved);
+      }
+    }
+    const DenseModel a = dense_model(full.problem);
+    const DenseModel b = dense_model(lossless.problem);
+    EXPECT_LT((a.H - b.H).norm(), 1e-12 * a.H.norm()) << "trial " << trial;
+    EXPECT_LT((a.b - b.b).norm(), 1e-12 * a.b.norm()) << "trial " << trial;
+    EXPECT_NEAR(a.c, b.c, 1e-12 * a.c) << "trial " << trial;
+    const DenseModel e = dense_model(exact.problem);
+    if (trial == 0) {
+      EXPECT_LT((a.H - e.H).norm(), 1e-12 * a.H.norm());
+    } else {  // the coreset's rows are exact at their evaluation point only
+      EXPECT_GT((a.H - e.H).norm(), 1e-6 * a.H.norm());
+    }
+  }
+}
+
+TEST(GlobalRegistrationTest, LosslessFollowsTheFullSolve) {
+  const SmallWorld& w = small_world();
+  const auto pairs = build_dense_graph(w.frames, w.initial);
+  GlobalRegistrationOptions options;
+  options.num_threads = 2;
+  options.sampling = ResidualSampling::kFull;
+  const GlobalRegistrationResult full = optimize_registration(w.frames, pairs, w.initial, options);
+  options.sampling = ResidualSampling::kLossless;
+  const GlobalRegistrationResult lossless =
+      optimize_registration(w.frames, pairs, w.initial, options);
+  // The same function at every iterate: the same steps, up to rounding.
+  EXPECT_EQ(lossless.summary.num_iterations, full.summary.num_iterations);
+  EXPECT_NEAR(lossless.summary.final_cost, full.summary.final_cost,
+              1e-10 * full.summary.final_cost);
+  for (std::size_t k = 0; k < w.initial.size(); ++k) {
+    const se3::Vector6d d = se3::log(full.T_world_frame[k].inverse() * lossless.T_world_frame[k]);
+    EXPECT_LT(d.tail<3>().norm(), 1e-10) << "frame " << k;  // measured <= 1e-14 m
+    EXPECT_LT(d.head<3>().norm(), 1e-11) << "frame " << k;
+  }
 }
 
 TEST(GlobalRegistrationTest, ExactMatchesFullAndImprovesOnTheStart) {

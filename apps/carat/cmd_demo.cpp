@@ -1,9 +1,9 @@
 // carat demo [--frames N] [--seed S] [--residuals M] [--out DIR] [--json]: the main job on the
 // built-in synthetic world. Simulates a LiDAR drive twice around a city block, runs GICP
 // odometry from a drifting wheel-odometry guess, builds the dense graph of overlapping pairs,
-// and compares PGO (identity), PGO (Hessian), GRE full, GRE exact (M) and GRE random: ATE
-// against the ground truth, iterations, time breakdown and memory. Writes trajectories (KITTI,
-// TUM) and SVG pictures to --out.
+// and compares PGO (identity), PGO (Hessian), GRE full, GRE exact (M), GRE random and GRE
+// lossless: ATE against the ground truth, iterations, time breakdown and memory. Writes
+// trajectories (KITTI, TUM) and SVG pictures to --out.
 #include <tbb/info.h>
 #include <tbb/task_arena.h>
 
@@ -132,8 +132,8 @@ int run_demo(const DemoArgs& args) {
   const std::vector<PairRegistration> registrations = register_graph_pairs(input);
   results.push_back(run_pose_graph(input, registrations, PoseGraphInformation::kIdentity));
   results.push_back(run_pose_graph(input, registrations, PoseGraphInformation::kHessian));
-  for (ResidualSampling sampling :
-       {ResidualSampling::kFull, ResidualSampling::kExact, ResidualSampling::kRandom})
+  for (ResidualSampling sampling : {ResidualSampling::kFull, ResidualSampling::kExact,
+                                    ResidualSampling::kRandom, ResidualSampling::kLossless})
     results.push_back(run_registration(input, sampling));
   const AteStatistics initial_ate = compute_ate(input.T_world_initial, sequence.T_world_frame);
   for (MethodResult& r : results) r.ate = compute_ate(r.T_world_frame, sequence.T_world_frame);

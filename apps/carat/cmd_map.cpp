@@ -1,5 +1,5 @@
 // carat map --frames DIR --poses FILE [--poses-format kitti|tum|graph] [--method gre|pgo]
-//           [--sampling exact|random|full] [--residuals M] [--perturb-m X --perturb-deg Y]
+//           [--sampling exact|random|full|lossless] [--residuals M] [--perturb-m X --perturb-deg Y]
 //           [--seed S] [--out FILE] [--json]
 // Global trajectory optimization on real scans: reads the frames and their poses, optionally
 // perturbs the poses (frame 0 stays: it is the gauge), builds the dense graph of overlapping
@@ -202,8 +202,10 @@ void register_map(CLI::App& app, CommandRegistry& registry) {
   cmd->add_option("--method", args->method, "gre: registration errors; pgo: pose graph")
       ->check(CLI::IsMember({"gre", "pgo"}))
       ->capture_default_str();
-  cmd->add_option("--sampling", args->sampling, "gre: rows kept per factor")
-      ->check(CLI::IsMember({"exact", "random", "full"}))
+  cmd->add_option("--sampling", args->sampling,
+                  "gre: rows kept per factor (exact: M-row coreset; lossless: <= 13 rows with the "
+                  "full factor's cost at every pose)")
+      ->check(CLI::IsMember({"exact", "random", "full", "lossless"}))
       ->capture_default_str();
   cmd->add_option("--information", args->information, "pgo: factor information")
       ->check(CLI::IsMember({"hessian", "identity"}))

@@ -73,8 +73,9 @@ MethodResult run_registration(const MappingInput& input, ResidualSampling sampli
   options.solver = mapping_solver(input.threads);
   MethodResult out;
   out.key = std::string("gre_") + to_string(sampling);
-  out.label = sampling == ResidualSampling::kFull
-                  ? "GRE full"
+  out.label = sampling == ResidualSampling::kFull ? "GRE full"
+              : sampling == ResidualSampling::kLossless
+                  ? "GRE lossless"
                   : std::string("GRE ") + to_string(sampling) + " (M=" +
                         std::to_string(sampling == ResidualSampling::kRandom
                                            ? 3 * ((input.residuals + 2) / 3)

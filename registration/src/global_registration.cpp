@@ -17,6 +17,7 @@
 #include "carat/coreset/row_coreset.hpp"
 #include "carat/registration/correspondences.hpp"
 #include "carat/residuals/gicp_block.hpp"
+#include "carat/residuals/lossless_block.hpp"
 #include "carat/solver/error.hpp"
 #include "carat/solver/se3.hpp"
 #include "carat/solver/solve.hpp"
@@ -159,6 +160,8 @@ const char* to_string(ResidualSampling sampling) {
       return "exact";
     case ResidualSampling::kRandom:
       return "random";
+    case ResidualSampling::kLossless:
+      return "lossless";
   }
   return "unknown";
 }
@@ -167,7 +170,9 @@ ResidualSampling parse_residual_sampling(std::string_view name) {
   if (name == "full") return ResidualSampling::kFull;
   if (name == "exact") return ResidualSampling::kExact;
   if (name == "random") return ResidualSampling::kRandom;
-  throw Error("unknown sampling '" + std::string(name) + "' (valid: full, exact, random)");
+  if (name == "lossless") return ResidualSampling::kLossless;
+  throw Error("unknown sampling '" + std::string(name) +
+              "' (valid: full, exact, random, lossless)");
 }
 
 RegistrationProblem build_registration_problem(
@@ -253,6 +258,9 @@ RegistrationProblem build_registration_problem(
           }
           break;
         }
+        case ResidualSampling::kLossless:
+          factor.block = make_lossless_block(*full, T_ij);
+          break;
       }
       factor.compression_s = seconds_since(t0);
       if (options.factor_excess_cauchy_scale > 0.0) {

@@ -8,6 +8,7 @@
 
 #include "carat/residuals/registration_rows.hpp"
 #include "carat/solver/error.hpp"
+#include "pose_gram_sum.hpp"
 
 namespace carat {
 namespace {
@@ -306,6 +307,37 @@ std::unique_ptr<ResidualBlock> GicpBlock::extract_rows(std::span<const int> rows
     out->rows_.push_back(r);
   }
   return out;
+}
+
+PoseGram GicpBlock::pose_gram(const Eigen::Isometry3d& T_target_source_reference) const {
+  const auto as_vector = [](const std::array<double, 3>& a) {
+    return Eigen::Vector3d(a[0], a[1], a[2]);
+  };
+  const Eigen::Vector3d centre =
+      rows_.empty()
+          ? internal::mean_point(points_.size(),
+                                 [&](std::size_t k) { return as_vector(points_[k].source); })
+          : internal::mean_point(rows_.size(),
+                                 [&](std::size_t k) { return as_vector(rows_[k].source); });
+  internal::PoseGramSum sum(T_target_source_reference, centre);
+  for (const Row& row : rows_) {  // an extract: one row each, Omega = l l^T
+    const std::array<double, 3> q = sum.apply_reference(row.source);
+    const std::array<double, 3>& l = row.ell;
+    const double r0 = row.offset - dot3(l, q);
+    sum.add({l[0] * l[0], l[0] * l[1], l[0] * l[2], l[1] * l[1], l[1] * l[2], l[2] * l[2]},
+            row.source, {l[0] * r0, l[1] * r0, l[2] * r0}, r0 * r0, 1);
+  }
+  for (const Point& p : points_) {  // three rows each, Omega = W^T W
+    const std::array<double, 3> q = sum.apply_reference(p.source);
+    const double d0 = p.target[0] - q[0], d1 = p.target[1] - q[1], d2 = p.target[2] - q[2];
+    const auto& w = p.whitening;  // W = [w0 w1 w2; 0 w3 w4; 0 0 w5]
+    const double r0 = w[0] * d0 + w[1] * d1 + w[2] * d2, r1 = w[3] * d1 + w[4] * d2, r2 = w[5] * d2;
+    sum.add({w[0] * w[0], w[0] * w[1], w[0] * w[2], w[1] * w[1] + w[3] * w[3],
+             w[1] * w[2] + w[3] * w[4], w[2] * w[2] + w[4] * w[4] + w[5] * w[5]},
+            p.source, {w[0] * r0, w[1] * r0 + w[3] * r1, w[2] * r0 + w[4] * r1 + w[5] * r2},
+            r0 * r0 + r1 * r1 + r2 * r2, 3);
+  }
+  return sum.finish();
 }
 
 std::size_t GicpBlock::memory_bytes() const {

@@ -1,9 +1,11 @@
+#include <array>
 #include <string>
 
 #include "carat/residuals/point_to_plane_block.hpp"
 #include "carat/residuals/point_to_point_block.hpp"
 #include "carat/residuals/registration_rows.hpp"
 #include "carat/solver/error.hpp"
+#include "pose_gram_sum.hpp"
 
 namespace carat {
 namespace {
@@ -21,6 +23,20 @@ double weighted_row(const Eigen::Isometry3d& T, const Eigen::Vector3d& w,
     }
   }
   return w.dot(target - T * source);
+}
+
+std::array<double, 3> to_array(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
+
+/// Adds one row n . (target - T_ref source) to a Gram sum (Omega = n n^T).
+void add_row(internal::PoseGramSum& sum, const Eigen::Vector3d& n, const Eigen::Vector3d& target,
+             const Eigen::Vector3d& source) {
+  const std::array<double, 3> mu = to_array(source);
+  const std::array<double, 3> q = sum.apply_reference(mu);
+  const double r0 =
+      n.x() * (target.x() - q[0]) + n.y() * (target.y() - q[1]) + n.z() * (target.z() - q[2]);
+  sum.add(
+      {n.x() * n.x(), n.x() * n.y(), n.x() * n.z(), n.y() * n.y(), n.y() * n.z(), n.z() * n.z()},
+      mu, {n.x() * r0, n.y() * r0, n.z() * r0}, r0 * r0, 1);
 }
 
 void check_pairs(std::size_t a, std::size_t b, const char* who) {
@@ -75,6 +91,27 @@ std::unique_ptr<ResidualBlock> PointToPointBlock::extract_rows(std::span<const i
   return out;
 }
 
+PoseGram PointToPointBlock::pose_gram(const Eigen::Isometry3d& T_target_source_reference) const {
+  internal::PoseGramSum sum(
+      T_target_source_reference,
+      internal::mean_point(source_.size(), [&](std::size_t k) { return source_[k]; }));
+  if (!rows_.empty()) {  // an extract: component (row & 3) of pair (row >> 2)
+    for (int row : rows_) {
+      const auto pair = static_cast<std::size_t>(row >> 2);
+      add_row(sum, Eigen::Vector3d::Unit(row & 3), target_[pair], source_[pair]);
+    }
+    return sum.finish();
+  }
+  for (std::size_t k = 0; k < target_.size(); ++k) {  // three rows, Omega = I
+    const std::array<double, 3> mu = to_array(source_[k]);
+    const std::array<double, 3> q = sum.apply_reference(mu);
+    const std::array<double, 3> d = {target_[k].x() - q[0], target_[k].y() - q[1],
+                                     target_[k].z() - q[2]};
+    sum.add({1.0, 0.0, 0.0, 1.0, 0.0, 1.0}, mu, d, d[0] * d[0] + d[1] * d[1] + d[2] * d[2], 3);
+  }
+  return sum.finish();
+}
+
 std::size_t PointToPointBlock::memory_bytes() const {
   return (target_.size() + source_.size()) * sizeof(Eigen::Vector3d) + rows_.size() * sizeof(int);
 }
@@ -125,6 +162,14 @@ std::unique_ptr<ResidualBlock> PointToPlaneBlock::extract_rows(std::span<const i
     out->source_.push_back(source_[pair]);
   }
   return out;
+}
+
+PoseGram PointToPlaneBlock::pose_gram(const Eigen::Isometry3d& T_target_source_reference) const {
+  internal::PoseGramSum sum(
+      T_target_source_reference,
+      internal::mean_point(source_.size(), [&](std::size_t k) { return source_[k]; }));
+  for (std::size_t k = 0; k < target_.size(); ++k) add_row(sum, normal_[k], target_[k], source_[k]);
+  return sum.finish();
 }
 
 std::size_t PointToPlaneBlock::memory_bytes() const {

@@ -24,14 +24,17 @@ namespace carat {
 
 /// How each factor's rows are kept.
 enum class ResidualSampling {
-  kFull,    ///< every row of every correspondence
-  kExact,   ///< an exact coreset of M weighted rows (same H, b, c at the initial poses)
-  kRandom,  ///< ceil(M/3) random correspondences (3 rows each), weighted N/M
+  kFull,      ///< every row of every correspondence
+  kExact,     ///< an exact coreset of M weighted rows (same H, b, c at the initial poses)
+  kRandom,    ///< ceil(M/3) random correspondences (3 rows each), weighted N/M
+  kLossless,  ///< at most 13 rows with the same cost as the full factor at every pose
+              ///< (its Gram matrix in the relative pose's entries; lossless_block.hpp)
 };
 
-/// Name of a sampling mode: "full", "exact", "random".
+/// Name of a sampling mode: "full", "exact", "random", "lossless".
 const char* to_string(ResidualSampling sampling);
-/// Parses "full", "exact" or "random"; throws carat::Error listing the valid names otherwise.
+/// Parses "full", "exact", "random" or "lossless"; throws carat::Error listing the valid names
+/// otherwise.
 ResidualSampling parse_residual_sampling(std::string_view name);
 
 /// Settings of the global registration problem and its solve.

@@ -18,6 +18,7 @@
 #include <span>
 #include <vector>
 
+#include "carat/residuals/pose_gram.hpp"
 #include "carat/solver/residual_block.hpp"
 
 namespace carat {
@@ -31,7 +32,7 @@ struct GicpCorrespondence {
 };
 
 /// Three rows per correspondence; reduced Jacobian w.r.t. the tangent of T_ij (6 columns).
-class GicpBlock final : public ResidualBlock {
+class GicpBlock final : public ResidualBlock, public AffinePoseRows {
  public:
   /// Builds the rows at the relative pose T_target_source (used only to fuse covariances).
   /// Throws carat::Error if there are no correspondences, a value is not finite, or a fused
@@ -52,6 +53,7 @@ class GicpBlock final : public ResidualBlock {
   double squared_norm(ParameterPointers params) const override;
   std::unique_ptr<ResidualBlock> extract_rows(std::span<const int> rows) const override;
   std::size_t memory_bytes() const override;
+  PoseGram pose_gram(const Eigen::Isometry3d& T_target_source_reference) const override;
 
   /// Number of correspondences held (0 for an extract, which holds single rows).
   int num_correspondences() const { return static_cast<int>(points_.size()); }

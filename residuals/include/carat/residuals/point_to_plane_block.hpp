@@ -6,17 +6,19 @@
 /// of T_ij (see registration_rows.hpp). 72 bytes per pair.
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <array>
 #include <memory>
 #include <span>
 #include <vector>
 
+#include "carat/residuals/pose_gram.hpp"
 #include "carat/solver/residual_block.hpp"
 
 namespace carat {
 
 /// One row per correspondence.
-class PointToPlaneBlock final : public ResidualBlock {
+class PointToPlaneBlock final : public ResidualBlock, public AffinePoseRows {
  public:
   /// Parallel arrays; normals are normalized here. Throws carat::Error for no pairs, different
   /// lengths, non-finite values or a zero normal.
@@ -32,6 +34,7 @@ class PointToPlaneBlock final : public ResidualBlock {
                      double* jacobian) const override;
   std::unique_ptr<ResidualBlock> extract_rows(std::span<const int> rows) const override;
   std::size_t memory_bytes() const override;
+  PoseGram pose_gram(const Eigen::Isometry3d& T_target_source_reference) const override;
 
  private:
   PointToPlaneBlock() = default;

@@ -5,17 +5,19 @@
 /// reduced Jacobian w.r.t. the tangent of T_ij (see registration_rows.hpp). 48 bytes per pair.
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <array>
 #include <memory>
 #include <span>
 #include <vector>
 
+#include "carat/residuals/pose_gram.hpp"
 #include "carat/solver/residual_block.hpp"
 
 namespace carat {
 
 /// Three unweighted rows per correspondence.
-class PointToPointBlock final : public ResidualBlock {
+class PointToPointBlock final : public ResidualBlock, public AffinePoseRows {
  public:
   /// points_target[k] pairs with points_source[k]. Throws carat::Error for no pairs, different
   /// lengths or non-finite values.
@@ -32,6 +34,7 @@ class PointToPointBlock final : public ResidualBlock {
                      double* jacobian) const override;
   std::unique_ptr<ResidualBlock> extract_rows(std::span<const int> rows) const override;
   std::size_t memory_bytes() const override;
+  PoseGram pose_gram(const Eigen::Isometry3d& T_target_source_reference) const override;
 
  private:
   PointToPointBlock() = default;
