@@ -80,6 +80,8 @@ build_pts, exact_pts, full_pts, bytes_pts, exact_bytes_pts, factor_pts = [], [],
 for f in sizes:
     be, ie, fu = (runs.get((k, f)) for k in ("BuildExact", "IterationExact", "IterationFull"))
     c = (be or ie or fu)
+    if c is None:  # only the whole-optimization benchmarks ran at this size
+        continue
     factors = c.get("factors", 0)
     factor_pts.append((f, factors))
     row = ["%7d" % f, "%9d" % factors]
@@ -139,4 +141,24 @@ if bytes_pts:
     largest = max(bytes_pts)
     print("largest size run: %d factors, full would need %.2f GiB, exact holds %.3f GiB."
           % (largest[0], largest[1] / GiB, dict(exact_bytes_pts)[largest[0]] / GiB))
+
+# Whole optimizations to convergence: time (compressing + solving), ATE, memory, vs full.
+solve_sizes = [f for f in sizes if any(ok(runs.get((k, f))) for k in ("SolveExact", "SolveLossless", "SolveFull"))]
+if solve_sizes:
+    print("\nwhole optimization to convergence (time = compressing + LM solve; vs full in the same run):")
+    print("%7s %9s %-9s %11s %6s %10s %11s %11s %12s %9s" % (
+        "frames", "factors", "sampling", "time s", "iters", "ATE mm", "ATE vs full", "time vs full",
+        "memory MiB", "mem vs full"))
+    for f in solve_sizes:
+        full = runs.get(("SolveFull", f))
+        for kind, name in (("SolveFull", "full"), ("SolveExact", "exact"), ("SolveLossless", "lossless")):
+            b = runs.get((kind, f))
+            if not ok(b):
+                print("%7d %9s %-9s %11s" % (f, "-", name, "skipped" if b else "-"))
+                continue
+            rel = lambda key: ("%+.2f %%" % (100.0 * (b[key] / full[key] - 1.0))) if ok(full) else "-"
+            print("%7d %9d %-9s %11.3f %6d %10.3f %11s %11s %12.2f %9s" % (
+                f, b["factors"], name, b["optimization_s"], b["iterations"], 1e3 * b["ate_rmse_m"],
+                rel("ate_rmse_m"), rel("optimization_s"), b["residual_bytes"] / MiB,
+                rel("residual_bytes")))
 PY

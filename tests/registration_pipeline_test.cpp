@@ -378,6 +378,69 @@ TEST(GlobalRegistrationTest, SameResultWithOneOrTwoThreads) {
   EXPECT_EQ(one.summary.final_cost, two.summary.final_cost);
 }
 
+TEST(GlobalRegistrationTest, EverySamplingIsTheSameWithOneOrTwoThreads) {
+  const SmallWorld& w = small_world();
+  const auto pairs = build_dense_graph(w.frames, w.initial);
+  for (ResidualSampling sampling :
+       {ResidualSampling::kFull, ResidualSampling::kRandom, ResidualSampling::kLossless}) {
+    GlobalRegistrationOptions options;
+    options.sampling = sampling;
+    options.num_threads = 1;
+    const GlobalRegistrationResult one = optimize_registration(w.frames, pairs, w.initial, options);
+    options.num_threads = 2;
+    const GlobalRegistrationResult two = optimize_registration(w.frames, pairs, w.initial, options);
+    for (std::size_t k = 0; k < one.T_world_frame.size(); ++k)
+      EXPECT_EQ(one.T_world_frame[k].matrix(), two.T_world_frame[k].matrix())
+          << to_string(sampling) << " frame " << k;
+    EXPECT_EQ(one.summary.final_cost, two.summary.final_cost) << to_string(sampling);
+    EXPECT_EQ(one.factor_residual_bytes, two.factor_residual_bytes) << to_string(sampling);
+  }
+}
+
+TEST(PipelineTest, OdometryGraphAndPoseGraphsAreTheSameWithOneOrTwoThreads) {
+  const SmallWorld& w = small_world();
+  AlignSettings settings;
+  settings.max_correspondence_distance = 2.0;
+  const OdometryResult odometry_one = run_odometry(w.frames, w.initial, settings, 1);
+  const OdometryResult odometry_two = run_odometry(w.frames, w.initial, settings, 2);
+  for (std::size_t k = 0; k < w.frames.size(); ++k)
+    EXPECT_EQ(odometry_one.T_world_frame[k].matrix(), odometry_two.T_world_frame[k].matrix())
+        << "odometry frame " << k;
+  DenseGraphOptions graph;
+  graph.num_threads = 1;
+  const auto pairs_one = build_dense_graph(w.frames, odometry_one.T_world_frame, graph);
+  graph.num_threads = 2;
+  const auto pairs_two = build_dense_graph(w.frames, odometry_one.T_world_frame, graph);
+  ASSERT_EQ(pairs_one.size(), pairs_two.size());
+  for (std::size_t k = 0; k < pairs_one.size(); ++k) {
+    EXPECT_EQ(pairs_one[k].target, pairs_two[k].target);
+    EXPECT_EQ(pairs_one[k].source, pairs_two[k].source);
+    EXPECT_EQ(pairs_one[k].overlap, pairs_two[k].overlap);
+  }
+  const auto registrations_one =
+      register_pairs(w.frames, pairs_one, odometry_one.T_world_frame, AlignSettings{}, 1);
+  const auto registrations_two =
+      register_pairs(w.frames, pairs_one, odometry_one.T_world_frame, AlignSettings{}, 2);
+  for (std::size_t k = 0; k < registrations_one.size(); ++k) {
+    EXPECT_EQ(registrations_one[k].T_target_source.matrix(),
+              registrations_two[k].T_target_source.matrix())
+        << "pair " << k;
+    EXPECT_EQ(registrations_one[k].H, registrations_two[k].H) << "pair " << k;
+  }
+  for (auto information : {PoseGraphInformation::kIdentity, PoseGraphInformation::kHessian}) {
+    PoseGraphBaselineOptions options;
+    options.information = information;
+    options.solver.num_threads = 1;
+    const auto one =
+        optimize_pose_graph_baseline(odometry_one.T_world_frame, registrations_one, options);
+    options.solver.num_threads = 2;
+    const auto two =
+        optimize_pose_graph_baseline(odometry_one.T_world_frame, registrations_two, options);
+    for (std::size_t k = 0; k < one.T_world_frame.size(); ++k)
+      EXPECT_EQ(one.T_world_frame[k].matrix(), two.T_world_frame[k].matrix()) << "PGO frame " << k;
+  }
+}
+
 TEST(GlobalRegistrationTest, PoseGraphBaselinesImproveOnTheStart) {
   const SmallWorld& w = small_world();
   const auto pairs = build_dense_graph(w.frames, w.initial);

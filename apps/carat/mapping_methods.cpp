@@ -55,6 +55,9 @@ MethodResult run_pose_graph(const MappingInput& input,
   out.time_s = t.total_s;
   out.total_s = registration_s + t.total_s;
   out.memory_bytes = result.summary.residual_memory_bytes;
+  // Every edge is one relative-pose block of the same size.
+  if (!registrations.empty())
+    out.factor_memory_bytes.assign(registrations.size(), out.memory_bytes / registrations.size());
   out.iterations = result.summary.num_iterations;
   out.termination = to_string(result.summary.termination);
   return out;
@@ -104,6 +107,8 @@ MethodResult run_registration(const MappingInput& input, ResidualSampling sampli
   out.iterations = result.summary.num_iterations;
   out.termination = to_string(result.summary.termination);
   out.factor_costs = result.factor_costs;
+  out.factor_memory_bytes = result.factor_residual_bytes;
+  out.factor_correspondence_bytes = result.factor_correspondence_bytes;
   return out;
 }
 
@@ -126,6 +131,19 @@ nlohmann::json to_json(const MethodResult& result) {
   j["time_breakdown"] = breakdown;
   j["memory_bytes"] = result.memory_bytes;
   j["correspondence_bytes"] = result.correspondence_bytes;
+  // Per factor: mean, smallest and largest.
+  const auto per_factor = [](const std::vector<std::size_t>& bytes) {
+    nlohmann::json summary = nlohmann::json::object();
+    if (bytes.empty()) return summary;
+    std::size_t total = 0;
+    for (std::size_t b : bytes) total += b;
+    summary["mean"] = static_cast<double>(total) / static_cast<double>(bytes.size());
+    summary["min"] = *std::min_element(bytes.begin(), bytes.end());
+    summary["max"] = *std::max_element(bytes.begin(), bytes.end());
+    return summary;
+  };
+  j["memory_bytes_per_factor"] = per_factor(result.factor_memory_bytes);
+  j["correspondence_bytes_per_factor"] = per_factor(result.factor_correspondence_bytes);
   j["iterations"] = result.iterations;
   j["termination"] = result.termination;
   return j;

@@ -45,12 +45,14 @@ struct MethodResult {
   double time_s = 0.0;                           // optimization: GRE compression + solve; PGO solve
   double total_s = 0.0;  // everything after the dense graph: + correspondences / pairwise GICP
   std::vector<std::pair<std::string, double>> breakdown;  // stage -> seconds
-  std::size_t memory_bytes = 0;          // residual data held during the optimization
-  std::size_t correspondence_bytes = 0;  // correspondence data built (GRE), 0 for PGO
-  int iterations = 0;                    // solver iterations
-  std::string termination;               // solver termination
-  std::vector<double> factor_costs;      // per pair, for the graph picture (GRE)
-  std::optional<AteStatistics> ate;      // against the reference, when there is one
+  std::size_t memory_bytes = 0;                  // residual data held during the optimization
+  std::size_t correspondence_bytes = 0;          // correspondence data built (GRE), 0 for PGO
+  int iterations = 0;                            // solver iterations
+  std::string termination;                       // solver termination
+  std::vector<double> factor_costs;              // per pair, for the graph picture (GRE)
+  std::vector<std::size_t> factor_memory_bytes;  // per factor: residual data held
+  std::vector<std::size_t> factor_correspondence_bytes;  // per factor (GRE): full block built
+  std::optional<AteStatistics> ate;                      // against the reference, when there is one
 };
 
 /// GICP between every graph pair from the initial poses (shared by the PGO baselines).

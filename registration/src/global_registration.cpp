@@ -298,6 +298,8 @@ RegistrationProblem build_registration_problem(
     s.compression_s += built[k].compression_s;
     s.minimum_s += built[k].minimum_s;
     out.factor_correspondences.push_back(built[k].correspondences);
+    out.factor_correspondence_bytes.push_back(built[k].correspondence_bytes);
+    out.factor_residual_bytes.push_back(built[k].block->memory_bytes());
   }
   // The stage ran in parallel: split its wall time in proportion to the per-factor CPU times.
   const double wall = seconds_since(stage_start);
@@ -336,6 +338,8 @@ GlobalRegistrationResult optimize_registration(
       out.T_world_frame[i] = T;
     }
     out.rounds = round + 1;
+    out.factor_correspondence_bytes = built.factor_correspondence_bytes;
+    out.factor_residual_bytes = built.factor_residual_bytes;
     out.factor_costs.clear();
     const auto blocks = built.problem.blocks();
     for (std::size_t k = 0; k < blocks.size(); ++k) {

@@ -77,11 +77,13 @@ struct RegistrationFactorStats {
 
 /// The assembled problem: one SE(3) variable per frame, one block per pair.
 struct RegistrationProblem {
-  Problem problem;                                  ///< variables and blocks
-  std::vector<VariableId> frame_variables;          ///< parallel to the frames
-  std::vector<FramePair> pairs;                     ///< parallel to the blocks
-  std::vector<std::size_t> factor_correspondences;  ///< per block: correspondences found
-  RegistrationFactorStats stats;                    ///< what building cost
+  Problem problem;                                       ///< variables and blocks
+  std::vector<VariableId> frame_variables;               ///< parallel to the frames
+  std::vector<FramePair> pairs;                          ///< parallel to the blocks
+  std::vector<std::size_t> factor_correspondences;       ///< per block: correspondences found
+  std::vector<std::size_t> factor_correspondence_bytes;  ///< per block: bytes of its full block
+  std::vector<std::size_t> factor_residual_bytes;        ///< per block: bytes the kept block holds
+  RegistrationFactorStats stats;                         ///< what building cost
 };
 
 /// Builds the problem at T_world_frame (the first frame's pose held constant). Factors are
@@ -100,14 +102,17 @@ struct GlobalRegistrationResult {
   SolverSummary summary;                         ///< the LM solve
   RegistrationFactorStats stats;                 ///< building the factors
   std::vector<double> factor_costs;  ///< per factor: sum of squared residuals / correspondences
-  int rounds = 0;                    ///< correspondence rounds run
+  std::vector<std::size_t> factor_correspondence_bytes;  ///< per factor: its full block's bytes
+  std::vector<std::size_t> factor_residual_bytes;  ///< per factor: bytes held during the solve
+  int rounds = 0;                                  ///< correspondence rounds run
 };
 
 /// Builds the problem and solves it, `options.rounds` times at most. Over the rounds: the
 /// summary's iterations, steps and times add up, its initial_cost is the first round's and its
 /// final_cost the last round's (each round has its own correspondences, so the two are costs of
 /// different objectives); the stats' times add up, their counts are the last round's and their
-/// byte counts the largest of any round; factor_costs are the last round's. Throws
+/// byte counts the largest of any round; factor_costs and the per-factor bytes are the last
+/// round's. Throws
 /// carat::Error as build_registration_problem() does, or when a solve fails.
 GlobalRegistrationResult optimize_registration(
     std::span<const std::shared_ptr<const Frame>> frames, std::span<const FramePair> pairs,
