@@ -1,7 +1,9 @@
-// How global registration scales with the size of the dense graph: synthetic drives of
-// F = 100, 300, 1000, 3000 frames (50 frames per lap, about 4 m apart, so every extra lap adds
-// overlapping frames and the factors grow faster than the frames), 0.5 m voxels, initial poses
-// from GICP odometry on a drifting guess (as `carat demo`), the dense graph built at those
+// How global registration scales with the size of the map: synthetic drives of F = 100, 300,
+// 1000, 3000 frames, each two laps of a circuit that grows with F (around n blocks in a row,
+// n = 1 at 100 frames: the demo's drive; 18 blocks, about 2 km, at 1000), frames about 4 m
+// apart, so the factors grow about linearly with the frames as a map of new ground does;
+// 0.5 m voxels, initial poses the ground truth each moved by 0.1 m and 0.5 degrees (a map to
+// refine, as `carat map --perturb-m 0.1 --perturb-deg 0.5`), the dense graph built at those
 // poses. Per size:
 //
 //   BM_BuildExact/F     building and compressing every factor for GRE exact (M = 29)
@@ -21,9 +23,8 @@
 // CARAT_SCALING_ITERATIONS (LM iterations per solve, default 3), CARAT_SCALING_THREADS
 // (default: all cores), CARAT_SCALING_FULL_LIMIT_GIB (default 8).
 //
-// Frames are scanned lazily and kept across sizes: the drive of F frames is the first F
-// frames of the largest drive (same trajectory, same noise seeds; checked at start-up). The
-// graph and the problems of one size are freed before the next size starts.
+// Each size scans its own drive; the drive, graph and problems of one size are freed before
+// the next size starts.
 #include <benchmark/benchmark.h>
 #include <tbb/info.h>
 #include <tbb/parallel_for.h>
@@ -47,7 +48,7 @@
 #include "carat/registration/dense_graph.hpp"
 #include "carat/registration/frame.hpp"
 #include "carat/registration/global_registration.hpp"
-#include "carat/registration/odometry.hpp"
+#include "carat/registration/pose_perturbation.hpp"
 #include "carat/registration/synthetic_world.hpp"
 #include "carat/registration/trajectory_error.hpp"
 #include "carat/residuals/gicp_block.hpp"
@@ -57,8 +58,10 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-constexpr int kFramesPerLap = 50;  // ~199 m circuit: frames about 4 m apart
 constexpr std::array<int, 4> kSizes{100, 300, 1000, 3000};
+
+constexpr double kStartMetres = 0.1;   // start: every pose but the first moved this far ...
+constexpr double kStartDegrees = 0.5;  // ... and turned this much
 
 double seconds_since(Clock::time_point t0) {
   return std::chrono::duration<double>(Clock::now() - t0).count();
@@ -110,77 +113,61 @@ void reset_peak_rss() {
   clear << "5";
 }
 
-// ---- the drive, scanned lazily ----
+// ---- the drive of one size ----
 
+/// Circuit blocks n for a drive of F frames: two laps around n blocks of 54 m (streets
+/// included) with frames about 4 m apart (lap length 108 (n + 1) - 17 m; n = 1 is the demo's
+/// circuit at 100 frames).
+int circuit_blocks(int frames) {
+  return std::clamp(static_cast<int>(std::lround((2.0 * frames - 90.8) / 108.0)), 1, 63);
+}
+
+/// The world and ground truth of a drive of `frames` frames, scanned and preprocessed.
 struct Drive {
-  carat::SyntheticWorld world;
-  std::vector<Eigen::Isometry3d> truth;                     // ground truth of the largest drive
-  std::vector<std::shared_ptr<const carat::Frame>> frames;  // preprocessed, a prefix
-  double scan_s = 0.0;                                      // scanning + preprocessing so far
+  int frames = 0;
+  std::unique_ptr<carat::SyntheticWorld> world;
+  std::vector<Eigen::Isometry3d> truth;
+  std::vector<std::shared_ptr<const carat::Frame>> scans;  // preprocessed
+  double scan_s = 0.0;                                     // scanning + preprocessing
 };
 
-carat::SyntheticTrajectoryOptions drive_options(int frames) {
+Drive make_drive(int frames) {
+  Drive d;
+  d.frames = frames;
+  const int n = circuit_blocks(frames);
+  carat::SyntheticWorldOptions world;
+  world.blocks_x = n + 1;
+  world.blocks_y = 2;
+  d.world = std::make_unique<carat::SyntheticWorld>(world);
   carat::SyntheticTrajectoryOptions options;
   options.frames = frames;
-  options.laps = std::max(1, frames / kFramesPerLap);
-  return options;
-}
-
-Drive& drive() {
-  static Drive d = [] {
-    Drive out;
-    int largest = kSizes.front();  // the largest size that runs
-    for (const int f : kSizes)
-      if (f <= max_frames()) largest = f;
-    out.truth = out.world.trajectory(drive_options(largest));
-    // A drive of F frames must be the first F frames of the largest one.
-    for (const int f : kSizes) {
-      if (f > largest) break;
-      const auto own = out.world.trajectory(drive_options(f));
-      for (int k = 0; k < f; ++k) {
-        if (!own[static_cast<std::size_t>(k)].isApprox(out.truth[static_cast<std::size_t>(k)],
-                                                       1e-9)) {
-          std::fprintf(stderr,
-                       "scaling_bench: the %d-frame drive is not a prefix of the %d-frame one\n", f,
-                       largest);
-          std::abort();
-        }
-      }
-    }
-    return out;
-  }();
-  return d;
-}
-
-/// Scans and preprocesses frames until there are `count` (as make_synthetic_sequence does:
-/// frame k gets noise seed synthetic_frame_noise_seed(world seed, k)).
-void ensure_frames(std::size_t count) {
-  Drive& d = drive();
-  const std::size_t have = d.frames.size();
-  if (count <= have) return;
+  options.laps = 2;
+  options.circuit_blocks_x = n;
+  d.truth = d.world->trajectory(options);
   const auto t0 = Clock::now();
-  d.frames.resize(count);
+  d.scans.resize(static_cast<std::size_t>(frames));
   tbb::task_arena arena(num_threads());
   arena.execute([&] {
-    tbb::parallel_for(have, count, [&](std::size_t k) {
+    tbb::parallel_for(std::size_t{0}, d.scans.size(), [&](std::size_t k) {
       const carat::PointCloud raw =
-          d.world.scan(d.truth[k], carat::synthetic_frame_noise_seed(d.world.options().seed, k));
-      d.frames[k] =
+          d.world->scan(d.truth[k], carat::synthetic_frame_noise_seed(world.seed, k));
+      d.scans[k] =
           carat::preprocess_frame(raw, carat::PreprocessOptions{}, "frame " + std::to_string(k));
     });
   });
-  d.scan_s += seconds_since(t0);
+  d.scan_s = seconds_since(t0);
+  return d;
 }
 
 // ---- one size: initial poses, graph, problems ----
 
 struct Scene {
   int frames = 0;
+  Drive drive;  // world, ground truth and scans
   std::vector<Eigen::Isometry3d> initial;
   std::vector<carat::FramePair> pairs;
   double graph_s = 0.0;
   double initial_ate_rmse = 0.0;
-  double odometry_s = 0.0;
   std::size_t points = 0;
   std::optional<std::size_t> correspondences;         // known once exact has been built
   std::unique_ptr<carat::RegistrationProblem> exact;  // built by BM_BuildExact
@@ -196,29 +183,20 @@ Scene& scene(int frames) {
   if (slot && slot->frames == frames) return *slot;
   slot.reset();  // free the previous size first
   reset_peak_rss();
-  ensure_frames(static_cast<std::size_t>(frames));
   auto s = std::make_unique<Scene>();
   s->frames = frames;
-  const Drive& d = drive();
-  const std::span<const Eigen::Isometry3d> truth(d.truth.data(), static_cast<std::size_t>(frames));
-  carat::DriftOptions drift;
-  drift.translation_sigma = 0.02;
-  drift.rotation_sigma_deg = 0.1;
-  const std::span<const std::shared_ptr<const carat::Frame>> prefix(
-      d.frames.data(), static_cast<std::size_t>(frames));
-  // The demo's start: the drift model refined by GICP odometry (about 7 cm ATE at 100 frames).
-  carat::AlignSettings odometry;
-  odometry.max_correspondence_distance = 2.0;
-  const auto t_odometry = Clock::now();
-  s->initial =
-      carat::run_odometry(prefix, carat::apply_drift(truth, drift), odometry, num_threads())
-          .T_world_frame;
-  s->odometry_s = seconds_since(t_odometry);
-  for (const auto& f : prefix) s->points += f->size();
+  s->drive = make_drive(frames);
+  const std::span<const Eigen::Isometry3d> truth = s->drive.truth;
+  const std::span<const std::shared_ptr<const carat::Frame>> scans = s->drive.scans;
+  // A map to refine, as a SLAM system with loop closure hands it over: every pose but the
+  // first moved by 0.1 m and 0.5 degrees in random directions (no drift accumulates, so the
+  // dense graph at these poses has every loop closure).
+  s->initial = carat::perturb_poses(truth, kStartMetres, kStartDegrees, 1);
+  for (const auto& f : scans) s->points += f->size();
   carat::DenseGraphOptions graph;
   graph.num_threads = num_threads();
   const auto t0 = Clock::now();
-  s->pairs = carat::build_dense_graph(prefix, s->initial, graph);
+  s->pairs = carat::build_dense_graph(scans, s->initial, graph);
   s->graph_s = seconds_since(t0);
   s->initial_ate_rmse = carat::compute_ate(s->initial, truth).rmse;
   slot = std::move(s);
@@ -226,7 +204,7 @@ Scene& scene(int frames) {
 }
 
 std::span<const std::shared_ptr<const carat::Frame>> frames_of(const Scene& s) {
-  return {drive().frames.data(), static_cast<std::size_t>(s.frames)};
+  return s.drive.scans;
 }
 
 carat::GlobalRegistrationOptions registration_options(carat::ResidualSampling sampling) {
@@ -244,9 +222,9 @@ void scene_counters(benchmark::State& state, const Scene& s) {
   state.counters["factors"] = static_cast<double>(s.pairs.size());
   state.counters["points"] = static_cast<double>(s.points);
   state.counters["graph_s"] = s.graph_s;
-  state.counters["scan_s"] = drive().scan_s;
+  state.counters["scan_s"] = s.drive.scan_s;
+  state.counters["circuit_blocks"] = circuit_blocks(s.frames);
   state.counters["initial_ate_rmse_m"] = s.initial_ate_rmse;
-  state.counters["odometry_s"] = s.odometry_s;
   state.counters["threads"] = num_threads();
 }
 
@@ -408,8 +386,7 @@ void solve_to_convergence(benchmark::State& state, carat::ResidualSampling sampl
     state.counters["solve_s"] = result.summary.time.total_s;
     state.counters["iterations"] = result.summary.num_iterations;
     state.counters["final_cost"] = result.summary.final_cost;
-    const std::span<const Eigen::Isometry3d> truth(drive().truth.data(),
-                                                   static_cast<std::size_t>(s.frames));
+    const std::span<const Eigen::Isometry3d> truth = s.drive.truth;
     state.counters["ate_rmse_m"] = carat::compute_ate(result.T_world_frame, truth).rmse;
     stats_counters(state, result.stats);
     if (sampling == carat::ResidualSampling::kExact)

@@ -262,6 +262,15 @@ if [[ -e "$scratch/never_g2o.g2o" ]]; then echo "FAIL solve-g2o left an output a
 check simulate 0 "" -- "$CARAT" simulate --out "$scratch/seq" --frames 20 --laps 1
 if [[ ! -s "$scratch/seq/000019.bin" ]] || [[ $(grep -c . "$scratch/seq/poses.txt") -ne 20 ]]; then
   echo "FAIL simulate did not write 20 frames and 20 poses"; fail=$((fail + 1)); else pass=$((pass + 1)); fi
+# A longer circuit: around three blocks in a row (about 162 m by 54 m between centre lines).
+check simulate_long 0 "" -- "$CARAT" simulate --out "$scratch/seq-long" --frames 40 --laps 1 --circuit-blocks 3
+if [[ $(python3 -c "
+import sys
+x = [float(l.split()[3]) for l in open(sys.argv[1])]
+y = [float(l.split()[7]) for l in open(sys.argv[1])]
+print(150 < max(x) - min(x) < 163 and 40 < max(y) - min(y) < 55)" "$scratch/seq-long/poses.txt") != "True" ]]; then
+  echo "FAIL simulate --circuit-blocks 3 did not drive around three blocks"; fail=$((fail + 1)); else pass=$((pass + 1)); fi
+check simulate_bad_circuit 2 "" -- "$CARAT" simulate --out "$scratch/never-sim" --circuit-blocks 0
 check map_synthetic 0 "" -- "$CARAT" map --frames "$scratch/seq" --poses "$scratch/seq/poses.txt" --perturb-m 0.1 --perturb-deg 1 --out "$scratch/map_out.txt" --json
 cp "$scratch/out" "$scratch/map.json"
 if [[ $(json_field "$scratch/map.json" "j['ate_rmse'] < 0.25 * j['initial_ate_rmse'] and j['frames'] == 20") != "True" ]]; then

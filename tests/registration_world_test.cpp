@@ -6,6 +6,7 @@
 #include <tbb/task_arena.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -175,6 +176,46 @@ TEST(SyntheticWorld, TrajectoryIsAClosedCircuitWithFewMetreSpacing) {
   }
   // Closing the loop: the last frame is one step before the first frame of its lap.
   EXPECT_LT((poses.back().translation() - poses[50].translation()).norm(), 6.0);
+}
+
+TEST(SyntheticWorld, CircuitAroundSeveralBlocksFollowsTheOuterStreets) {
+  SyntheticWorldOptions options;
+  options.blocks_x = 4;
+  options.blocks_y = 2;
+  const SyntheticWorld world(options);
+  SyntheticTrajectoryOptions drive;
+  drive.circuit_blocks_x = 3;
+  drive.frames = 400;
+  drive.laps = 1;
+  drive.lap_offset = 0.0;
+  const auto poses = world.trajectory(drive);
+  // Centre lines: x = -W/2 or 3 (B + W) - W/2, y = -W/2 or B + W/2; corners rounded (r = 10).
+  const double B = options.block_size, W = options.street_width, r = drive.corner_radius;
+  const double x0 = -0.5 * W, x1 = 3.0 * (B + W) - 0.5 * W, y0 = -0.5 * W, y1 = B + 0.5 * W;
+  double length = 0.0;
+  for (std::size_t k = 0; k < poses.size(); ++k) {
+    const Eigen::Vector3d t = poses[k].translation();
+    // Distance to the rounded rectangle: to the nearest straight, or to its corner arc.
+    const double cx = std::clamp(t.x(), x0 + r, x1 - r), cy = std::clamp(t.y(), y0 + r, y1 - r);
+    const double to_arc = std::abs(std::hypot(t.x() - cx, t.y() - cy) - r);
+    const double to_side = std::min(
+        {std::abs(t.x() - x0), std::abs(t.x() - x1), std::abs(t.y() - y0), std::abs(t.y() - y1)});
+    const bool in_corner = std::abs(t.x() - cx) > 0.0 && std::abs(t.y() - cy) > 0.0;
+    EXPECT_LT(in_corner ? to_arc : to_side, 1e-9) << "frame " << k;
+    length += (poses[(k + 1) % poses.size()].translation() - t).head<2>().norm();
+  }
+  // Chords of a rounded rectangle of 2 (x1 - x0) + 2 (y1 - y0) - (8 - 2 pi) r.
+  const double perimeter = 2.0 * (x1 - x0) + 2.0 * (y1 - y0) - (8.0 - 2.0 * M_PI) * r;
+  EXPECT_NEAR(length, perimeter, 0.01 * perimeter);
+  SyntheticTrajectoryOptions too_wide = drive;
+  too_wide.circuit_blocks_x = 5;
+  EXPECT_THAT([&] { world.trajectory(too_wide); },
+              ::testing::ThrowsMessage<Error>(
+                  HasSubstr("circuit_blocks_x: must be in [1, blocks_x = 4], got 5")));
+  SyntheticTrajectoryOptions none = drive;
+  none.circuit_blocks_y = 0;
+  EXPECT_THAT([&] { world.trajectory(none); },
+              ::testing::ThrowsMessage<Error>(HasSubstr("circuit_blocks_y")));
 }
 
 TEST(SyntheticWorld, DriftIsExactWithoutNoiseAndGrowsWithDistance) {

@@ -1,7 +1,7 @@
-// carat simulate --out DIR [--frames N] [--laps L] [--seed S] [--beams B]: simulates a LiDAR
-// drive through the synthetic city and writes it KITTI-style: DIR/NNNNNN.bin (x y z float32)
-// and DIR/poses.txt (ground truth T_world_frame, KITTI pose format), for `carat map` and for
-// benchmarks of any size.
+// carat simulate --out DIR [--frames N] [--laps L] [--circuit-blocks N] [--seed S] [--beams B]:
+// simulates a LiDAR drive through the synthetic city and writes it KITTI-style: DIR/NNNNNN.bin (x y
+// z float32) and DIR/poses.txt (ground truth T_world_frame, KITTI pose format), for `carat map` and
+// for benchmarks of any size.
 #include <tbb/info.h>
 #include <tbb/task_arena.h>
 
@@ -20,6 +20,7 @@ struct SimulateArgs {
   std::string out;
   int frames = 100;
   int laps = 2;
+  int circuit_blocks = 1;
   int beams = 32;
   std::uint64_t seed = 1;
   int threads = 0;
@@ -31,10 +32,12 @@ int run_simulate(const SimulateArgs& args) {
   SyntheticWorldOptions options;
   options.seed = args.seed;
   options.beams = args.beams;
+  options.blocks_x = args.circuit_blocks + 1;  // a row of buildings beyond the circuit's end
   const SyntheticWorld world(options);
   SyntheticTrajectoryOptions drive;
   drive.frames = args.frames;
   drive.laps = args.laps;
+  drive.circuit_blocks_x = args.circuit_blocks;
   SyntheticSequence sequence;
   tbb::task_arena arena(threads);
   arena.execute([&] { sequence = make_synthetic_sequence(world, drive); });
@@ -67,6 +70,11 @@ void register_simulate(CLI::App& app, CommandRegistry& registry) {
       ->capture_default_str();
   cmd->add_option("--laps", args->laps, "laps of the circuit")
       ->check(CLI::Range(1, 1000))
+      ->capture_default_str();
+  cmd->add_option("--circuit-blocks", args->circuit_blocks,
+                  "city blocks in a row that the circuit goes around (1: about 200 m a lap; each "
+                  "more adds about 108 m)")
+      ->check(CLI::Range(1, 63))
       ->capture_default_str();
   cmd->add_option("--beams", args->beams, "LiDAR channels")
       ->check(CLI::Range(1, 256))

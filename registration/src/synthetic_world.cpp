@@ -648,8 +648,22 @@ std::vector<Eigen::Isometry3d> SyntheticWorld::trajectory(
             "lap_yaw_deg",
             "must be finite with |.| <= 10 deg, got " + std::to_string(options.lap_yaw_deg));
 
-  const Eigen::Vector2d center(0.5 * B, 0.5 * B);
-  const double straight = B + W - 2.0 * options.corner_radius;
+  require_t(options.circuit_blocks_x >= 1 && options.circuit_blocks_x <= options_.blocks_x,
+            "circuit_blocks_x",
+            "must be in [1, blocks_x = " + std::to_string(options_.blocks_x) + "], got " +
+                std::to_string(options.circuit_blocks_x));
+  require_t(options.circuit_blocks_y >= 1 && options.circuit_blocks_y <= options_.blocks_y,
+            "circuit_blocks_y",
+            "must be in [1, blocks_y = " + std::to_string(options_.blocks_y) + "], got " +
+                std::to_string(options.circuit_blocks_y));
+
+  // The centre-line rectangle through the streets around the circuit's blocks: straights of
+  // n (B + W) - 2 r between the rounded corners (one block: B + W - 2 r on every side).
+  const double span_x = options.circuit_blocks_x * (B + W),
+               span_y = options.circuit_blocks_y * (B + W);
+  const Eigen::Vector2d center(0.5 * (span_x - W), 0.5 * (span_y - W));
+  const std::array<double, 2> straight = {span_x - 2.0 * options.corner_radius,
+                                          span_y - 2.0 * options.corner_radius};
   // Unit normal of the ground plane: sensor z axis.
   const Eigen::Vector3d up =
       Eigen::Vector3d(-scene_->plane_gx, -scene_->plane_gy, 1.0).normalized();
@@ -661,21 +675,22 @@ std::vector<Eigen::Isometry3d> SyntheticWorld::trajectory(
     const double fraction = lap_pos - lap;
     const double factor = std::array<double, 3>{0.0, 1.0, -1.0}[lap % 3];
     const double offset = options.lap_offset * factor;
-    const double half = 0.5 * (B + W) + offset, radius = options.corner_radius + offset;
-    const double length = 4.0 * straight + 2.0 * kPi * radius;
+    const double half_y = 0.5 * span_y + offset, radius = options.corner_radius + offset;
+    const double length = 2.0 * (straight[0] + straight[1]) + 2.0 * kPi * radius;
     // Arc length from the start of the bottom straight; frame 0 sits at its middle.
-    double s = std::fmod(fraction * length + 0.5 * straight, length);
-    Eigen::Vector2d p(center.x() - 0.5 * straight, center.y() - half);
+    double s = std::fmod(fraction * length + 0.5 * straight[0], length);
+    Eigen::Vector2d p(center.x() - 0.5 * straight[0], center.y() - half_y);
     double heading = 0.0;
     for (int q = 0; q < 4; ++q) {
+      const double side = straight[static_cast<std::size_t>(q % 2)];
       const Eigen::Vector2d dir(std::cos(heading), std::sin(heading));
       const Eigen::Vector2d left(-dir.y(), dir.x());
-      if (s <= straight) {
+      if (s <= side) {
         p += s * dir;
         break;
       }
-      s -= straight;
-      const Eigen::Vector2d arc_center = p + straight * dir + radius * left;
+      s -= side;
+      const Eigen::Vector2d arc_center = p + side * dir + radius * left;
       const double arc = 0.5 * kPi * radius;
       if (s <= arc || q == 3) {
         const double phi = std::min(s, arc) / radius;

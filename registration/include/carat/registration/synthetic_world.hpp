@@ -8,9 +8,10 @@
 /// Layout: blocks_x x blocks_y square blocks of edge block_size, with streets of street_width
 /// between them and around the grid, and a ring of buildings beyond the outer streets, so every
 /// street has facades on both sides. Block (0, 0) covers [0, block_size]^2; the ground-truth
-/// circuit follows the centre lines of the four streets around block (0, 0), counterclockwise
-/// with rounded corners. Objects near the ground stay at least 3 m from every street centre
-/// line (tree canopies and street-light arms may overhang the street above the sensor).
+/// circuit follows the centre lines of the streets around block (0, 0) (or around a rectangle
+/// of blocks from (0, 0)), counterclockwise with rounded corners. Objects near the ground stay
+/// at least 3 m from every street centre line (tree canopies and street-light arms may
+/// overhang the street above the sensor).
 ///
 /// Randomness: every draw comes from std::mt19937_64 (its output is fixed by the C++ standard)
 /// seeded through splitmix64, turned into uniforms and Gaussians (Box-Muller) by carat's own
@@ -49,7 +50,8 @@ struct SyntheticWorldOptions {
   double sensor_height = 1.8;        ///< metres above the ground (in (0, 2.5])
 };
 
-/// Ground-truth circuit settings: the streets around block (0, 0), driven `laps` times.
+/// Ground-truth circuit settings: the streets around the blocks [0, circuit_blocks_x) x
+/// [0, circuit_blocks_y) (by default block (0, 0) alone), driven `laps` times.
 /// Frames are evenly spaced in lap fraction, so frame k and frame k + frames / laps sit at the
 /// same place of their laps (when laps divides frames). Lap l drives lap_offset * {0, +1, -1}
 /// [l % 3] metres outward of the centre line and turns the heading by lap_yaw_deg times the
@@ -61,6 +63,8 @@ struct SyntheticTrajectoryOptions {
   double corner_radius = 10.0;  ///< metres, corner rounding (> lap_offset, < (block + street) / 2)
   double lap_offset = 0.7;      ///< metres, sideways offset of alternate laps (in [0, 1.5])
   double lap_yaw_deg = 2.0;     ///< degrees, heading offset of alternate laps (|.| <= 10)
+  int circuit_blocks_x = 1;     ///< blocks the circuit goes around along x (<= the world's)
+  int circuit_blocks_y = 1;     ///< blocks the circuit goes around along y (<= the world's)
 };
 
 /// A procedural scene: ground with slope and roughness, buildings/walls (boxes), poles (vertical
