@@ -190,6 +190,76 @@ TEST(LosslessBlockTest, RowsNumberTheRankOfTheGram) {
   EXPECT_EQ(LosslessRegistrationBlock(one.pose_gram(Eigen::Isometry3d::Identity())).num_rows(), 3);
 }
 
+TEST(LosslessBlockTest, RowsCanBeAskedForInAnyOrderWithRepeats) {
+  const Scene s = make_scene(300, 8);
+  const GicpBlock gicp(s.gicp, Eigen::Isometry3d::Identity());
+  std::vector<Eigen::Vector3d> target, normal, source;
+  for (int k = 0; k < 50; ++k) {  // points on one plane: four rows
+    target.push_back(s.target[4 * static_cast<std::size_t>(k)]);
+    normal.push_back(s.normal[4 * static_cast<std::size_t>(k)]);
+    source.push_back(s.source[4 * static_cast<std::size_t>(k)]);
+  }
+  const PointToPlaneBlock plane(target, normal, source);
+  const Poses poses = poses_for(Eigen::Isometry3d::Identity(), moves()[2], 21);
+  const double* params[2] = {poses.i, poses.j};
+  for (const auto& [block, rows] :
+       {std::pair{LosslessRegistrationBlock(gicp.pose_gram(Eigen::Isometry3d::Identity())),
+                  std::vector<int>{12, 0, 5, 5, 3}},
+        std::pair{LosslessRegistrationBlock(plane.pose_gram(Eigen::Isometry3d::Identity())),
+                  std::vector<int>{3, 0, 3}}}) {
+    const int n = block.num_rows();
+    std::vector<int> all(static_cast<std::size_t>(n));
+    for (int k = 0; k < n; ++k) all[static_cast<std::size_t>(k)] = k;
+    std::vector<double> r_all(all.size()), J_all(6 * all.size());
+    block.evaluate_rows(params, all, r_all.data(), J_all.data());
+    std::vector<double> r(rows.size()), J(6 * rows.size());
+    block.evaluate_rows(params, rows, r.data(), J.data());
+    for (std::size_t k = 0; k < rows.size(); ++k) {
+      const auto row = static_cast<std::size_t>(rows[k]);
+      EXPECT_EQ(r[k], r_all[row]) << "row " << row;
+      for (int c = 0; c < 6; ++c) EXPECT_EQ(J[6 * k + c], J_all[6 * row + c]) << "row " << row;
+    }
+  }
+}
+
+TEST(LosslessBlockTest, ATiltedPlaneNeedsFourRowsAndTheMinimumIsHeldFromAFarReference) {
+  // Point-to-plane rows on a tilted plane away from the origin: still four coefficients (the
+  // normal's part of R's rows times the in-plane coordinates, t along the normal, constant).
+  std::mt19937_64 rng(9);
+  std::uniform_real_distribution<double> u(-20.0, 20.0);
+  std::normal_distribution<double> noise(0.0, 0.01);
+  const Eigen::Vector3d n = Eigen::Vector3d(0.3, -0.2, 0.93).normalized();
+  const Eigen::Vector3d e1 = n.unitOrthogonal(), e2 = n.cross(e1);
+  se3::Vector6d xi;
+  xi << 0.05, -0.1, 0.2, 3.0, -1.0, 0.5;
+  const Eigen::Isometry3d T_true = se3::exp(xi);  // maps source points onto the target plane
+  std::vector<Eigen::Vector3d> target, normal, source;
+  for (int k = 0; k < 800; ++k) {
+    const Eigen::Vector3d q = Eigen::Vector3d(5.0, 7.0, -2.0) + u(rng) * e1 + u(rng) * e2;
+    target.push_back(q + noise(rng) * n);
+    normal.push_back(n);
+    source.push_back(T_true.inverse() * (q + 0.02 * u(rng) * e1));  // slid along the plane
+  }
+  const PointToPlaneBlock plane(target, normal, source);
+  se3::Vector6d far;
+  far << 0.2, 0.1, -0.15, 1.0, -0.5, 0.8;  // about 15 degrees and 1.4 m from T_true
+  const Eigen::Isometry3d T_ref = T_true * se3::exp(far);
+  const LosslessRegistrationBlock lossless(plane.pose_gram(T_ref));
+  EXPECT_EQ(lossless.num_rows(), 4);
+  // At T_true the cost is the noise alone (8e-6 of the cost at T_ref): y is large and the Gram
+  // matrix's terms nearly cancel. The Gram squares that cancellation (its entries carry rounding
+  // of the size of the terms), so the cost itself is held to ~1e-10 relative there (measured
+  // 6e-11), while H and b stay at rounding relative to their scale.
+  const Poses at_minimum = poses_for(T_true, se3::Vector6d::Zero(), 23);
+  const Model a = model_of(plane, at_minimum);
+  const Model b = model_of(lossless, at_minimum);
+  const Model reference = model_of(plane, poses_for(T_ref, se3::Vector6d::Zero(), 23));
+  EXPECT_LT(a.c, 1e-3 * reference.c);
+  EXPECT_NEAR(b.c, a.c, 1e-9 * a.c);
+  EXPECT_LT((a.H - b.H).norm(), 1e-13 * a.H.norm());          // measured 4e-16
+  EXPECT_LT((a.b - b.b).norm(), 1e-13 * reference.b.norm());  // measured 3e-16
+}
+
 TEST(LosslessBlockTest, RejectsBadGramMatrices) {
   const Scene s = make_scene(100, 6);
   const PoseGram good =
@@ -210,6 +280,12 @@ TEST(LosslessBlockTest, RejectsBadGramMatrices) {
   bad.gram(12, 0) = bad.gram(0, 12) = 2.0 * std::sqrt(bad.gram(0, 0) * bad.gram(12, 12));
   EXPECT_THAT([&] { LosslessRegistrationBlock block(bad); },
               ThrowsMessage<Error>(HasSubstr("not positive semidefinite (a pivot of")));
+  bad = good;
+  bad.gram.row(5).setZero();
+  bad.gram.col(5).setZero();
+  bad.gram(5, 7) = bad.gram(7, 5) = 1.0;
+  EXPECT_THAT([&] { LosslessRegistrationBlock block(bad); },
+              ThrowsMessage<Error>(HasSubstr("(diagonal 5 is 0 but row 5 is not)")));
   bad = good;
   bad.gram.setZero();
   EXPECT_THAT([&] { LosslessRegistrationBlock block(bad); },

@@ -661,7 +661,9 @@ std::vector<Eigen::Isometry3d> SyntheticWorld::trajectory(
   // n (B + W) - 2 r between the rounded corners (one block: B + W - 2 r on every side).
   const double span_x = options.circuit_blocks_x * (B + W),
                span_y = options.circuit_blocks_y * (B + W);
-  const Eigen::Vector2d center(0.5 * (span_x - W), 0.5 * (span_y - W));
+  // (Written so that one block gives exactly the centre (B / 2, B / 2) of block (0, 0).)
+  const Eigen::Vector2d center(0.5 * B + 0.5 * (options.circuit_blocks_x - 1) * (B + W),
+                               0.5 * B + 0.5 * (options.circuit_blocks_y - 1) * (B + W));
   const std::array<double, 2> straight = {span_x - 2.0 * options.corner_radius,
                                           span_y - 2.0 * options.corner_radius};
   // Unit normal of the ground plane: sensor z axis.

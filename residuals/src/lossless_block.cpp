@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <string>
 #include <utility>
 
@@ -11,13 +12,21 @@
 namespace carat {
 namespace {
 
-/// Pivots at or below this fraction of the largest end the factor (numerical rank).
+/// A largest remaining diagonal (a squared pivot, G scaled to a unit diagonal) at or below this
+/// ends the factor: the rank is numerical.
 constexpr double kRankTolerance = 1e-13;
-/// A pivot below minus this fraction of the largest means G is not positive semidefinite.
+/// A remaining diagonal below minus this means G is not positive semidefinite.
 constexpr double kNegativeTolerance = 1e-9;
 
 using Matrix13 = Eigen::Matrix<double, 13, 13>;
 using Vector13 = Eigen::Matrix<double, 13, 1>;
+
+/// A number as %g (std::to_string prints six fixed decimals: -3e-9 would read -0.000000).
+std::string number(double x) {
+  char text[32];
+  std::snprintf(text, sizeof(text), "%g", x);
+  return text;
+}
 
 }  // namespace
 
@@ -34,27 +43,30 @@ LosslessRegistrationBlock::LosslessRegistrationBlock(const PoseGram& gram)
   if ((G - G.transpose()).cwiseAbs().maxCoeff() > 1e-12 * magnitude)
     throw Error(std::string(who) + "the Gram matrix is not symmetric");
 
-  // Scale to a unit diagonal (coordinates with a zero diagonal have zero rows and columns in a
-  // positive semidefinite G and are left out), then pivoted Cholesky on the scaled matrix A:
-  // A[order, order] = R^T R with R upper triangular.
+  // Scale to a unit diagonal (coordinates with a zero diagonal must have zero rows and columns
+  // in a positive semidefinite G, and are left out), then pivoted Cholesky on the scaled matrix
+  // A: A[order, order] = U^T U with U upper triangular.
   std::array<double, 13> scale{};
   for (int i = 0; i < 13; ++i) {
     if (G(i, i) < 0.0)
       throw Error(std::string(who) + "the Gram matrix is not positive semidefinite (diagonal " +
-                  std::to_string(i) + " is " + std::to_string(G(i, i)) + ")");
+                  std::to_string(i) + " is " + number(G(i, i)) + ")");
+    if (G(i, i) == 0.0 && G.row(i).cwiseAbs().maxCoeff() > 0.0)
+      throw Error(std::string(who) + "the Gram matrix is not positive semidefinite (diagonal " +
+                  std::to_string(i) + " is 0 but row " + std::to_string(i) + " is not)");
     scale[static_cast<std::size_t>(i)] = std::sqrt(G(i, i));
   }
   Matrix13 A = Matrix13::Zero();
   for (int i = 0; i < 13; ++i) {
     for (int j = 0; j < 13; ++j) {
       const double si = scale[static_cast<std::size_t>(i)], sj = scale[static_cast<std::size_t>(j)];
-      if (si > 0.0 && sj > 0.0) A(i, j) = G(i, j) / (si * sj);
+      if (si > 0.0 && sj > 0.0) A(i, j) = G(i, j) / si / sj;
     }
   }
   std::array<int, 13> order{};
   for (int i = 0; i < 13; ++i) order[static_cast<std::size_t>(i)] = i;
-  Matrix13 R = Matrix13::Zero();
-  const double largest = A.diagonal().maxCoeff();  // 1 unless every diagonal is zero
+  Matrix13 U = Matrix13::Zero();
+  const double largest = A.diagonal().maxCoeff();  // 1: some diagonal is not zero (G is not)
   int rank = 0;
   for (int k = 0; k < 13; ++k) {
     int q = k;
@@ -71,26 +83,27 @@ LosslessRegistrationBlock::LosslessRegistrationBlock(const PoseGram& gram)
     if (q != k) {
       A.row(k).swap(A.row(q));
       A.col(k).swap(A.col(q));
-      R.col(k).swap(R.col(q));
+      U.col(k).swap(U.col(q));
       std::swap(order[static_cast<std::size_t>(k)], order[static_cast<std::size_t>(q)]);
     }
     const double pivot = std::sqrt(A(k, k));
-    R(k, k) = pivot;
-    for (int j = k + 1; j < 13; ++j) R(k, j) = A(k, j) / pivot;
+    U(k, k) = pivot;
+    for (int j = k + 1; j < 13; ++j) U(k, j) = A(k, j) / pivot;
     for (int i = k + 1; i < 13; ++i) {
       for (int j = i; j < 13; ++j) {
-        A(i, j) -= R(k, i) * R(k, j);
+        A(i, j) -= U(k, i) * U(k, j);
         A(j, i) = A(i, j);
       }
     }
     rank = k + 1;
   }
+  if (rank == 0) throw Error(std::string(who) + "the Gram matrix has no positive pivot");
   rank_ = rank;
-  // V = R diag(scale[order]): r = V (y[order]) reproduces y^T G y.
+  // V = U diag(scale[order]): r = V (y[order]) reproduces y^T G y.
   for (int i = 0; i < rank_; ++i) {
     for (int j = i; j < 13; ++j) {
       upper_[static_cast<std::size_t>(row_offset(i) + j - i)] =
-          R(i, j) * scale[static_cast<std::size_t>(order[static_cast<std::size_t>(j)])];
+          U(i, j) * scale[static_cast<std::size_t>(order[static_cast<std::size_t>(j)])];
     }
   }
   for (int j = 0; j < 13; ++j)
@@ -126,8 +139,7 @@ void LosslessRegistrationBlock::evaluate_rows(ParameterPointers params, std::spa
 }
 
 std::size_t LosslessRegistrationBlock::memory_bytes() const {
-  return static_cast<std::size_t>(row_offset(rank_)) * sizeof(double) + sizeof(PoseEmbedding) +
-         sizeof(order_);
+  return sizeof(upper_) + sizeof(PoseEmbedding) + sizeof(order_);
 }
 
 std::shared_ptr<const LosslessRegistrationBlock> make_lossless_block(

@@ -70,7 +70,7 @@ void PoseGramSum::flush() {
     for (int j = 0; j < 6; ++j) total_.pp_omega[i][j] += chunk_.pp_omega[i][j];
   }
   for (int i = 0; i < 3; ++i) {
-    for (int j = 0; j < 10; ++j) total_.p_right[i][j] += chunk_.p_right[i][j];
+    for (int j = 0; j < 9; ++j) total_.p_right[i][j] += chunk_.p_right[i][j];
   }
   for (int j = 0; j < 10; ++j) total_.right[j] += chunk_.right[j];
   chunk_ = Sums{};

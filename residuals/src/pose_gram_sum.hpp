@@ -13,7 +13,7 @@ namespace carat::internal {
 /// Sums items into a PoseGram. An item is one row or the rows of one correspondence: with r0 each
 /// row at the reference pose, it brings Omega = sum l l^T over its rows (upper triangle: 00 01 02
 /// 11 12 22), its source point, w = sum l r0 and s = sum r0^2. Items are summed in chunks whose
-/// totals are added in order, so the result has the same bits every time.
+/// totals are added in order (partial sums of 256 items keep rounding lower than one long sum).
 class PoseGramSum {
  public:
   /// Rows about T_target_source_reference, rotation columns about `source_centre`.
@@ -28,12 +28,13 @@ class PoseGramSum {
                           p[1] * p[1], p[1] * p[2], p[2] * p[2]};
     const double right[10] = {omega[0], omega[1], omega[2], omega[3], omega[4],
                               omega[5], w[0],     w[1],     w[2],     s};
-    // Only the products G needs: p p^T (x) Omega, p (x) [Omega, w] and [Omega, w, s] itself.
+    // Only the products G needs: p p^T (x) Omega, p (x) [Omega, w] and [Omega, w, s] itself
+    // (73 sums).
     for (int i = 0; i < 6; ++i) {
       for (int j = 0; j < 6; ++j) chunk_.pp_omega[i][j] += pp[i] * right[j];
     }
     for (int i = 0; i < 3; ++i) {
-      for (int j = 0; j < 10; ++j) chunk_.p_right[i][j] += p[i] * right[j];
+      for (int j = 0; j < 9; ++j) chunk_.p_right[i][j] += p[i] * right[j];
     }
     for (int j = 0; j < 10; ++j) chunk_.right[j] += right[j];
     rows_ += static_cast<std::size_t>(rows);
@@ -56,7 +57,7 @@ class PoseGramSum {
   /// Sums over items, p = source - centre, right = [Omega (6), w (3), s].
   struct Sums {
     double pp_omega[6][6] = {};  ///< (p p^T)_i Omega_j, p p^T as 00 01 02 11 12 22
-    double p_right[3][10] = {};  ///< p_i right_j
+    double p_right[3][9] = {};   ///< p_i right_j (j < 9: p s is not needed)
     double right[10] = {};       ///< right_j
   };
   Sums chunk_;

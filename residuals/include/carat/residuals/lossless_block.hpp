@@ -7,9 +7,10 @@
 /// Factoring G = V^T V (pivoted Cholesky of G scaled to a unit diagonal, V upper triangular in
 /// the pivot order) gives rows r = V y(T_ij) with the same cost, gradient and Gauss-Newton Hessian
 /// as the original block at *every* relative pose, up to rounding, where an exact coreset matches
-/// them at its evaluation point only. Pivots below 1e-13 of the largest end the factor: the rows
-/// then number the numerical rank of G, and what they leave out is below rounding.
-/// Memory: 91 doubles of V at most, the reference pose and centre (15 doubles) and the pivot order.
+/// them at its evaluation point only. The factor ends when the largest remaining diagonal of the
+/// scaled G (a squared pivot) is at most 1e-13: the rows then number the numerical rank of G,
+/// and what they leave out is below rounding.
+/// Memory: 91 doubles for V, the reference pose and centre (15 doubles) and the pivot order.
 /// Variables: target pose T_world_i, source pose T_world_j; reduced Jacobian w.r.t. the tangent
 /// of T_ij (see registration_rows.hpp).
 
@@ -27,8 +28,9 @@ namespace carat {
 class LosslessRegistrationBlock final : public ResidualBlock {
  public:
   /// Factors gram.gram. Throws carat::Error if it, its reference pose or its centre is not
-  /// finite, if it is not symmetric, or if it is not positive semidefinite (a pivot below -1e-9 of
-  /// the largest, after scaling), or if it is zero.
+  /// finite, if it is zero or not symmetric, or if it is not positive semidefinite (a negative
+  /// diagonal, a zero diagonal whose row is not zero, or a remaining diagonal below -1e-9 after
+  /// scaling to a unit diagonal).
   explicit LosslessRegistrationBlock(const PoseGram& gram);
 
   int num_rows() const override { return rank_; }
