@@ -60,6 +60,29 @@ void set_counters(benchmark::State& state) {
   state.counters["rows_per_factor"] = static_cast<double>(rows) / graph().blocks.size();
 }
 
+/// Linearizes blocks[i] at pair i's poses, pair after pair (blocks parallel to the pairs).
+template <class Block>
+void linearize_each(benchmark::State& state, const std::vector<std::shared_ptr<Block>>& blocks) {
+  const Graph& g = graph();
+  std::size_t k = 0;
+  Eigen::MatrixXd H(6, 6);
+  Eigen::VectorXd b(6);
+  for (auto _ : state) {
+    const std::size_t i = k++ % g.pairs.size();
+    const double* values[2] = {g.storage[g.pairs[i].target].data(),
+                               g.storage[g.pairs[i].source].data()};
+    H.setZero();
+    b.setZero();
+    benchmark::DoNotOptimize(blocks[i]->accumulate(values, H, b));
+  }
+  set_counters(state);
+}
+
+/// T_target_source of pair i at the ground-truth poses.
+Eigen::Isometry3d relative_pose_of(const Graph& g, std::size_t i) {
+  return g.poses[g.pairs[i].target].inverse() * g.poses[g.pairs[i].source];
+}
+
 void BM_BuildFullFactor(benchmark::State& state) {
   const Graph& g = graph();
   std::size_t k = 0;
@@ -75,21 +98,7 @@ void BM_BuildFullFactor(benchmark::State& state) {
   set_counters(state);
 }
 
-void BM_LinearizeFull(benchmark::State& state) {
-  const Graph& g = graph();
-  std::size_t k = 0;
-  Eigen::MatrixXd H(6, 6);
-  Eigen::VectorXd b(6);
-  for (auto _ : state) {
-    const std::size_t i = k++ % g.pairs.size();
-    const double* values[2] = {g.storage[g.pairs[i].target].data(),
-                               g.storage[g.pairs[i].source].data()};
-    H.setZero();
-    b.setZero();
-    benchmark::DoNotOptimize(g.blocks[i]->accumulate(values, H, b));
-  }
-  set_counters(state);
-}
+void BM_LinearizeFull(benchmark::State& state) { linearize_each(state, graph().blocks); }
 
 void BM_CompressExact(benchmark::State& state) {
   const Graph& g = graph();
@@ -125,8 +134,7 @@ void BM_SummarizeLossless(benchmark::State& state) {
   std::size_t k = 0;
   for (auto _ : state) {
     const std::size_t i = k++ % g.pairs.size();
-    const auto T = g.poses[g.pairs[i].target].inverse() * g.poses[g.pairs[i].source];
-    auto lossless = carat::make_lossless_block(*g.blocks[i], T);
+    auto lossless = carat::make_lossless_block(*g.blocks[i], relative_pose_of(g, i));
     benchmark::DoNotOptimize(lossless->num_rows());
   }
   set_counters(state);
@@ -135,22 +143,9 @@ void BM_SummarizeLossless(benchmark::State& state) {
 void BM_LinearizeLossless(benchmark::State& state) {
   const Graph& g = graph();
   std::vector<std::shared_ptr<const carat::LosslessRegistrationBlock>> lossless;
-  for (std::size_t i = 0; i < g.pairs.size(); ++i) {
-    lossless.push_back(carat::make_lossless_block(
-        *g.blocks[i], g.poses[g.pairs[i].target].inverse() * g.poses[g.pairs[i].source]));
-  }
-  std::size_t k = 0;
-  Eigen::MatrixXd H(6, 6);
-  Eigen::VectorXd b(6);
-  for (auto _ : state) {
-    const std::size_t i = k++ % g.pairs.size();
-    const double* values[2] = {g.storage[g.pairs[i].target].data(),
-                               g.storage[g.pairs[i].source].data()};
-    H.setZero();
-    b.setZero();
-    benchmark::DoNotOptimize(lossless[i]->accumulate(values, H, b));
-  }
-  set_counters(state);
+  for (std::size_t i = 0; i < g.pairs.size(); ++i)
+    lossless.push_back(carat::make_lossless_block(*g.blocks[i], relative_pose_of(g, i)));
+  linearize_each(state, lossless);
 }
 
 void BM_LinearizeExact(benchmark::State& state) {
@@ -161,18 +156,7 @@ void BM_LinearizeExact(benchmark::State& state) {
                                g.storage[g.pairs[i].source].data()};
     compressed.push_back(carat::compress(g.blocks[i], values));
   }
-  std::size_t k = 0;
-  Eigen::MatrixXd H(6, 6);
-  Eigen::VectorXd b(6);
-  for (auto _ : state) {
-    const std::size_t i = k++ % g.pairs.size();
-    const double* values[2] = {g.storage[g.pairs[i].target].data(),
-                               g.storage[g.pairs[i].source].data()};
-    H.setZero();
-    b.setZero();
-    benchmark::DoNotOptimize(compressed[i]->accumulate(values, H, b));
-  }
-  set_counters(state);
+  linearize_each(state, compressed);
 }
 
 BENCHMARK(BM_BuildFullFactor)->Unit(benchmark::kMicrosecond);

@@ -98,6 +98,33 @@ DenseModel dense_model(const Problem& problem) {
   return m;
 }
 
+/// The small world's dense graph at its initial poses.
+const std::vector<FramePair>& small_pairs() {
+  static const std::vector<FramePair> pairs =
+      build_dense_graph(small_world().frames, small_world().initial);
+  return pairs;
+}
+
+/// GRE options of the small-world tests: `sampling`, two threads, defaults otherwise.
+GlobalRegistrationOptions small_options(ResidualSampling sampling) {
+  GlobalRegistrationOptions options;
+  options.num_threads = 2;
+  options.sampling = sampling;
+  return options;
+}
+
+/// The small world's registration problem at its initial poses.
+RegistrationProblem small_problem(ResidualSampling sampling) {
+  const SmallWorld& w = small_world();
+  return build_registration_problem(w.frames, small_pairs(), w.initial, small_options(sampling));
+}
+
+/// The small world's registration solved from its initial poses.
+GlobalRegistrationResult small_solve(ResidualSampling sampling) {
+  const SmallWorld& w = small_world();
+  return optimize_registration(w.frames, small_pairs(), w.initial, small_options(sampling));
+}
+
 TEST(OverlapTest, FractionOfOccupiedVoxels) {
   PointCloud cloud;
   for (int x = 0; x < 10; ++x)
@@ -192,14 +219,9 @@ TEST(PoseGraphBaselineTest, InformationMatchesTheGicpHessianToFirstOrder) {
 }
 
 TEST(GlobalRegistrationTest, ExactGraphModelEqualsTheFullOne) {
-  const SmallWorld& w = small_world();
-  const auto pairs = build_dense_graph(w.frames, w.initial);
-  GlobalRegistrationOptions options;
-  options.num_threads = 2;
-  options.sampling = ResidualSampling::kFull;
-  const RegistrationProblem full = build_registration_problem(w.frames, pairs, w.initial, options);
-  options.sampling = ResidualSampling::kExact;
-  const RegistrationProblem exact = build_registration_problem(w.frames, pairs, w.initial, options);
+  const auto& pairs = small_pairs();
+  const RegistrationProblem full = small_problem(ResidualSampling::kFull);
+  const RegistrationProblem exact = small_problem(ResidualSampling::kExact);
   EXPECT_EQ(exact.stats.num_rows, 29 * pairs.size());
   EXPECT_LT(exact.stats.residual_bytes * 20, full.stats.residual_bytes);  // <= 5 %
   const DenseModel a = dense_model(full.problem);
@@ -208,23 +230,16 @@ TEST(GlobalRegistrationTest, ExactGraphModelEqualsTheFullOne) {
   EXPECT_LT((a.b - b.b).norm(), 1e-12 * a.b.norm());
   EXPECT_NEAR(a.c, b.c, 1e-12 * a.c);
   // Random sampling only estimates it.
-  options.sampling = ResidualSampling::kRandom;
-  const RegistrationProblem random =
-      build_registration_problem(w.frames, pairs, w.initial, options);
+  const RegistrationProblem random = small_problem(ResidualSampling::kRandom);
   EXPECT_GT((a.H - dense_model(random.problem).H).norm(), 1e-3 * a.H.norm());
 }
 
 TEST(GlobalRegistrationTest, LosslessGraphModelEqualsTheFullOneAtEveryPose) {
   const SmallWorld& w = small_world();
-  const auto pairs = build_dense_graph(w.frames, w.initial);
-  GlobalRegistrationOptions options;
-  options.num_threads = 2;
-  options.sampling = ResidualSampling::kFull;
-  RegistrationProblem full = build_registration_problem(w.frames, pairs, w.initial, options);
-  options.sampling = ResidualSampling::kLossless;
-  RegistrationProblem lossless = build_registration_problem(w.frames, pairs, w.initial, options);
-  options.sampling = ResidualSampling::kExact;
-  RegistrationProblem exact = build_registration_problem(w.frames, pairs, w.initial, options);
+  const auto& pairs = small_pairs();
+  RegistrationProblem full = small_problem(ResidualSampling::kFull);
+  RegistrationProblem lossless = small_problem(ResidualSampling::kLossless);
+  RegistrationProblem exact = small_problem(ResidualSampling::kExact);
   EXPECT_LE(lossless.stats.num_rows, 13 * pairs.size());
   EXPECT_LT(lossless.stats.residual_bytes, exact.stats.residual_bytes / 2);
   EXPECT_LT(lossless.stats.residual_bytes * 200, full.stats.residual_bytes);  // < 0.5 %
@@ -260,14 +275,8 @@ TEST(GlobalRegistrationTest, LosslessGraphModelEqualsTheFullOneAtEveryPose) {
 
 TEST(GlobalRegistrationTest, LosslessFollowsTheFullSolve) {
   const SmallWorld& w = small_world();
-  const auto pairs = build_dense_graph(w.frames, w.initial);
-  GlobalRegistrationOptions options;
-  options.num_threads = 2;
-  options.sampling = ResidualSampling::kFull;
-  const GlobalRegistrationResult full = optimize_registration(w.frames, pairs, w.initial, options);
-  options.sampling = ResidualSampling::kLossless;
-  const GlobalRegistrationResult lossless =
-      optimize_registration(w.frames, pairs, w.initial, options);
+  const GlobalRegistrationResult full = small_solve(ResidualSampling::kFull);
+  const GlobalRegistrationResult lossless = small_solve(ResidualSampling::kLossless);
   // The same function at every iterate: the same steps, up to rounding.
   EXPECT_EQ(lossless.summary.num_iterations, full.summary.num_iterations);
   EXPECT_NEAR(lossless.summary.final_cost, full.summary.final_cost,
@@ -281,13 +290,9 @@ TEST(GlobalRegistrationTest, LosslessFollowsTheFullSolve) {
 
 TEST(GlobalRegistrationTest, ExactMatchesFullAndImprovesOnTheStart) {
   const SmallWorld& w = small_world();
-  const auto pairs = build_dense_graph(w.frames, w.initial);
-  GlobalRegistrationOptions options;
-  options.num_threads = 2;
-  options.sampling = ResidualSampling::kFull;
-  const GlobalRegistrationResult full = optimize_registration(w.frames, pairs, w.initial, options);
-  options.sampling = ResidualSampling::kExact;
-  const GlobalRegistrationResult exact = optimize_registration(w.frames, pairs, w.initial, options);
+  const auto& pairs = small_pairs();
+  const GlobalRegistrationResult full = small_solve(ResidualSampling::kFull);
+  const GlobalRegistrationResult exact = small_solve(ResidualSampling::kExact);
   const double start = compute_ate(w.initial, w.truth).rmse;
   const double ate_full = compute_ate(full.T_world_frame, w.truth).rmse;
   const double ate_exact = compute_ate(exact.T_world_frame, w.truth).rmse;
