@@ -34,6 +34,7 @@ json_field() {  # json_field FILE EXPR -> prints the value (python3 is on Debian
 # demo: the dense-graph job on a small synthetic world; report, JSON fields, files.
 check demo_runs 0 "" -- "$CARAT" demo --frames 24 --out "$scratch/demo-text"
 grep -q "GRE exact (M=29)" "$scratch/out" || { echo "FAIL demo report lacks the GRE exact row"; fail=$((fail + 1)); }
+grep -qF "GRE: correspondences searched in up to 2 rounds, excess Cauchy kernel 0.3 (--paper: the paper's setting)" "$scratch/out" || { echo "FAIL demo report does not state the GRE setting"; fail=$((fail + 1)); }
 check demo_json 0 "" -- "$CARAT" demo --frames 24 --json --out "$scratch/demo"
 cp "$scratch/out" "$scratch/demo.json"
 demo_ok=$(json_field "$scratch/demo.json" "all(k in m for m in j['methods'] for k in ('ate_mean','ate_std','ate_rmse','time_s','time_breakdown','memory_bytes','iterations')) and j['frames'] == 24 and j['factors'] >= 23 and [m['method'] for m in j['methods']] == ['pgo_identity','pgo_hessian','gre_full','gre_exact','gre_random','gre_lossless']")
@@ -43,6 +44,14 @@ if [[ $demo_better != "True" ]]; then echo "FAIL demo: a method did not improve 
 # Per-factor memory (mean, min, max) and the time breakdown's stages, per method.
 demo_memory=$(json_field "$scratch/demo.json" "all(abs(m['memory_bytes_per_factor']['mean'] * j['factors'] - m['memory_bytes']) <= 1e-6 * m['memory_bytes'] and m['memory_bytes_per_factor']['min'] <= m['memory_bytes_per_factor']['max'] for m in j['methods'] if m['method'].startswith('gre')) and all(m['correspondence_bytes_per_factor']['max'] > 1000 * 29 for m in j['methods'] if m['method'].startswith('gre')) and [m for m in j['methods'] if m['method'] == 'gre_lossless'][0]['memory_bytes_per_factor']['max'] <= 900")
 if [[ $demo_memory != "True" ]]; then echo "FAIL demo per-factor memory: $demo_memory"; fail=$((fail + 1)); else pass=$((pass + 1)); fi
+demo_setting=$(json_field "$scratch/demo.json" "j['gre_rounds'] == 2 and j['gre_excess_cauchy'] == 0.3 and j['gre_cauchy'] == 0 and j['pgo_cauchy'] == 1 and all(m['time_breakdown']['factor_minimum_s'] > 0 for m in j['methods'] if m['method'] in ('gre_full', 'gre_exact'))")
+if [[ $demo_setting != "True" ]]; then echo "FAIL demo JSON: default GRE setting: $demo_setting"; fail=$((fail + 1)); else pass=$((pass + 1)); fi
+check demo_paper 0 "" -- "$CARAT" demo --frames 24 --paper --json --out "$scratch/demo-paper"
+demo_paper=$(json_field "$scratch/out" "(lambda m: j['gre_rounds'] == 1 and j['gre_excess_cauchy'] == 0 and j['gre_cauchy'] == 0 and m['gre_full']['time_breakdown']['factor_minimum_s'] == 0 and abs(m['gre_lossless']['ate_rmse'] - m['gre_full']['ate_rmse']) <= 1e-9 * m['gre_full']['ate_rmse'])({m['method']: m for m in j['methods']})")
+if [[ $demo_paper != "True" ]]; then echo "FAIL demo --paper: $demo_paper"; fail=$((fail + 1)); else pass=$((pass + 1)); fi
+check demo_whole_kernel 0 "" -- "$CARAT" demo --frames 24 --gre-cauchy 1 --json --out "$scratch/demo-whole"
+demo_whole=$(json_field "$scratch/out" "j['gre_cauchy'] == 1 and j['gre_excess_cauchy'] == 0 and j['gre_rounds'] == 2")
+if [[ $demo_whole != "True" ]]; then echo "FAIL demo --gre-cauchy turns the excess kernel off: $demo_whole"; fail=$((fail + 1)); else pass=$((pass + 1)); fi
 demo_stages=$(json_field "$scratch/demo.json" "all(set(m['time_breakdown']) >= {'correspondences_s','compression_s','linearization_s','cost_evaluation_s','linear_solve_s','optimization_s'} for m in j['methods'] if m['method'].startswith('gre')) and all(set(m['time_breakdown']) >= {'registration_s','linearization_s','cost_evaluation_s','linear_solve_s'} for m in j['methods'] if m['method'].startswith('pgo'))")
 if [[ $demo_stages != "True" ]]; then echo "FAIL demo time breakdown stages"; fail=$((fail + 1)); else pass=$((pass + 1)); fi
 # The drift-model start instead of GICP odometry.
@@ -116,6 +125,7 @@ else pass=$((pass + 1)); fi
 check no_subcommand 2 "" -- "$CARAT"
 check demo_bad_frames 2 "" -- "$CARAT" demo --frames 3
 check demo_two_kernels 2 "excludes" -- "$CARAT" demo --frames 24 --gre-cauchy 1 --gre-excess-cauchy 1
+check demo_paper_and_rounds 2 "excludes" -- "$CARAT" demo --frames 24 --paper --rounds 3
 
 # coreset-check: exact and of the requested size; JSON has the documented fields.
 check coreset_check 0 "" -- "$CARAT" coreset-check --rows 5000 --target 29 --trials 3 --json
