@@ -151,6 +151,18 @@ TEST(CompressTest, CompressedBlockValidatesItsRows) {
         CompressedBlock(problem.block, {0, 1}, {1.0, 0.0});
       },
       "CompressedBlock: weight 1 is 0.000000; weights must be finite and > 0");
+  expect_error(
+      [&] {
+        CompressedBlock(problem.block, {0, 1}, {1.0});
+      },
+      "CompressedBlock: 2 rows but 1 weights");
+  expect_error([&] { CompressedBlock(std::shared_ptr<const ResidualBlock>()); },
+               "CompressedBlock: inner block is null");
+  // A block whose rows carry their weights already: every row of it, nothing kept beside.
+  const CompressedBlock folded(problem.block);
+  EXPECT_TRUE(folded.folded());
+  EXPECT_EQ(folded.num_rows(), 10);
+  EXPECT_EQ(folded.memory_bytes(), problem.block->memory_bytes());
 }
 
 /// A block that cannot extract rows: compression must keep it whole and index into it.

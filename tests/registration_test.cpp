@@ -136,6 +136,57 @@ TEST(GicpBlockTest, FastPathAndExtractedRowsAgree) {
   EXPECT_EQ(t1, t2);
 }
 
+TEST(GicpBlockTest, WeightedExtractFoldsTheWeightsIntoItsRows) {
+  const auto pairs = random_correspondences(500, 12);
+  se3::Vector6d xi;
+  xi << 0.2, 0.1, -0.1, -0.5, 0.8, 0.3;
+  const GicpBlock block(pairs, se3::exp(xi));
+  // Evaluated away from where the block was built: the weighted rows are sqrt(w) times the rows
+  // at every pose, not only at one.
+  double pose_i[7], pose_j[7];
+  se3::to_storage(se3::exp(0.3 * xi), pose_i);
+  se3::to_storage(se3::exp(-xi), pose_j);
+  const double* params[2] = {pose_i, pose_j};
+  const std::vector<int> rows = {1, 0, 1499, 700, 700};
+  const std::vector<double> weights = {4.0, 0.25, 123.5, 1e-3, 7.0};
+  const auto weighted = block.extract_weighted_rows(rows, weights);
+  ASSERT_NE(weighted, nullptr);
+  ASSERT_EQ(weighted->num_rows(), 5);
+  EXPECT_EQ(weighted->memory_bytes(), 5 * 7 * sizeof(double)) << "no weight kept beside a row";
+  Eigen::VectorXd r(5), rw(5);
+  Eigen::Matrix<double, 5, 6, Eigen::RowMajor> J, Jw;
+  block.evaluate_rows(params, rows, r.data(), J.data());
+  const std::vector<int> local = {0, 1, 2, 3, 4};
+  weighted->evaluate_rows(params, local, rw.data(), Jw.data());
+  for (int k = 0; k < 5; ++k) {
+    const double s = std::sqrt(weights[static_cast<std::size_t>(k)]);
+    EXPECT_NEAR(rw[k], s * r[k], 1e-14 * (1.0 + std::abs(s * r[k]))) << k;
+    EXPECT_LT((Jw.row(k) - s * J.row(k)).norm(), 1e-14 * (1.0 + s * J.row(k).norm())) << k;
+  }
+  // An extract of the weighted rows keeps their weights.
+  const std::vector<int> again = {2};
+  const auto part = weighted->extract_rows(again);
+  double r_part = 0.0;
+  part->evaluate_rows(params, std::span<const int>(local.data(), 1), &r_part, nullptr);
+  EXPECT_EQ(r_part, rw[2]);
+  // Whole correspondences in order are cheaper kept whole with one weight beside each row.
+  EXPECT_EQ(block.extract_weighted_rows(std::vector<int>{3, 4, 5}, std::vector<double>{2, 2, 2}),
+            nullptr);
+  const auto message = [&](const std::vector<int>& r, const std::vector<double>& w) {
+    try {
+      block.extract_weighted_rows(r, w);
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_EQ(message(rows, {1.0}), "GicpBlock: 5 rows but 1 weights");
+  EXPECT_EQ(message({0, 1}, {1.0, std::nan("")}),
+            "GicpBlock: weight 1 is nan; weights must be finite and > 0");
+  EXPECT_EQ(message({0, 1}, {1.0, -2.0}),
+            "GicpBlock: weight 1 is -2.000000; weights must be finite and > 0");
+}
+
 TEST(GicpBlockTest, WholeCorrespondencesMatchRowByRowEvaluation) {
   // Rows asked for as whole correspondences in order take a straight-line path; one row at a
   // time takes the general one. Both must give the same bits, Jacobians included.
@@ -438,6 +489,10 @@ TEST(AlignTest, Kitti00PairMatchesTheReference) {
   const double* params[2] = {pose_i, pose_j};
   const auto compressed = compress(block, params);
   EXPECT_EQ(compressed->num_rows(), 29);
+  // The weights live inside the 29 extracted rows: 7 doubles a row and nothing beside them.
+  EXPECT_TRUE(compressed->folded());
+  EXPECT_TRUE(compressed->weights().empty());
+  EXPECT_EQ(compressed->memory_bytes(), 29 * 7 * sizeof(double));
   Eigen::VectorXd r, rc;
   Eigen::MatrixXd J, Jc;
   evaluate_full_jacobian(*block, params, &r, &J);

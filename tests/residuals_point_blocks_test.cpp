@@ -78,6 +78,12 @@ TEST(PointBlocksTest, ExtractedRowsAndExactCompression) {
     EXPECT_EQ(J1, J2);
     const auto compressed = compress(block, params);
     EXPECT_EQ(compressed->num_rows(), 29);
+    // Point-to-plane rows take their weights into their normals; point-to-point rows keep one
+    // beside each row.
+    EXPECT_EQ(compressed->folded(), block == p2l);
+    EXPECT_EQ(compressed->memory_bytes(), block == p2l ? 29 * 9 * sizeof(double)
+                                                       : compressed->inner().memory_bytes() +
+                                                             29 * (sizeof(int) + sizeof(double)));
     Eigen::VectorXd r, rc;
     Eigen::MatrixXd J, Jc;
     evaluate_full_jacobian(*block, params, &r, &J);

@@ -13,10 +13,15 @@
 namespace carat {
 namespace {
 
-/// Keeps only the selected rows' data when the block can extract them.
+/// Keeps only the selected rows' data when the block can extract them, with the weights folded
+/// into the rows when the block can do that too.
 std::shared_ptr<CompressedBlock> make_compressed(std::shared_ptr<const ResidualBlock> block,
                                                  std::vector<int> rows,
                                                  std::vector<double> weights) {
+  if (std::unique_ptr<ResidualBlock> weighted = block->extract_weighted_rows(rows, weights)) {
+    return std::make_shared<CompressedBlock>(
+        std::shared_ptr<const ResidualBlock>(std::move(weighted)));
+  }
   if (std::unique_ptr<ResidualBlock> extracted = block->extract_rows(rows)) {
     std::vector<int> local(rows.size());
     std::iota(local.begin(), local.end(), 0);

@@ -11,10 +11,7 @@ CompressedBlock::CompressedBlock(std::shared_ptr<const ResidualBlock> inner, std
                                  std::vector<double> weights)
     : inner_(std::move(inner)), rows_(std::move(rows)), weights_(std::move(weights)) {
   if (!inner_) throw Error("CompressedBlock: inner block is null");
-  if (rows_.size() != weights_.size()) {
-    throw Error("CompressedBlock: " + std::to_string(rows_.size()) + " rows but " +
-                std::to_string(weights_.size()) + " weights");
-  }
+  check_row_weights("CompressedBlock", rows_, weights_);
   if (rows_.empty()) throw Error("CompressedBlock: no rows selected");
   const int n = inner_->num_rows();
   for (std::size_t k = 0; k < rows_.size(); ++k) {
@@ -22,15 +19,21 @@ CompressedBlock::CompressedBlock(std::shared_ptr<const ResidualBlock> inner, std
       throw Error("CompressedBlock: row " + std::to_string(rows_[k]) +
                   " is out of range (block has " + std::to_string(n) + " rows)");
     }
-    if (!std::isfinite(weights_[k]) || !(weights_[k] > 0.0)) {
-      throw Error("CompressedBlock: weight " + std::to_string(k) + " is " +
-                  std::to_string(weights_[k]) + "; weights must be finite and > 0");
-    }
   }
+}
+
+CompressedBlock::CompressedBlock(std::shared_ptr<const ResidualBlock> weighted_rows)
+    : inner_(std::move(weighted_rows)) {
+  if (!inner_) throw Error("CompressedBlock: inner block is null");
+  if (inner_->num_rows() < 1) throw Error("CompressedBlock: no rows selected");
 }
 
 void CompressedBlock::evaluate_rows(ParameterPointers params, std::span<const int> rows,
                                     double* residuals, double* jacobian) const {
+  if (folded()) {
+    inner_->evaluate_rows(params, rows, residuals, jacobian);
+    return;
+  }
   std::vector<int> inner_rows(rows.size());
   for (std::size_t k = 0; k < rows.size(); ++k)
     inner_rows[k] = rows_[static_cast<std::size_t>(rows[k])];
@@ -46,6 +49,11 @@ void CompressedBlock::evaluate_rows(ParameterPointers params, std::span<const in
 }
 
 std::unique_ptr<ResidualBlock> CompressedBlock::extract_rows(std::span<const int> rows) const {
+  if (folded()) {
+    std::unique_ptr<ResidualBlock> part = inner_->extract_rows(rows);
+    if (!part) return nullptr;
+    return std::make_unique<CompressedBlock>(std::shared_ptr<const ResidualBlock>(std::move(part)));
+  }
   std::vector<int> inner_rows;
   std::vector<double> weights;
   for (int k : rows) {

@@ -276,15 +276,34 @@ double GicpBlock::squared_norm(ParameterPointers params) const {
   return c;
 }
 
+namespace {
+
+/// True if `rows` are whole correspondences in order (rows 3k, 3k + 1, 3k + 2 together).
+bool whole_correspondences(std::span<const int> rows) {
+  if (rows.size() % 3 != 0) return false;
+  for (std::size_t k = 0; k < rows.size(); k += 3) {
+    if (rows[k] % 3 != 0 || rows[k + 1] != rows[k] + 1 || rows[k + 2] != rows[k] + 2) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+GicpBlock::Row GicpBlock::row_of(int row) const {
+  if (!rows_.empty()) return rows_[static_cast<std::size_t>(row)];
+  const Point& p = points_[static_cast<std::size_t>(row / 3)];
+  Row r;
+  r.ell = whitening_row(p.whitening, row % 3);
+  r.offset = dot3(r.ell, p.target);
+  r.source = p.source;
+  return r;
+}
+
 std::unique_ptr<ResidualBlock> GicpBlock::extract_rows(std::span<const int> rows) const {
   auto out = std::unique_ptr<GicpBlock>(new GicpBlock());
   // Whole correspondences in row order (random sampling of points) stay correspondences: 96
   // bytes for three rows beat 3 x 56.
-  bool whole = rows_.empty() && rows.size() % 3 == 0;
-  for (std::size_t k = 0; whole && k < rows.size(); k += 3) {
-    whole = rows[k] % 3 == 0 && rows[k + 1] == rows[k] + 1 && rows[k + 2] == rows[k] + 2;
-  }
-  if (whole) {
+  if (rows_.empty() && whole_correspondences(rows)) {
     out->points_.reserve(rows.size() / 3);
     for (std::size_t k = 0; k < rows.size(); k += 3) {
       out->points_.push_back(points_[static_cast<std::size_t>(rows[k] / 3)]);
@@ -292,18 +311,21 @@ std::unique_ptr<ResidualBlock> GicpBlock::extract_rows(std::span<const int> rows
     return out;
   }
   out->rows_.reserve(rows.size());
-  for (int row : rows) {
-    if (!rows_.empty()) {
-      out->rows_.push_back(rows_[static_cast<std::size_t>(row)]);
-      continue;
-    }
-    const Point& p = points_[static_cast<std::size_t>(row / 3)];
-    const int c = row % 3;
-    const std::array<double, 3> ell = whitening_row(p.whitening, c);
-    Row r;
-    r.ell = ell;
-    r.offset = dot3(ell, p.target);
-    r.source = p.source;
+  for (int row : rows) out->rows_.push_back(row_of(row));
+  return out;
+}
+
+std::unique_ptr<ResidualBlock> GicpBlock::extract_weighted_rows(
+    std::span<const int> rows, std::span<const double> weights) const {
+  check_row_weights("GicpBlock", rows, weights);
+  if (rows_.empty() && whole_correspondences(rows)) return nullptr;
+  auto out = std::unique_ptr<GicpBlock>(new GicpBlock());
+  out->rows_.reserve(rows.size());
+  for (std::size_t k = 0; k < rows.size(); ++k) {
+    const double s = std::sqrt(weights[k]);
+    Row r = row_of(rows[k]);
+    for (double& v : r.ell) v *= s;
+    r.offset *= s;
     out->rows_.push_back(r);
   }
   return out;

@@ -1,4 +1,5 @@
 #include <array>
+#include <cmath>
 #include <string>
 
 #include "carat/residuals/point_to_plane_block.hpp"
@@ -159,6 +160,19 @@ std::unique_ptr<ResidualBlock> PointToPlaneBlock::extract_rows(std::span<const i
     const auto pair = static_cast<std::size_t>(row);
     out->target_.push_back(target_[pair]);
     out->normal_.push_back(normal_[pair]);
+    out->source_.push_back(source_[pair]);
+  }
+  return out;
+}
+
+std::unique_ptr<ResidualBlock> PointToPlaneBlock::extract_weighted_rows(
+    std::span<const int> rows, std::span<const double> weights) const {
+  check_row_weights("PointToPlaneBlock", rows, weights);
+  auto out = std::unique_ptr<PointToPlaneBlock>(new PointToPlaneBlock());
+  for (std::size_t k = 0; k < rows.size(); ++k) {
+    const auto pair = static_cast<std::size_t>(rows[k]);
+    out->target_.push_back(target_[pair]);
+    out->normal_.push_back(std::sqrt(weights[k]) * normal_[pair]);
     out->source_.push_back(source_[pair]);
   }
   return out;

@@ -1,8 +1,12 @@
 #include "carat/solver/residual_block.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <numeric>
+#include <string>
 #include <vector>
+
+#include "carat/solver/error.hpp"
 
 namespace carat {
 namespace {
@@ -62,6 +66,25 @@ double ResidualBlock::squared_norm(ParameterPointers params) const {
 }
 
 std::unique_ptr<ResidualBlock> ResidualBlock::extract_rows(std::span<const int> /*rows*/) const {
+  return nullptr;
+}
+
+void ResidualBlock::check_row_weights(const char* who, std::span<const int> rows,
+                                      std::span<const double> weights) {
+  if (rows.size() != weights.size()) {
+    throw Error(std::string(who) + ": " + std::to_string(rows.size()) + " rows but " +
+                std::to_string(weights.size()) + " weights");
+  }
+  for (std::size_t k = 0; k < weights.size(); ++k) {
+    if (!std::isfinite(weights[k]) || !(weights[k] > 0.0)) {
+      throw Error(std::string(who) + ": weight " + std::to_string(k) + " is " +
+                  std::to_string(weights[k]) + "; weights must be finite and > 0");
+    }
+  }
+}
+
+std::unique_ptr<ResidualBlock> ResidualBlock::extract_weighted_rows(
+    std::span<const int> /*rows*/, std::span<const double> /*weights*/) const {
   return nullptr;
 }
 

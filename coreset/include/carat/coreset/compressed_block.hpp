@@ -3,6 +3,8 @@
 /// A residual block made of weighted rows of another block: row k is sqrt(w_k) times row
 /// rows[k] of the inner block, at whatever point it is evaluated. Its quadratic model at the
 /// point it was built for equals the inner block's (exact coreset) or estimates it (random).
+/// When the inner block could fold the weights into its own rows (extract_weighted_rows), the
+/// rows and weights are not kept a second time: the inner block's rows are the rows.
 
 #include <memory>
 #include <span>
@@ -19,8 +21,13 @@ class CompressedBlock final : public ResidualBlock {
   /// Throws carat::Error for mismatched lengths, indices out of range or non-positive weights.
   CompressedBlock(std::shared_ptr<const ResidualBlock> inner, std::vector<int> rows,
                   std::vector<double> weights);
+  /// Every row of `weighted_rows`, whose weights are already inside its rows. Throws
+  /// carat::Error if it is null or has no rows.
+  explicit CompressedBlock(std::shared_ptr<const ResidualBlock> weighted_rows);
 
-  int num_rows() const override { return static_cast<int>(rows_.size()); }
+  int num_rows() const override {
+    return folded() ? inner_->num_rows() : static_cast<int>(rows_.size());
+  }
   std::span<const int> tangent_dims() const override { return inner_->tangent_dims(); }
   int reduced_dim() const override { return inner_->reduced_dim(); }
   void reduced_map(ParameterPointers params, double* A) const override {
@@ -33,9 +40,12 @@ class CompressedBlock final : public ResidualBlock {
 
   /// The block the rows come from (possibly a smaller extract of the original).
   const ResidualBlock& inner() const { return *inner_; }
-  /// Row indices into inner().
+  /// True when the weights live inside inner()'s rows (then every row of inner() is a row here,
+  /// and selected_rows() and weights() are empty).
+  bool folded() const { return rows_.empty(); }
+  /// Row indices into inner() (empty when folded()).
   std::span<const int> selected_rows() const { return rows_; }
-  /// Weight of each selected row.
+  /// Weight of each selected row (empty when folded()).
   std::span<const double> weights() const { return weights_; }
 
  private:

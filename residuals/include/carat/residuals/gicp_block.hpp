@@ -8,7 +8,8 @@
 /// rebuilds blocks as its estimate moves. Variables: target pose T_world_i, source pose
 /// T_world_j. Memory: 12 doubles (96 bytes) per correspondence; an extract of single rows (the
 /// rows a coreset keeps) holds 7 doubles (56 bytes) per row instead: the whitening row l,
-/// l . mu_target and mu_source. An extract of whole correspondences keeps them whole.
+/// l . mu_target and mu_source (a weighted extract folds sqrt(w) into l and l . mu_target). An
+/// extract of whole correspondences keeps them whole.
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
@@ -52,6 +53,10 @@ class GicpBlock final : public ResidualBlock, public AffinePoseRows {
                     Eigen::Ref<Eigen::VectorXd> b_r) const override;
   double squared_norm(ParameterPointers params) const override;
   std::unique_ptr<ResidualBlock> extract_rows(std::span<const int> rows) const override;
+  /// Single rows with sqrt(w) folded into l and l . mu_target (56 bytes a row, no weight kept);
+  /// null for whole correspondences in order, which keep their 96 bytes per three rows better.
+  std::unique_ptr<ResidualBlock> extract_weighted_rows(
+      std::span<const int> rows, std::span<const double> weights) const override;
   std::size_t memory_bytes() const override;
   PoseGram pose_gram(const Eigen::Isometry3d& T_target_source_reference) const override;
 
@@ -78,6 +83,8 @@ class GicpBlock final : public ResidualBlock, public AffinePoseRows {
     std::array<double, 3> source;
   };
   GicpBlock() = default;
+  /// Row `row` of this block in the single-row form.
+  Row row_of(int row) const;
   static constexpr std::array<int, 2> kDims{6, 6};
   std::vector<Point> points_;  // a full block: row 3k + c is component c of correspondence k
   std::vector<Row> rows_;      // an extract (points_ empty): row k is rows_[k]

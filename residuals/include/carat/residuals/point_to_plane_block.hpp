@@ -33,6 +33,9 @@ class PointToPlaneBlock final : public ResidualBlock, public AffinePoseRows {
   void evaluate_rows(ParameterPointers params, std::span<const int> rows, double* residuals,
                      double* jacobian) const override;
   std::unique_ptr<ResidualBlock> extract_rows(std::span<const int> rows) const override;
+  /// The rows with sqrt(w) folded into their normals (72 bytes a row, no weight kept).
+  std::unique_ptr<ResidualBlock> extract_weighted_rows(
+      std::span<const int> rows, std::span<const double> weights) const override;
   std::size_t memory_bytes() const override;
   PoseGram pose_gram(const Eigen::Isometry3d& T_target_source_reference) const override;
 

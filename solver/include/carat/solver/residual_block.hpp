@@ -58,8 +58,20 @@ class ResidualBlock {
   /// null when the block cannot do that; compression uses it to release unused data.
   virtual std::unique_ptr<ResidualBlock> extract_rows(std::span<const int> rows) const;
 
+  /// Like extract_rows(), with row k of the result scaled by sqrt(weights[k]) (weights finite
+  /// and > 0, one per row) inside its own data, so that no weight needs storing beside it; null
+  /// when the block cannot do that or it would not save memory (the default).
+  virtual std::unique_ptr<ResidualBlock> extract_weighted_rows(
+      std::span<const int> rows, std::span<const double> weights) const;
+
   /// Bytes of per-row data this block holds (what compression is meant to shrink).
   virtual std::size_t memory_bytes() const = 0;
+
+ protected:
+  /// Throws carat::Error ("<who>: ...") unless there is one weight per row and every weight is
+  /// finite and > 0 (for extract_weighted_rows() and blocks of weighted rows).
+  static void check_row_weights(const char* who, std::span<const int> rows,
+                                std::span<const double> weights);
 };
 
 }  // namespace carat
