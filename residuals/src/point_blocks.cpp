@@ -155,24 +155,23 @@ void PointToPlaneBlock::evaluate_rows(ParameterPointers params, std::span<const 
 }
 
 std::unique_ptr<ResidualBlock> PointToPlaneBlock::extract_rows(std::span<const int> rows) const {
-  auto out = std::unique_ptr<PointToPlaneBlock>(new PointToPlaneBlock());
-  for (int row : rows) {
-    const auto pair = static_cast<std::size_t>(row);
-    out->target_.push_back(target_[pair]);
-    out->normal_.push_back(normal_[pair]);
-    out->source_.push_back(source_[pair]);
-  }
-  return out;
+  return extract_scaled(rows, {});
 }
 
 std::unique_ptr<ResidualBlock> PointToPlaneBlock::extract_weighted_rows(
     std::span<const int> rows, std::span<const double> weights) const {
   check_row_weights("PointToPlaneBlock", rows, weights);
+  return extract_scaled(rows, weights);
+}
+
+std::unique_ptr<PointToPlaneBlock> PointToPlaneBlock::extract_scaled(
+    std::span<const int> rows, std::span<const double> weights) const {
   auto out = std::unique_ptr<PointToPlaneBlock>(new PointToPlaneBlock());
   for (std::size_t k = 0; k < rows.size(); ++k) {
     const auto pair = static_cast<std::size_t>(rows[k]);
     out->target_.push_back(target_[pair]);
-    out->normal_.push_back(std::sqrt(weights[k]) * normal_[pair]);
+    out->normal_.push_back(
+        weights.empty() ? normal_[pair] : Eigen::Vector3d(std::sqrt(weights[k]) * normal_[pair]));
     out->source_.push_back(source_[pair]);
   }
   return out;

@@ -41,6 +41,9 @@ class PointToPlaneBlock final : public ResidualBlock, public AffinePoseRows {
 
  private:
   PointToPlaneBlock() = default;
+  /// Rows `rows` (normals scaled by sqrt(weights[k]) unless weights is empty).
+  std::unique_ptr<PointToPlaneBlock> extract_scaled(std::span<const int> rows,
+                                                    std::span<const double> weights) const;
   static constexpr std::array<int, 2> kDims{6, 6};
   std::vector<Eigen::Vector3d> target_;
   std::vector<Eigen::Vector3d> normal_;
