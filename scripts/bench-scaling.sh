@@ -4,9 +4,11 @@
 # writes bench/results/scaling-<git short sha>.json, then prints a table, the log-log slopes of
 # time vs factors, and where GRE full stops fitting in 24 GiB.
 #
-#   scripts/bench-scaling.sh [--max-frames N] [--no-build] [extra Google Benchmark flags]
+#   scripts/bench-scaling.sh [--max-frames N] [--voxel M] [--no-build] [extra Google Benchmark flags]
 #
 # Environment: CARAT_SCALING_MAX_FRAMES (same as --max-frames; e.g. 1000 for a quick run),
+# CARAT_SCALING_VOXEL_M (same as --voxel: the scans' voxel, default 0.5 m; a run with another
+# voxel writes scaling-<sha>-voxel<M>.json),
 # CARAT_SCALING_ITERATIONS (LM iterations per solve, default 3), CARAT_SCALING_THREADS,
 # CARAT_SCALING_FULL_LIMIT_GIB (full is skipped above this, default 8), CARAT_BUILD_DIR
 # (default build), CARAT_SCALING_BUDGET_GIB (the extrapolation's memory, default 24).
@@ -21,6 +23,8 @@ while [[ $# -gt 0 ]]; do
   case "$1" in
     --max-frames) export CARAT_SCALING_MAX_FRAMES="$2"; shift 2 ;;
     --max-frames=*) export CARAT_SCALING_MAX_FRAMES="${1#*=}"; shift ;;
+    --voxel) export CARAT_SCALING_VOXEL_M="$2"; shift 2 ;;
+    --voxel=*) export CARAT_SCALING_VOXEL_M="${1#*=}"; shift ;;
     --no-build) do_build=0; shift ;;
     *) bench_args+=("$1"); shift ;;
   esac
@@ -33,8 +37,10 @@ fi
 
 sha="$(git rev-parse --short HEAD 2>/dev/null || echo unknown)"
 mkdir -p bench/results
-out="bench/results/scaling-$sha.json"
-echo "== scaling_bench (max frames ${CARAT_SCALING_MAX_FRAMES:-3000}) -> $out" >&2
+suffix=""
+if [[ -n "${CARAT_SCALING_VOXEL_M:-}" ]]; then suffix="-voxel${CARAT_SCALING_VOXEL_M}"; fi
+out="bench/results/scaling-$sha$suffix.json"
+echo "== scaling_bench (max frames ${CARAT_SCALING_MAX_FRAMES:-3000}, voxel ${CARAT_SCALING_VOXEL_M:-0.5} m) -> $out" >&2
 "./$build_dir/bench/scaling_bench" --benchmark_format=json --benchmark_out="$out" \
   ${bench_args[@]+"${bench_args[@]}"} > /dev/null
 
@@ -161,4 +167,25 @@ if solve_sizes:
                 f, b["factors"], name, b["optimization_s"], b["iterations"], 1e3 * b["ate_rmse_m"],
                 rel("ate_rmse_m"), rel("optimization_s"), b["residual_bytes"] / MiB,
                 rel("residual_bytes")))
+
+    # Where exact's time and bytes go, against full's whole optimization in the same run.
+    print("\nexact (M = 29) against full, per size: its LM alone, its compressing (in full's LM"
+          " iterations), what a 95 % cut would leave for compressing, and a factor's bytes:")
+    for f in solve_sizes:
+        full, ex = runs.get(("SolveFull", f)), runs.get(("SolveExact", f))
+        if not (ok(full) and ok(ex)):
+            continue
+        compress_s = ex["optimization_s"] - ex["solve_s"]
+        full_iteration_s = full["solve_s"] / max(1, full["iterations"])
+        budget_s = 0.05 * full["optimization_s"] - ex["solve_s"]
+        factors = ex["factors"]
+        print("%7d frames: LM %.3f s = %.1f %% of full's %.3f s; compressing %.3f s = %.2f of full's"
+              " %d LM iterations; a 95 %% cut leaves %.3f s to compress (%.2f ns per row and thread)"
+              % (f, ex["solve_s"], 100.0 * ex["solve_s"] / full["optimization_s"],
+                 full["optimization_s"], compress_s, compress_s / full_iteration_s,
+                 full["iterations"], budget_s,
+                 1e9 * budget_s * ex.get("threads", 1) / full["rows"]))
+        print("%7s         a factor: %.0f correspondences, %.0f bytes full, %.0f bytes exact (%.3f %%)"
+              % ("", ex["correspondences"] / factors, full["residual_bytes"] / factors,
+                 ex["residual_bytes"] / factors, 100.0 * ex["residual_bytes"] / full["residual_bytes"]))
 PY
