@@ -1,8 +1,10 @@
 // The coreset against forming H, b, c once with Eigen, on random rows (the paper's Table I
-// sizes: N = 30000, M in {29, 64, ..., 1024}) and N in {3000, 30000, 300000}.
+// sizes: N = 30000, M in {29, 64, ..., 1024}), N in {3000, 30000, 300000}, and blocks without a
+// reduced Jacobian (D = 12 over two SE(3) poses: M = 92, default clusters 184).
 //
 //   ./build/bench/coreset_bench
-// Compare BM_Coreset/N/M with BM_EigenHbc/N in the same run (same data, same machine state).
+// Compare BM_Coreset/N/M/exact/D with BM_EigenHbc/N/D in the same run (same data, same machine
+// state).
 #include <benchmark/benchmark.h>
 
 #include <random>
@@ -28,7 +30,8 @@ Data make_data(long n, int dim) {
 }
 
 void BM_Coreset(benchmark::State& state) {
-  const Data d = make_data(state.range(0), 6);
+  const Data d =
+      make_data(state.range(0), state.range(3) > 0 ? static_cast<int>(state.range(3)) : 6);
   carat::RowCoresetOptions options;
   options.target_rows = static_cast<int>(state.range(1));
   options.exact_size = state.range(2) != 0;
@@ -47,11 +50,12 @@ void BM_Coreset(benchmark::State& state) {
 }
 
 void BM_EigenHbc(benchmark::State& state) {
-  const Data d = make_data(state.range(0), 6);
+  const int dim = state.range(1) > 0 ? static_cast<int>(state.range(1)) : 6;
+  const Data d = make_data(state.range(0), dim);
   const Eigen::MatrixXd J = d.J;  // column-major, as Eigen likes it
   for (auto _ : state) {
-    Eigen::Matrix<double, 6, 6> H = J.transpose() * J;
-    Eigen::Matrix<double, 6, 1> b = J.transpose() * d.e;
+    Eigen::MatrixXd H = J.transpose() * J;
+    Eigen::VectorXd b = J.transpose() * d.e;
     double c = d.e.squaredNorm();
     benchmark::DoNotOptimize(H.data());
     benchmark::DoNotOptimize(b.data());
@@ -62,18 +66,28 @@ void BM_EigenHbc(benchmark::State& state) {
 
 }  // namespace
 
-BENCHMARK(BM_EigenHbc)->Arg(3000)->Arg(30000)->Arg(300000)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_EigenHbc)
+    ->Args({3000, 6})
+    ->Args({30000, 6})
+    ->Args({300000, 6})
+    ->Args({30000, 12})
+    ->Unit(benchmark::kMicrosecond);
 // Table I: N = 30000, exact size M.
 BENCHMARK(BM_Coreset)
-    ->Args({30000, 29, 1})
-    ->Args({30000, 29, 0})
-    ->Args({30000, 64, 1})
-    ->Args({30000, 128, 1})
-    ->Args({30000, 256, 1})
-    ->Args({30000, 512, 1})
-    ->Args({30000, 1024, 1})
+    ->Args({30000, 29, 1, 6})
+    ->Args({30000, 29, 0, 6})
+    ->Args({30000, 64, 1, 6})
+    ->Args({30000, 128, 1, 6})
+    ->Args({30000, 256, 1, 6})
+    ->Args({30000, 512, 1, 6})
+    ->Args({30000, 1024, 1, 6})
     ->Unit(benchmark::kMicrosecond);
 // Scaling in N at M = 29.
-BENCHMARK(BM_Coreset)->Args({3000, 29, 1})->Args({300000, 29, 1})->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_Coreset)
+    ->Args({3000, 29, 1, 6})
+    ->Args({300000, 29, 1, 6})
+    ->Unit(benchmark::kMicrosecond);
+// A block without a reduced Jacobian: D = 12, M = 92 (the minimum), default clusters.
+BENCHMARK(BM_Coreset)->Args({30000, 92, 1, 12})->Unit(benchmark::kMicrosecond);
 
 BENCHMARK_MAIN();

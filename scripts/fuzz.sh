@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
 # Builds carat's libFuzzer targets with clang (build-fuzz/) and fuzzes each parser for a
 # bounded time: scripts/fuzz.sh [SECONDS_PER_TARGET (default 60)] [TARGET...]
+# With CARAT_FUZZ_RUNS=N set, each target runs N executions instead (SECONDS is then ignored).
+# Each target uses its header-aware dictionary fuzz/<name>.dict when there is one.
 # Crashes, leaks and slow inputs (> 1 s) fail the run; artifacts land in build-fuzz/artifacts/.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -27,8 +29,12 @@ for target in "${targets[@]}"; do
   name=${target%_fuzz}
   work=build-fuzz/corpus/$name
   mkdir -p "$work"
-  echo "== $target: ${seconds}s"
-  ./build-fuzz/fuzz/"$target" "$work" "fuzz/corpus/$name" -max_total_time="$seconds" -timeout=1 \
+  limit=(-max_total_time="$seconds")
+  [[ -n "${CARAT_FUZZ_RUNS:-}" ]] && limit=(-runs="$CARAT_FUZZ_RUNS")
+  dict=()
+  [[ -f "fuzz/$name.dict" ]] && dict=(-dict="fuzz/$name.dict")
+  echo "== $target: ${limit[*]} ${dict[*]}"
+  ./build-fuzz/fuzz/"$target" "$work" "fuzz/corpus/$name" "${limit[@]}" "${dict[@]}" -timeout=1 \
     -rss_limit_mb=2048 -max_len=65536 -print_final_stats=1 -artifact_prefix=build-fuzz/artifacts/"$name"- \
     >build-fuzz/"$name".log 2>&1 || true
   grep -E "^(stat::number_of_executed_units|stat::peak_rss_mb)|ERROR|SUMMARY" build-fuzz/"$name".log || true

@@ -1,35 +1,7 @@
 #!/usr/bin/env bash
 # End-to-end checks of the carat CLI: outputs, exit codes, one-line errors, no partial files.
 # Needs CARAT (the binary); uses CARAT_DATA_DIR for real data when present.
-set -u
-fail=0
-pass=0
-scratch=$(mktemp -d)
-trap 'rm -rf "$scratch"' EXIT
-
-check() {  # check NAME EXPECTED_RC EXPECTED_STDERR_SUBSTRING -- command...
-  local name=$1 want_rc=$2 want_err=$3
-  shift 4
-  "$@" >"$scratch/out" 2>"$scratch/err"
-  local rc=$?
-  if [[ $rc -ne $want_rc ]]; then
-    echo "FAIL $name: exit $rc, expected $want_rc; stderr: $(head -c 300 "$scratch/err")"
-    fail=$((fail + 1)); return
-  fi
-  if [[ -n "$want_err" ]] && ! grep -qF -- "$want_err" "$scratch/err"; then
-    echo "FAIL $name: stderr lacks '$want_err': $(head -c 300 "$scratch/err")"
-    fail=$((fail + 1)); return
-  fi
-  if [[ $want_rc -eq 1 ]] && [[ $(wc -l <"$scratch/err") -ne 1 ]]; then
-    echo "FAIL $name: expected a one-line error, got $(wc -l <"$scratch/err") lines"
-    fail=$((fail + 1)); return
-  fi
-  pass=$((pass + 1))
-}
-
-json_field() {  # json_field FILE EXPR -> prints the value (python3 is on Debian by default)
-  python3 -c "import json,sys; j=json.load(open(sys.argv[1])); print($2)" "$1"
-}
+source "$(dirname "$0")/cli_common.sh"
 
 # demo: the dense-graph job on a small synthetic world; report, JSON fields, files.
 check demo_runs 0 "" -- "$CARAT" demo --frames 24 --out "$scratch/demo-text"
@@ -138,7 +110,7 @@ done
 if [[ $(json_field "$scratch/coreset.json" "j['rows_out_min'] == 29 and j['rows_out_max'] == 29 and max(j['max_rel_error_H'], j['max_rel_error_b'], j['max_rel_error_c']) <= 1e-12") != "True" ]]; then
   echo "FAIL coreset-check: wrong size or not exact"; fail=$((fail + 1))
 else pass=$((pass + 1)); fi
-check coreset_target_too_small 1 "coreset: target of 10 rows is below the minimum of 29" -- "$CARAT" coreset-check --rows 100 --target 10
+check coreset_target_too_small 2 "carat: usage error: --target 10 is below the minimum of 29 rows for --dim 6" -- "$CARAT" coreset-check --rows 100 --target 10
 check coreset_bad_rows 2 "" -- "$CARAT" coreset-check --rows 0
 
 # align: bad input.

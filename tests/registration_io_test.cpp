@@ -4,6 +4,7 @@
 
 #include <fstream>
 
+#include "carat/registration/kitti_io.hpp"
 #include "carat/registration/point_cloud_io.hpp"
 #include "carat/solver/error.hpp"
 #include "test_support.hpp"
@@ -103,6 +104,128 @@ TEST(PointCloudIoTest, MalformedFilesAreClearErrors) {
   expect_error([&] { read_ply(dir / "list.ply"); },
                "list properties on vertices are not supported");
   expect_error([&] { read_point_cloud(dir / "x.xyz"); }, "unsupported file type '.xyz'");
+}
+
+// Header numbers become sizes and offsets only after checked arithmetic: counts whose product or
+// sum wraps size_t (the crash class of SIZE x COUNT), counts beyond 2^64, and counts that lie.
+TEST(PointCloudIoTest, HeaderNumbersThatOverflowAreErrors) {
+  const auto pcd = [](const std::string& size, const std::string& count, const std::string& points,
+                      const std::string& data) {
+    return "VERSION 0.7\nFIELDS x y z\nSIZE " + size + "\nTYPE F F F\nCOUNT " + count +
+           "\nPOINTS " + points + "\nDATA " + data;
+  };
+  const std::string payload(24, 'A');
+  // 4 x 2^62 = 2^64 wraps to 0: the record would be 8 bytes and x read out of bounds.
+  expect_error(
+      [&] {
+        parse_pcd(pcd("4 4 4", "4611686018427387904 1 1", "2", "binary\n") + payload, "w.pcd");
+      },
+      "w.pcd: the size of field 'x' overflows");
+  expect_error(
+      [&] { parse_pcd(pcd("4 4 4", "1 18446744073709551615 1", "2", "ascii\n1 2 3\n"), "a.pcd"); },
+      "a.pcd: the size of field 'y' overflows");
+  expect_error(
+      [&] {
+        parse_pcd(pcd("1 1 1", "9223372036854775808 9223372036854775808 1", "1", "binary\n"),
+                  "s.pcd");
+      },
+      "s.pcd: a point record of more than 1048576 bytes");
+  expect_error(
+      [&] { parse_pcd(pcd("4 4 4", "1 1 18446744073709551616", "1", "ascii\n"), "o.pcd"); },
+      "o.pcd: COUNT '18446744073709551616' is out of range");
+  expect_error([&] { parse_pcd(pcd("4 4 4", "1 1 1", "-1", "ascii\n"), "n.pcd"); },
+               "n.pcd: cannot read POINTS from '-1'");
+  expect_error(
+      [&] {
+        parse_pcd(pcd("4 4 4", "1 1 1", "18446744073709551615", "binary\n") + payload, "p.pcd");
+      },
+      "p.pcd: announces 18446744073709551615 points, more than the 100000000 carat reads");
+  // POINTS within the limit but more than the data: the division check, never a wrap.
+  expect_error([&] { parse_pcd(pcd("4 4 4", "1 1 1", "99999999", "binary\n") + payload, "l.pcd"); },
+               "l.pcd: truncated: header announces 99999999 points of 12 bytes, the file holds 24");
+  expect_error(
+      [&] {
+        parse_pcd(
+            "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 4294967296\nHEIGHT 4294967296\nPOINTS "
+            "0\nDATA ascii\n",
+            "wh.pcd");
+      },
+      "wh.pcd: WIDTH x HEIGHT overflows");
+  expect_error(
+      [&] {
+        parse_pcd(
+            "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 3\nHEIGHT 1\nPOINTS 2\nDATA ascii\n1 2 "
+            "3\n4 5 6\n",
+            "m.pcd");
+      },
+      "m.pcd: WIDTH 3 x HEIGHT 1 does not equal POINTS 2");
+  expect_error(
+      [&] {
+        parse_pcd("FIELDS x y z\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nPOINTS 0\nDATA ascii\n",
+                  "d.pcd");
+      },
+      "d.pcd: header line FIELDS appears twice");
+  expect_error(
+      [&] {
+        parse_pcd("FIELDS x y x z\nSIZE 4 4 4 4\nTYPE F F F F\nPOINTS 0\nDATA ascii\n", "x.pcd");
+      },
+      "x.pcd: field 'x' is declared twice");
+  expect_error(
+      [&] { parse_pcd("FIELDS x y z\nSIZE 2 4 4\nTYPE F F F\nPOINTS 0\nDATA ascii\n", "h.pcd"); },
+      "h.pcd: field 'x' has an unsupported type F2");
+  // Raw bytes in a header are never copied into a message.
+  const std::string message = [&] {
+    try {
+      parse_pcd("FIELDS x y z\nSIZE 4 4 4\nTYPE F \x01\x02\x7f F\n", "b.pcd");
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  }();
+  EXPECT_EQ(message, "b.pcd: unknown TYPE '??\?'");
+  const auto ply = [](const std::string& count, const std::string& format) {
+    return "ply\nformat " + format + " 1.0\nelement vertex " + count +
+           "\nproperty float x\nproperty float y\nproperty float z\nend_header\n";
+  };
+  expect_error(
+      [&] { parse_ply(ply("4611686018427387904", "binary_little_endian") + payload, "v.ply"); },
+      "v.ply: announces 4611686018427387904 points, more than the 100000000");
+  expect_error([&] { parse_ply(ply("18446744073709551616", "ascii"), "o.ply"); },
+               "o.ply: the vertex count '18446744073709551616' is out of range");
+  expect_error([&] { parse_ply(ply("99999999", "binary_little_endian") + payload, "t.ply"); },
+               "t.ply: truncated: header announces 99999999 points of 12 bytes");
+  ReadOptions small;
+  small.max_points = 1;
+  expect_error([&] { parse_ply(ply("2", "binary_little_endian") + payload, "c.ply", small); },
+               "c.ply: announces 2 points, more than the 1 carat reads from one file");
+  EXPECT_EQ(parse_ply(ply("2", "binary_little_endian") + payload, "ok.ply").size(), 2u);
+}
+
+TEST(PointCloudIoTest, OnlyRegularFilesAndTheyAreReadInChunks) {
+  expect_error([] { read_pcd("/dev/zero"); },
+               "/dev/zero: is a character device, not a regular file");
+  expect_error([] { read_ply("/dev/zero"); },
+               "/dev/zero: is a character device, not a regular file");
+  expect_error([] { read_kitti_bin("/dev/zero", KittiFormat::kXyz); },
+               "/dev/zero: is a character device, not a regular file");
+  const auto dir = test::scratch_dir("pcio_chunks");
+  expect_error([&] { read_pcd(dir); }, "is a directory, not a file");
+  // More points than one chunk holds, in every format: the same cloud back.
+  PointCloud cloud;
+  for (int i = 0; i < 200000; ++i) cloud.points.emplace_back(0.001f * i, -0.5f * (i % 7), 1.0f);
+  write_pcd(dir / "big.pcd", cloud);
+  write_ply(dir / "big.ply", cloud);
+  write_kitti_bin(dir / "big.bin", cloud, KittiFormat::kXyzi);
+  for (const char* file : {"big.pcd", "big.ply", "big.bin"}) {
+    const PointCloud back = read_point_cloud(dir / file);
+    ASSERT_EQ(back.size(), cloud.size()) << file;
+    EXPECT_EQ(back.points[131071], cloud.points[131071]) << file;
+    EXPECT_EQ(back.points.back(), cloud.points.back()) << file;
+  }
+  ReadOptions small;
+  small.max_points = 199999;
+  expect_error([&] { read_kitti_bin(dir / "big.bin", KittiFormat::kXyzi, small); },
+               "big.bin: holds 200000 points, more than the 199999 carat reads from one file");
 }
 
 TEST(PointCloudIoTest, SmallGicpPairReads) {

@@ -2,12 +2,17 @@
 // association.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <numeric>
 #include <random>
+#include <span>
 #include <string>
+#include <tuple>
+#include <utility>
 #include <vector>
 
 #include "carat/registration/trajectory_error.hpp"
@@ -206,14 +211,23 @@ TEST(TrajectoryIo, EmptyAndPathologicalInput) {
     EXPECT_PARSE_ERROR("\n  \r\n\t\n", format, "poses (the file is empty");
   }
   EXPECT_PARSE_ERROR("# only comments\n", kTum, "t.txt: no TUM poses");
-  // Very long lines and numbers: an error with a short message, no crash.
+  // Very long lines and numbers: an error with a short message, no crash. A line over 64 KiB is
+  // refused before it is split (the line bound of every text reader).
   std::string long_line;
   for (int k = 0; k < 200000; ++k) long_line += "1 ";
-  EXPECT_PARSE_ERROR(long_line, kKitti, "needs 12 fields, found 200000");
-  const std::string huge(100000, '9');
+  EXPECT_PARSE_ERROR(long_line, kKitti, "t.txt:1: line is longer than 65536 bytes");
+  std::string many_fields;
+  for (int k = 0; k < 20000; ++k) many_fields += "1 ";
+  EXPECT_PARSE_ERROR(many_fields, kKitti, "needs 12 fields, found 20000");
+  const std::string huge(60000, '9');
   const std::string message = parse_error("0 0 0 " + huge + " 0 0 0 1\n", kTum);
   EXPECT_NE(message.find("t.txt:1: tz '99999"), std::string::npos) << message.substr(0, 200);
   EXPECT_LT(message.size(), 200u);
+  // Text without a line break stops at the bound; NUL bytes (e.g. /dev/zero) at once.
+  EXPECT_PARSE_ERROR(std::string(200000, '7'), kTum, "t.txt:1: line is longer than 65536");
+  EXPECT_PARSE_ERROR(std::string(200000, '\0'), kTum, "t.txt:1: holds a NUL byte");
+  EXPECT_PARSE_ERROR(std::string("0 0 0 0 0 0 0 1\n\0\n", 18), kTum,
+                     "t.txt:2: holds a NUL byte (a binary file?)");
   std::string binary("v0 1 2 3 0 0 0 1\n\x01\xff\x00 garbage\n", 29);
   EXPECT_PARSE_ERROR(binary, kGraph, "t.txt:2: ");
 }
@@ -456,6 +470,133 @@ TEST(Associate, PairsClosestStampsOnce) {
   // Repeated reference stamps are each used once.
   EXPECT_EQ(associate_by_stamp(std::vector<double>{5.0, 5.0, 5.0}, std::vector<double>{5.0, 5.0}),
             (Pairs{{0, 0}, {1, 1}}));
+}
+
+// The association as first written (every candidate listed, sorted and scanned greedily), kept
+// verbatim as the oracle of the heap-based associate_by_stamp().
+std::vector<std::pair<int, int>> associate_by_stamp_brute_force(
+    std::span<const double> estimate_stamps, std::span<const double> reference_stamps,
+    double max_difference) {
+  std::vector<int> order(reference_stamps.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::stable_sort(order.begin(), order.end(),
+                   [&](int a, int b) { return reference_stamps[a] < reference_stamps[b]; });
+  std::vector<double> sorted(order.size());
+  for (std::size_t k = 0; k < order.size(); ++k) sorted[k] = reference_stamps[order[k]];
+
+  struct Candidate {
+    double difference;
+    int estimate;
+    int reference;
+  };
+  std::vector<Candidate> candidates;
+  for (std::size_t e = 0; e < estimate_stamps.size(); ++e) {
+    const double stamp = estimate_stamps[e];
+    auto j = static_cast<std::size_t>(
+        std::lower_bound(sorted.begin(), sorted.end(), stamp - max_difference) - sorted.begin());
+    // stamp - max_difference is rounded: step back over any neighbour that still qualifies.
+    while (j > 0 && std::abs(stamp - sorted[j - 1]) <= max_difference) --j;
+    for (; j < sorted.size() && !(sorted[j] - stamp > max_difference); ++j) {
+      const double difference = std::abs(stamp - sorted[j]);
+      if (difference <= max_difference) {
+        candidates.push_back({difference, static_cast<int>(e), order[j]});
+      }
+    }
+  }
+  std::sort(candidates.begin(), candidates.end(), [](const Candidate& a, const Candidate& b) {
+    return std::tie(a.difference, a.estimate, a.reference) <
+           std::tie(b.difference, b.estimate, b.reference);
+  });
+  std::vector<char> estimate_used(estimate_stamps.size(), 0);
+  std::vector<char> reference_used(reference_stamps.size(), 0);
+  std::vector<std::pair<int, int>> pairs;
+  for (const Candidate& c : candidates) {
+    if (estimate_used[c.estimate] || reference_used[c.reference]) continue;
+    estimate_used[c.estimate] = 1;
+    reference_used[c.reference] = 1;
+    pairs.emplace_back(c.estimate, c.reference);
+  }
+  std::sort(pairs.begin(), pairs.end());
+  return pairs;
+}
+
+// Compares associate_by_stamp() with the brute-force oracle on random stamps drawn from `values`
+// (so that equal stamps and equal differences are frequent), in random order, for n and m in
+// 0..40 and several bounds.
+void expect_association_matches_brute_force(const std::vector<double>& values,
+                                            const std::vector<double>& max_differences,
+                                            int num_seeds) {
+  for (int seed = 0; seed < num_seeds; ++seed) {
+    std::mt19937 rng(static_cast<unsigned>(seed));
+    std::uniform_int_distribution<int> count(0, 40);
+    std::uniform_int_distribution<std::size_t> pick(0, values.size() - 1);
+    const auto draw = [&] {
+      std::vector<double> stamps(static_cast<std::size_t>(count(rng)));
+      for (double& stamp : stamps) stamp = values[pick(rng)];
+      // Now and then sorted (as trajectory files are), otherwise in random order.
+      if (seed % 4 == 0) std::sort(stamps.begin(), stamps.end());
+      return stamps;
+    };
+    const std::vector<double> estimate = draw();
+    const std::vector<double> reference = draw();
+    for (double max_difference : max_differences) {
+      ASSERT_EQ(associate_by_stamp(estimate, reference, max_difference),
+                associate_by_stamp_brute_force(estimate, reference, max_difference))
+          << "seed " << seed << ", max_difference " << max_difference;
+    }
+  }
+}
+
+TEST(Associate, StampsMatchBruteForceGreedyWithTies) {
+  // Multiples of 0.25 on a small grid: many equal stamps and equal (exact) differences.
+  std::vector<double> values;
+  for (int k = -6; k <= 14; ++k) values.push_back(0.25 * k);
+  expect_association_matches_brute_force(values, {0.0, 0.25, 0.3, 0.5, 0.75, 1.0, 2.5, 1e9}, 3000);
+  // A narrow grid: whole runs of stamps differ by the same amount.
+  expect_association_matches_brute_force({0.0, 0.25, 0.5, 0.75}, {0.0, 0.25, 0.5, 1e9}, 1000);
+}
+
+TEST(Associate, StampsMatchBruteForceGreedyWithRoundingTies) {
+  // Stamps a fraction of an ulp of the difference apart: unequal gaps whose rounded differences
+  // tie (|0.5 - (-0.5 - 2^-53)| rounds to 1, as does |0.5 + 2^-53 - (-0.5)|, but not both ends).
+  const double tiny = std::ldexp(1.0, -53);
+  std::vector<double> values = {-1.5,           -0.5 - tiny,    -0.5,   -0.5 + tiny / 2, 0.0,
+                                tiny,           0.5 - tiny / 2, 0.5,    0.5 + tiny,      1.5,
+                                1.5 + 2 * tiny, 1e-300,         -1e-300};
+  expect_association_matches_brute_force(values, {0.0, 1.0, 1.0 + 2 * tiny, 2.0, 1e9}, 3000);
+}
+
+TEST(Associate, StampsScaleWithoutListingCandidates) {
+  // 200,000 poses each and a bound that admits all 4e10 pairs: the candidates would need ~640 GB.
+  // Estimate k is at 2 (n - 1 - k), reference j at 2 j + 1: every neighbour differs by 1, so the
+  // tie rule decides it all. Estimate k < n - 1 takes reference n - 2 - k (the lower of its two
+  // neighbours); estimate n - 1 (at 0) finds both of its neighbours taken and gets the last one.
+  constexpr int n = 200000;
+  std::vector<double> estimate(n), reference(n);
+  for (int k = 0; k < n; ++k) {
+    estimate[k] = 2.0 * (n - 1 - k);
+    reference[k] = 2.0 * k + 1.0;
+  }
+  const auto pairs = associate_by_stamp(estimate, reference, 1e9);
+  ASSERT_EQ(pairs.size(), static_cast<std::size_t>(n));
+  EXPECT_EQ(pairs[0], std::make_pair(0, n - 2));
+  EXPECT_EQ(pairs[1], std::make_pair(1, n - 3));
+  EXPECT_EQ(pairs[n / 2], std::make_pair(n / 2, n - 2 - n / 2));
+  EXPECT_EQ(pairs[n - 2], std::make_pair(n - 2, 0));
+  EXPECT_EQ(pairs[n - 1], std::make_pair(n - 1, n - 1));
+  for (int k = 0; k + 1 < n; ++k) ASSERT_EQ(pairs[k], std::make_pair(k, n - 2 - k));
+  // Shuffled stamps with unrelated spacing: all paired, each with its nearest partner.
+  std::mt19937 rng(7);
+  std::vector<int> permutation(n);
+  std::iota(permutation.begin(), permutation.end(), 0);
+  std::shuffle(permutation.begin(), permutation.end(), rng);
+  for (int k = 0; k < n; ++k) {
+    estimate[k] = 0.1 * k;
+    reference[permutation[k]] = 0.1 * k + 0.003;
+  }
+  const auto shuffled = associate_by_stamp(estimate, reference, 1e9);
+  ASSERT_EQ(shuffled.size(), static_cast<std::size_t>(n));
+  for (int k = 0; k < n; k += 9973) EXPECT_EQ(shuffled[k], std::make_pair(k, permutation[k]));
 }
 
 TEST(Associate, RejectsBadInput) {

@@ -264,6 +264,13 @@ TEST(LossTest, DerivativesMatchFiniteDifferences) {
   }
   EXPECT_THROW(HuberLoss(0.0), Error);
   EXPECT_THROW(CauchyLoss(-1.0), Error);
+  // Scales whose square overflows or underflows would turn the loss into inf or NaN.
+  for (double bad : {1e300, 1e-300, std::nan(""), HUGE_VAL}) {
+    EXPECT_THROW(HuberLoss{bad}, Error) << bad;
+    EXPECT_THROW(CauchyLoss{bad}, Error) << bad;
+  }
+  const LossValue far = CauchyLoss(1e150).evaluate(1e300);
+  EXPECT_TRUE(std::isfinite(far.rho) && std::isfinite(far.rho1) && std::isfinite(far.rho2));
 }
 
 TEST(LossTest, ExcessLossIsPlainUpToTheOffsetAndTheInnerLossBeyond) {
@@ -393,7 +400,7 @@ TEST(SolveTest, NonFiniteInitialCostIsAFailureThatKeepsTheValues) {
   problem.add_residual_block(std::make_shared<NanBlock>(), {a});
   const SolverSummary summary = solve(SolverOptions{}, problem);
   EXPECT_EQ(summary.termination, TerminationType::kFailure);
-  EXPECT_EQ(summary.message, "residual block 0 produced a non-finite residual");
+  EXPECT_EQ(summary.message, "residual block 0: row 0 is not finite (residual nan)");
   EXPECT_EQ(problem.value(a)[0], 3.0);
 }
 
@@ -582,6 +589,85 @@ TEST(SummaryTest, ReportsContainTheTableAndTheBreakdown) {
                           "\"time_s\"", "\"time_breakdown\""}) {
     EXPECT_NE(json.find(key), std::string::npos) << key;
   }
+}
+
+// The report's small print: a failed solve shows no costs it never had, invalid options still
+// name the method, stopping reasons show their values, every iteration is counted as accepted
+// or rejected, and no "nan" reaches the table.
+TEST(SummaryTest, ReportsStayTruthfulAtTheEdges) {
+  RandomLinear invalid = make_random_linear(4, 2);
+  SolverOptions bad;
+  bad.max_iterations = -1;
+  const SolverSummary refused = solve(bad, invalid.problem);
+  EXPECT_EQ(refused.method, "levenberg_marquardt");
+  EXPECT_EQ(refused.brief_report().find("cost 0"), std::string::npos) << refused.brief_report();
+  EXPECT_NE(refused.brief_report().find("FAILURE (invalid options: max_iterations must be >= 0"),
+            std::string::npos)
+      << refused.brief_report();
+
+  // Rosenbrock ends on a tiny gradient: the message shows it, not "0.000000".
+  Problem rosenbrock;
+  const VariableId x = rosenbrock.add_euclidean(Eigen::Vector2d(-1.2, 1.0));
+  rosenbrock.add_residual_block(std::make_shared<RosenbrockBlock>(), {x});
+  SolverOptions options;
+  options.max_iterations = 100;
+  options.function_tolerance = 0.0;
+  options.gradient_tolerance = 1e-9;
+  options.parameter_tolerance = 0.0;
+  const SolverSummary converged = solve(options, rosenbrock);
+  EXPECT_EQ(converged.termination, TerminationType::kConvergence) << converged.message;
+  EXPECT_EQ(converged.message.find("0.000000"), std::string::npos) << converged.message;
+  EXPECT_NE(converged.message.find("e-"), std::string::npos) << converged.message;
+  EXPECT_EQ(converged.num_iterations,
+            converged.num_successful_steps + converged.num_unsuccessful_steps);
+
+  // Ended by the parameter tolerance (the last step computed is not taken), by the iteration
+  // limit after rejections, and by Gauss-Newton: every iteration is counted once.
+  for (const Method method : {Method::kLevenbergMarquardt, Method::kGaussNewton}) {
+    for (const double parameter_tolerance : {1e-3, 1e-8}) {
+      for (const int limit : {2, 5, 100}) {
+        Problem problem;
+        const VariableId y = problem.add_euclidean(Eigen::Vector2d(-1.2, 1.0));
+        problem.add_residual_block(std::make_shared<RosenbrockBlock>(), {y});
+        SolverOptions o;
+        o.method = method;
+        o.parameter_tolerance = parameter_tolerance;
+        o.max_iterations = limit;
+        const SolverSummary s = solve(o, problem);
+        EXPECT_EQ(s.num_iterations, s.num_successful_steps + s.num_unsuccessful_steps)
+            << s.full_report();
+        EXPECT_EQ(s.full_report().find("nan"), std::string::npos) << s.full_report();
+      }
+    }
+  }
+
+  // r = log(x) from x = 10: the first undamped-enough step lands at x < 0, where the cost is
+  // NaN; the step is rejected and the table shows "-" where the gain ratio is no number.
+  class LogBlock final : public ResidualBlock {
+   public:
+    int num_rows() const override { return 1; }
+    std::span<const int> tangent_dims() const override { return dims_; }
+    void evaluate_rows(ParameterPointers params, std::span<const int> rows, double* r,
+                       double* J) const override {
+      for (std::size_t k = 0; k < rows.size(); ++k) {
+        r[k] = std::log(params[0][0]);
+        if (J) J[k] = 1.0 / params[0][0];
+      }
+    }
+    std::size_t memory_bytes() const override { return 0; }
+
+   private:
+    std::array<int, 1> dims_{1};
+  };
+  Problem log_problem;
+  const VariableId z = log_problem.add_euclidean(Eigen::VectorXd::Constant(1, 10.0));
+  log_problem.add_residual_block(std::make_shared<LogBlock>(), {z});
+  SolverOptions wide;
+  wide.initial_trust_region_radius = 1e16;
+  const SolverSummary nan_step = solve(wide, log_problem);
+  EXPECT_GE(nan_step.num_unsuccessful_steps, 1) << nan_step.full_report();
+  EXPECT_EQ(nan_step.iteration_table().find("nan"), std::string::npos) << nan_step.full_report();
+  EXPECT_NEAR(log_problem.value(z)[0], 1.0, 1e-6);
 }
 
 }  // namespace

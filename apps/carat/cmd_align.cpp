@@ -1,9 +1,8 @@
-// carat align --target FILE --source FILE [--voxel 0.25] [--method
-// gicp|point-to-plane|point-to-point]
-//             [--max-distance 1.0] [--bin-format xyz|xyzi]
-//             [--threads T] [--json]
-// GICP scan matching of two KITTI .bin scans: prints T_target_source (4 x 4), iterations,
-// error, convergence and a time breakdown.
+// carat align --target FILE --source FILE [--voxel 0.25]
+//             [--method gicp|point-to-plane|point-to-point] [--max-distance 1.0]
+//             [--bin-format xyz|xyzi] [--threads T] [--json]
+// GICP scan matching of two scans (KITTI .bin, .pcd or .ply): prints T_target_source (4 x 4),
+// iterations, error, convergence and a time breakdown.
 #include <chrono>
 #include <cstdio>
 #include <memory>
@@ -14,8 +13,10 @@
 #include "carat/registration/covariance.hpp"
 #include "carat/registration/kdtree.hpp"
 #include "carat/registration/kitti_io.hpp"
+#include "carat/registration/point_cloud_io.hpp"
 #include "carat/registration/voxel_grid.hpp"
 #include "carat/solver/error.hpp"
+#include "cli_support.hpp"
 #include "commands.hpp"
 
 namespace carat::cli {
@@ -37,21 +38,23 @@ int run_align(const AlignArgs& args) {
   const auto seconds = [](Clock::time_point t0) {
     return std::chrono::duration<double>(Clock::now() - t0).count();
   };
-  for (const std::string& file : {args.target, args.source}) {
-    if (file.size() < 4 || file.substr(file.size() - 4) != ".bin") {
-      throw Error(file + ": unsupported file type (carat align reads KITTI .bin scans)");
-    }
-  }
   const KittiFormat format = args.bin_format == "xyz" ? KittiFormat::kXyz : KittiFormat::kXyzi;
   auto t0 = Clock::now();
-  const PointCloud target_raw = read_kitti_bin(args.target, format);
-  const PointCloud source_raw = read_kitti_bin(args.source, format);
+  const PointCloud target_raw = read_point_cloud(args.target, format);
+  const PointCloud source_raw = read_point_cloud(args.source, format);
   const double read_s = seconds(t0);
   t0 = Clock::now();
   CovarianceOptions covariance_options;
   covariance_options.num_threads = args.threads;
-  PointCloud target = voxel_downsample(target_raw, args.voxel);
-  PointCloud source = voxel_downsample(source_raw, args.voxel);
+  const auto downsample = [&](const PointCloud& raw, const std::string& name) {
+    try {
+      return voxel_downsample(raw, args.voxel);
+    } catch (const Error& e) {
+      throw Error(name + ": " + e.what());
+    }
+  };
+  PointCloud target = downsample(target_raw, args.target);
+  PointCloud source = downsample(source_raw, args.source);
   for (const auto* cloud : {&target, &source}) {
     if (cloud->size() < 29) {
       throw Error((cloud == &target ? args.target : args.source) + ": only " +
@@ -123,24 +126,29 @@ int run_align(const AlignArgs& args) {
 
 void register_align(CLI::App& app, CommandRegistry& registry) {
   auto args = std::make_shared<AlignArgs>();
-  CLI::App* cmd = app.add_subcommand("align", "GICP scan matching of two KITTI .bin scans");
-  cmd->add_option("--target", args->target, "target scan (.bin)")->required();
-  cmd->add_option("--source", args->source, "source scan (.bin)")->required();
+  CLI::App* cmd =
+      app.add_subcommand("align", "GICP scan matching of two scans (KITTI .bin, .pcd or .ply)");
+  cmd->add_option("--target", args->target, "target scan (.bin, .pcd or .ply)")
+      ->check(path_value())
+      ->required();
+  cmd->add_option("--source", args->source, "source scan (.bin, .pcd or .ply)")
+      ->check(path_value())
+      ->required();
   cmd->add_option("--voxel", args->voxel, "voxel size (m)")
-      ->check(CLI::PositiveNumber)
+      ->check(real_in(0.01, 100.0))
       ->capture_default_str();
   cmd->add_option("--max-distance", args->max_distance, "max correspondence distance (m)")
-      ->check(CLI::PositiveNumber)
+      ->check(real_in(0.01, 100.0))
       ->capture_default_str();
   cmd->add_option("--method", args->method, "registration error")
       ->check(CLI::IsMember({"gicp", "point-to-plane", "point-to-point"}))
       ->capture_default_str();
   cmd->add_option("--bin-format", args->bin_format,
-                  "xyzi (16 bytes/point, KITTI) or xyz (12 bytes/point)")
+                  "records of .bin scans: xyzi (16 bytes/point, KITTI) or xyz (12 bytes/point)")
       ->check(CLI::IsMember({"xyz", "xyzi"}))
       ->capture_default_str();
   cmd->add_option("--threads", args->threads, "threads")
-      ->check(CLI::Range(1, 1024))
+      ->check(integer_in(1, 1024))
       ->capture_default_str();
   cmd->add_flag("--json", args->json, "print one JSON object");
   registry.add(cmd, [args] { return run_align(*args); });

@@ -3,8 +3,10 @@
 //           [--json]
 // Absolute trajectory error (evo's APE, translation part) after rigid Umeyama alignment:
 // rmse / mean / median / std / min / max in metres, rotation error statistics in degrees.
-// Two TUM files are paired by stamp; any other combination pairs pose k with pose k.
+// Two TUM files are paired by stamp, two graph.txt files by vertex id; any other combination
+// pairs pose k with pose k.
 #include <cstdio>
+#include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <string>
@@ -14,6 +16,7 @@
 #include "carat/registration/trajectory_error.hpp"
 #include "carat/registration/trajectory_io.hpp"
 #include "carat/solver/error.hpp"
+#include "cli_support.hpp"
 #include "commands.hpp"
 
 namespace carat::cli {
@@ -29,19 +32,40 @@ struct AteArgs {
   bool json = false;
 };
 
-int run_ate(const AteArgs& args) {
+int run_ate(const CLI::App& command, const AteArgs& args) {
   const std::string reference_format_name =
       args.reference_format.empty() ? args.format : args.reference_format;
   const TrajectoryFormat estimate_format = parse_trajectory_format(args.format);
   const TrajectoryFormat reference_format = parse_trajectory_format(reference_format_name);
+  const bool by_stamp =
+      estimate_format == TrajectoryFormat::kTum && reference_format == TrajectoryFormat::kTum;
+  const bool by_id =
+      estimate_format == TrajectoryFormat::kGraph && reference_format == TrajectoryFormat::kGraph;
+  if (!by_stamp && command.count("--max-difference") > 0) {
+    throw UsageError("--max-difference does not apply: it pairs two TUM trajectories by stamp");
+  }
   const Trajectory estimate = read_trajectory(args.estimate, estimate_format);
   const Trajectory reference = read_trajectory(args.reference, reference_format);
 
-  const bool by_stamp =
-      estimate_format == TrajectoryFormat::kTum && reference_format == TrajectoryFormat::kTum;
   std::vector<Eigen::Isometry3d> estimate_poses;
   std::vector<Eigen::Isometry3d> reference_poses;
-  if (by_stamp) {
+  if (by_id) {  // graph.txt against graph.txt: vertex vN with vertex vN
+    std::map<double, std::size_t> reference_of_id;
+    for (std::size_t k = 0; k < reference.stamps.size(); ++k) {
+      reference_of_id.emplace(reference.stamps[k], k);
+    }
+    for (std::size_t k = 0; k < estimate.stamps.size(); ++k) {
+      const auto match = reference_of_id.find(estimate.stamps[k]);
+      if (match == reference_of_id.end()) continue;
+      estimate_poses.push_back(estimate.poses[k]);
+      reference_poses.push_back(reference.poses[match->second]);
+    }
+    if (estimate_poses.empty()) {
+      throw Error(args.estimate + ": none of its " + std::to_string(estimate.poses.size()) +
+                  " vertex ids is among the " + std::to_string(reference.poses.size()) + " of " +
+                  args.reference);
+    }
+  } else if (by_stamp) {
     const auto pairs = associate_by_stamp(estimate.stamps, reference.stamps, args.max_difference);
     if (pairs.empty()) {
       throw Error(args.estimate + ": none of its " + std::to_string(estimate.poses.size()) +
@@ -68,7 +92,12 @@ int run_ate(const AteArgs& args) {
                 " poses paired with " + args.reference +
                 "; alignment needs at least 3 (use --no-align)");
   }
-  const AteStatistics s = compute_ate(estimate_poses, reference_poses, options);
+  AteStatistics s;
+  try {
+    s = compute_ate(estimate_poses, reference_poses, options);
+  } catch (const Error& e) {
+    throw Error(args.estimate + " against " + args.reference + ": " + e.what());
+  }
   const Eigen::Matrix4d T = s.T_reference_estimate.matrix();
   if (args.json) {
     nlohmann::json j;
@@ -76,7 +105,7 @@ int run_ate(const AteArgs& args) {
     j["reference"] = args.reference;
     j["format"] = args.format;
     j["reference_format"] = reference_format_name;
-    j["association"] = by_stamp ? "stamp" : "index";
+    j["association"] = by_stamp ? "stamp" : by_id ? "id" : "index";
     j["aligned"] = options.align;
     j["estimate_poses"] = estimate.poses.size();
     j["reference_poses"] = reference.poses.size();
@@ -99,7 +128,9 @@ int run_ate(const AteArgs& args) {
   }
   std::printf("ATE over %d poses (%s, paired by %s):\n", s.num_poses,
               options.align ? "rigid Umeyama alignment" : "not aligned",
-              by_stamp ? "stamp" : "index");
+              by_stamp ? "stamp"
+              : by_id  ? "id"
+                       : "index");
   std::printf(
       "  translation (m):  rmse %.6f  mean %.6f  median %.6f  std %.6f  min %.6f  max %.6f\n",
       s.rmse, s.mean, s.median, s.std, s.min, s.max);
@@ -120,8 +151,11 @@ void register_ate(CLI::App& app, CommandRegistry& registry) {
   auto args = std::make_shared<AteArgs>();
   CLI::App* cmd =
       app.add_subcommand("ate", "absolute trajectory error of an estimate against a reference");
-  cmd->add_option("--estimate", args->estimate, "estimated trajectory")->required();
+  cmd->add_option("--estimate", args->estimate, "estimated trajectory")
+      ->check(path_value())
+      ->required();
   cmd->add_option("--reference", args->reference, "reference (ground-truth) trajectory")
+      ->check(path_value())
       ->required();
   cmd->add_option("--format", args->format, "trajectory format of the estimate")
       ->check(CLI::IsMember({"kitti", "tum", "graph"}))
@@ -131,11 +165,11 @@ void register_ate(CLI::App& app, CommandRegistry& registry) {
       ->check(CLI::IsMember({"kitti", "tum", "graph"}));
   cmd->add_option("--max-difference", args->max_difference,
                   "largest stamp difference (s) when pairing two TUM trajectories")
-      ->check(CLI::NonNegativeNumber)
+      ->check(real_in(0.0, 1e9))
       ->capture_default_str();
   cmd->add_flag("--no-align", args->no_align, "compare without the rigid Umeyama alignment");
   cmd->add_flag("--json", args->json, "print one JSON object");
-  registry.add(cmd, [args] { return run_ate(*args); });
+  registry.add(cmd, [args, cmd] { return run_ate(*cmd, *args); });
 }
 
 }  // namespace carat::cli

@@ -5,6 +5,7 @@
 // (J^T J, J^T e, e^T e) on the same data in the same run.
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -15,6 +16,7 @@
 #include "carat/coreset/quadratic_model.hpp"
 #include "carat/coreset/row_coreset.hpp"
 #include "carat/solver/error.hpp"
+#include "cli_support.hpp"
 #include "commands.hpp"
 
 namespace carat::cli {
@@ -23,7 +25,7 @@ namespace {
 struct CoresetCheckArgs {
   long rows = 30000;
   int target = 0;
-  int clusters = 64;
+  int clusters = 0;
   int dim = 6;
   int trials = 10;
   std::uint64_t seed = 1;
@@ -38,9 +40,58 @@ double median(std::vector<double> v) {
   return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
+/// Refuses, before any work, option combinations the coreset cannot take and sizes this machine
+/// cannot hold.
+void check_options(const CoresetCheckArgs& args) {
+  const int lifted = (args.dim + 1) * (args.dim + 2) / 2;  // L = D(D+1)/2 + D + 1
+  const int minimum = minimum_coreset_rows(args.dim);
+  if (args.target != 0 && args.target < minimum) {
+    throw UsageError("--target " + std::to_string(args.target) + " is below the minimum of " +
+                     std::to_string(minimum) + " rows for --dim " + std::to_string(args.dim) +
+                     " (D(D+1)/2 + D + 2; 0 selects it)");
+  }
+  if (args.clusters != 0 && args.clusters < lifted + 2) {
+    throw UsageError("--clusters " + std::to_string(args.clusters) + " is too few for --dim " +
+                     std::to_string(args.dim) + ": at least " + std::to_string(lifted + 2) +
+                     " clusters are needed (D(D+1)/2 + D + 3; 0 selects the default " +
+                     std::to_string(default_coreset_clusters(args.dim)) + ")");
+  }
+  // J twice (row-major, and the column-major copy of the reference), e, and the coreset's own
+  // index and weight arrays.
+  const double bytes = static_cast<double>(args.rows) * (16.0 * args.dim + 32.0);
+  const double available = static_cast<double>(available_memory_bytes());
+  if (bytes > 0.8 * available) {
+    throw UsageError("--rows " + std::to_string(args.rows) + " --dim " + std::to_string(args.dim) +
+                     " needs about " + format_bytes(bytes) + " of memory (J twice and e); " +
+                     format_bytes(available) + " are available");
+  }
+  // The work: each level eliminates in a K-point set of dimension L (about K L^2 operations)
+  // and keeps L + 1 of K clusters, so ln(N / M) / ln(K / (L + 1)) levels per trial.
+  const double K = args.clusters == 0 ? default_coreset_clusters(args.dim) : args.clusters;
+  const double L = lifted;
+  const double M = args.target == 0 ? L + 1 : args.target;
+  const double levels =
+      args.rows > M ? std::max(1.0, std::log(args.rows / M) / std::log(K / (L + 1.0))) : 0.0;
+  const double operations = args.trials * (levels * K * L * L + 4.0 * args.rows * L);
+  constexpr double kOperationsPerSecond = 2e9;  // a conservative single core
+  if (operations / kOperationsPerSecond > 600.0) {
+    char minutes[32];
+    std::snprintf(minutes, sizeof(minutes), "%.0f", operations / kOperationsPerSecond / 60.0);
+    throw UsageError("--rows " + std::to_string(args.rows) + " --dim " + std::to_string(args.dim) +
+                     " --clusters " + std::to_string(static_cast<long>(K)) + " --trials " +
+                     std::to_string(args.trials) + " would take about " + minutes + " minutes (" +
+                     std::to_string(static_cast<long>(levels)) +
+                     " levels per trial, each an elimination of " +
+                     std::to_string(static_cast<long>(K)) + " points in " + std::to_string(lifted) +
+                     " dimensions); use more --clusters (e.g. " + std::to_string(2 * (lifted + 1)) +
+                     "), fewer rows or a smaller --dim");
+  }
+}
+
 int run_coreset_check(const CoresetCheckArgs& args) {
   using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
   using Clock = std::chrono::steady_clock;
+  check_options(args);
   RowCoresetOptions options;
   options.target_rows = args.target;
   options.clusters = args.clusters;
@@ -87,12 +138,13 @@ int run_coreset_check(const CoresetCheckArgs& args) {
   const double ms = median(times);
   const double reference_ms = median(reference_times);
   const int target = args.target == 0 ? minimum_coreset_rows(args.dim) : args.target;
+  const int clusters = args.clusters == 0 ? default_coreset_clusters(args.dim) : args.clusters;
   if (args.json) {
     nlohmann::json j;
     j["rows"] = args.rows;
     j["dim"] = args.dim;
     j["target"] = target;
-    j["clusters"] = args.clusters;
+    j["clusters"] = clusters;
     j["trials"] = args.trials;
     j["seed"] = args.seed;
     j["scale"] = args.scale;
@@ -108,7 +160,7 @@ int run_coreset_check(const CoresetCheckArgs& args) {
     std::printf("%s\n", j.dump(2).c_str());
   } else {
     std::printf("coreset of %ld x %d rows -> target %d (K = %d), %d trials\n", args.rows, args.dim,
-                target, args.clusters, args.trials);
+                target, clusters, args.trials);
     std::printf("  rows out           %ld .. %ld\n", rows_min, rows_max);
     std::printf("  max rel. error     H %.3e   b %.3e   c %.3e\n", worst.H, worst.b, worst.c);
     std::printf("  median time        %.3f ms (Eigen H, b, c once: %.3f ms; ratio %.2f)\n", ms,
@@ -124,23 +176,24 @@ void register_coreset_check(CLI::App& app, CommandRegistry& registry) {
   CLI::App* cmd = app.add_subcommand("coreset-check",
                                      "Check exactness and speed of the coreset on random rows");
   cmd->add_option("--rows", args->rows, "rows N")
-      ->check(CLI::Range(1L, 100000000L))
+      ->check(integer_in(1, 100000000))
       ->capture_default_str();
   cmd->add_option("--target", args->target, "target rows M (0: the minimum, D(D+1)/2 + D + 2)")
-      ->check(CLI::Range(0, 100000000))
+      ->check(integer_in(0, 100000000))
       ->capture_default_str();
-  cmd->add_option("--clusters", args->clusters, "clusters K per level")
-      ->check(CLI::Range(2, 100000))
+  cmd->add_option("--clusters", args->clusters,
+                  "clusters K per level (0: the default max(64, 2 (L + 1)), L = D(D+1)/2 + D + 1)")
+      ->check(integer_in(0, 100000))
       ->capture_default_str();
   cmd->add_option("--dim", args->dim, "Jacobian columns D")
-      ->check(CLI::Range(1, 64))
+      ->check(integer_in(1, 64))
       ->capture_default_str();
   cmd->add_option("--trials", args->trials, "random trials")
-      ->check(CLI::Range(1, 100000))
+      ->check(integer_in(1, 100000))
       ->capture_default_str();
-  cmd->add_option("--seed", args->seed, "random seed")->capture_default_str();
+  cmd->add_option("--seed", args->seed, "random seed")->check(seed_value())->capture_default_str();
   cmd->add_option("--scale", args->scale, "scale of the random data")
-      ->check(CLI::PositiveNumber)
+      ->check(real_in(1e-100, 1e100))
       ->capture_default_str();
   cmd->add_flag("--inexact-size", args->inexact_size, "allow fewer than --target rows");
   cmd->add_flag("--json", args->json, "print one JSON object");

@@ -7,6 +7,7 @@
 #include <tbb/info.h>
 #include <tbb/task_arena.h>
 
+#include <atomic>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -21,6 +22,8 @@
 #include "carat/registration/trajectory_error.hpp"
 #include "carat/solver/atomic_file.hpp"
 #include "carat/solver/error.hpp"
+#include "carat/solver/output_folder.hpp"
+#include "cli_support.hpp"
 #include "commands.hpp"
 #include "mapping_methods.hpp"
 #include "mapping_output.hpp"
@@ -80,11 +83,45 @@ std::string gre_setting(const DemoArgs& args) {
   return out + (paper ? " (the paper's setting)" : " (--paper: the paper's setting)");
 }
 
+/// Memory the demo holds per frame at the default settings: the downsampled frame and, mostly,
+/// its share of the full GRE factors (about 19 factors of ~270 kB per frame on the demo's drive).
+constexpr double kBytesPerFrame = 6.5e6;
+
+/// Refuses, before any work, a run this machine cannot hold.
+void check_memory(const DemoArgs& args) {
+  const double needed = kBytesPerFrame * args.frames;
+  const double available = static_cast<double>(available_memory_bytes());
+  if (needed > 0.8 * available) {
+    throw UsageError("--frames " + std::to_string(args.frames) +
+                     ": the demo holds every frame and " +
+                     "the full GRE factors in memory, about " + format_bytes(needed) + "; " +
+                     format_bytes(available) + " are available; use fewer --frames");
+  }
+}
+
+/// Refuses a dense graph whose full GRE factors would not fit (an --overlap far below the
+/// default links many more pairs): each factor holds at most 96 bytes per source point.
+void check_full_factor_memory(const MappingInput& input) {
+  double bytes = 0.0;
+  for (const FramePair& pair : input.pairs) bytes += 96.0 * input.frames[pair.source]->size();
+  const double available = static_cast<double>(available_memory_bytes());
+  if (bytes > 0.8 * available) {
+    throw UsageError("the dense graph has " + std::to_string(input.pairs.size()) +
+                     " factors whose full GRE blocks would take up to " + format_bytes(bytes) +
+                     "; " + format_bytes(available) +
+                     " are available (raise --overlap or use fewer --frames)");
+  }
+}
+
 int run_demo(const DemoArgs& args) {
-  const int threads = args.threads > 0 ? args.threads : tbb::info::default_concurrency();
+  check_memory(args);
+  check_output_folder("--out", args.out, {});
+  OutputFolder folder(args.out, "carat demo");
+  const int threads = thread_count(args.threads);
   nlohmann::json stages = nlohmann::json::object();
 
-  // The world and the drive.
+  // The world and the drive: scans are simulated as they are preprocessed, so that the raw
+  // scans are never all in memory.
   auto t0 = Clock::now();
   SyntheticWorldOptions world_options;
   world_options.seed = args.seed;
@@ -93,13 +130,10 @@ int run_demo(const DemoArgs& args) {
   drive.frames = args.frames;
   drive.laps = 2;
   SyntheticSequence sequence;
-  {
-    tbb::task_arena arena(threads);
-    arena.execute([&] { sequence = make_synthetic_sequence(world, drive); });
-  }
+  sequence.T_world_frame = world.trajectory(drive);
   stages["simulate_s"] = seconds_since(t0);
 
-  // Preprocessing: downsampling, covariances, k-d trees.
+  // Simulation and preprocessing: downsampling, covariances, k-d trees.
   t0 = Clock::now();
   MappingInput input;
   input.threads = threads;
@@ -110,20 +144,22 @@ int run_demo(const DemoArgs& args) {
   input.pgo_cauchy_scale = args.pgo_cauchy;
   input.gre_cauchy_scale = args.gre_cauchy;
   input.gre_excess_cauchy_scale = args.gre_excess_cauchy;
+  std::atomic<std::size_t> raw_points{0};
   {
-    ProgressBar bar("preprocessing scans", true);
+    ProgressBar bar("simulating and preprocessing", true);
     input.frames = preprocess_frames(
-        sequence.scans.size(), [&](std::size_t k) { return sequence.scans[k]; },
+        sequence.T_world_frame.size(),
+        [&](std::size_t k) {
+          PointCloud scan =
+              world.scan(sequence.T_world_frame[k], synthetic_frame_noise_seed(args.seed, k));
+          raw_points += scan.size();
+          return scan;
+        },
         [](std::size_t k) { return "synthetic frame " + std::to_string(k); }, PreprocessOptions{},
         threads, bar.callback());
   }
-  std::size_t points = 0, raw_points = 0;
-  for (std::size_t k = 0; k < input.frames.size(); ++k) {
-    points += input.frames[k]->size();
-    raw_points += sequence.scans[k].size();
-  }
-  sequence.scans.clear();
-  sequence.scans.shrink_to_fit();
+  std::size_t points = 0;
+  for (const auto& frame : input.frames) points += frame->size();
   stages["preprocess_s"] = seconds_since(t0);
 
   // Initial guess: a drifting wheel-odometry prior, refined by GICP odometry (default).
@@ -155,6 +191,7 @@ int run_demo(const DemoArgs& args) {
         build_dense_graph(input.frames, input.T_world_initial, graph_options, bar.callback());
   }
   stages["dense_graph_s"] = seconds_since(t0);
+  check_full_factor_memory(input);
 
   // The methods.
   std::vector<MethodResult> results;
@@ -167,11 +204,8 @@ int run_demo(const DemoArgs& args) {
   const AteStatistics initial_ate = compute_ate(input.T_world_initial, sequence.T_world_frame);
   for (MethodResult& r : results) r.ate = compute_ate(r.T_world_frame, sequence.T_world_frame);
 
-  // Files.
-  const std::filesystem::path dir(args.out);
-  std::error_code ec;
-  std::filesystem::create_directories(dir, ec);
-  if (ec) throw Error(args.out + ": cannot create the output folder: " + ec.message());
+  // Files, into the temporary folder that becomes --out when all are written.
+  const std::filesystem::path dir = folder.path();
   std::vector<std::filesystem::path> written;
   for (const auto& p : write_trajectory_pair(dir, "ground_truth", sequence.T_world_frame))
     written.push_back(p);
@@ -190,7 +224,7 @@ int run_demo(const DemoArgs& args) {
   j["seed"] = args.seed;
   j["residuals"] = args.residuals;
   j["threads"] = threads;
-  j["points_raw"] = raw_points;
+  j["points_raw"] = raw_points.load();
   j["points_downsampled"] = points;
   j["initial"] = args.initial;
   j["gre_rounds"] = args.rounds;
@@ -204,18 +238,21 @@ int run_demo(const DemoArgs& args) {
   j["methods"] = nlohmann::json::array();
   for (const MethodResult& r : results) j["methods"].push_back(to_json(r));
   nlohmann::json files = nlohmann::json::array();
-  for (const auto& p : written) files.push_back(p.string());
+  for (const auto& p : written)
+    files.push_back((std::filesystem::path(args.out) / p.filename()).string());
   j["files"] = files;
   written.push_back(dir / "demo.json");
   write_file_atomically(dir / "demo.json", [&](std::ostream& out) { out << j.dump(2) << '\n'; });
 
   if (args.json) {
     std::printf("%s\n", j.dump(2).c_str());
+    flush_standard_output();  // the report is out: now the files go into place
+    folder.commit();
     return 0;
   }
   std::printf("carat demo: synthetic city, %zu LiDAR frames (2 laps), seed %llu, %d threads\n",
               input.frames.size(), static_cast<unsigned long long>(args.seed), threads);
-  std::printf("  %zu points simulated, %zu after 0.5 m downsampling\n", raw_points, points);
+  std::printf("  %zu points simulated, %zu after 0.5 m downsampling\n", raw_points.load(), points);
   std::printf("  initial guess (%s): ATE %.4f ± %.4f m (RMSE %.4f)\n", args.initial.c_str(),
               initial_ate.mean, initial_ate.std, initial_ate.rmse);
   std::printf("  dense graph: %zu factors (overlap >= %.2f, plus consecutive pairs)\n",
@@ -231,6 +268,8 @@ int run_demo(const DemoArgs& args) {
   }
   std::printf("\nWrote %zu files to %s/ (trajectories, SVG pictures, demo.json)\n", written.size(),
               args.out.c_str());
+  flush_standard_output();  // the report is out: now the files go into place
+  folder.commit();
   return 0;
 }
 
@@ -241,43 +280,47 @@ void register_demo(CLI::App& app, CommandRegistry& registry) {
   CLI::App* cmd = app.add_subcommand(
       "demo", "Run the main job: dense global registration on the built-in synthetic world");
   cmd->add_option("--frames", args->frames, "LiDAR frames (two laps of the circuit)")
-      ->check(CLI::Range(8, 100000))
+      ->check(integer_in(12, 100000))
       ->capture_default_str();
   cmd->add_option("--seed", args->seed, "random seed of the world, noise and drift")
+      ->check(seed_value())
       ->capture_default_str();
   cmd->add_option("--residuals", args->residuals, "M: residual rows kept per factor")
-      ->check(CLI::Range(29, 100000))
+      ->check(integer_in(29, 100000))
       ->capture_default_str();
-  cmd->add_option("--out", args->out, "folder for trajectories, pictures and demo.json")
+  cmd->add_option("--out", args->out,
+                  "folder for trajectories, pictures and demo.json (an earlier carat output there "
+                  "is replaced whole)")
+      ->check(path_value())
       ->capture_default_str();
   cmd->add_option("--initial", args->initial, "initial guess: GICP odometry or the drift model")
       ->check(CLI::IsMember({"odometry", "drift"}))
       ->capture_default_str();
   cmd->add_option("--overlap", args->overlap, "overlap threshold of the dense graph")
-      ->check(CLI::Range(0.0, 1.0))
+      ->check(real_in(0.01, 1.0))
       ->capture_default_str();
   CLI::Option* rounds =
       cmd->add_option("--rounds", args->rounds,
                       "GRE correspondence rounds (1: fixed at the initial guess, as in the paper)")
-          ->check(CLI::Range(1, 100))
+          ->check(integer_in(1, 100))
           ->capture_default_str();
   cmd->add_option("--max-distance", args->max_distance, "correspondence distance (m)")
-      ->check(CLI::Range(0.05, 100.0))
+      ->check(real_in(0.05, 100.0))
       ->capture_default_str();
   cmd->add_option("--pgo-cauchy", args->pgo_cauchy,
                   "Cauchy scale of the PGO baselines on the whitened error (0: no kernel)")
-      ->check(CLI::Range(0.0, 1e9))
+      ->check(zero_or_real_in(1e-6, 1e9))
       ->capture_default_str();
   CLI::Option* gre_cauchy =
       cmd->add_option("--gre-cauchy", args->gre_cauchy,
                       "Cauchy scale on each GRE factor's whole error (0: none, as in the paper)")
-          ->check(CLI::Range(0.0, 1e9))
+          ->check(zero_or_real_in(1e-6, 1e9))
           ->capture_default_str();
   CLI::Option* excess =
       cmd->add_option("--gre-excess-cauchy", args->gre_excess_cauchy,
                       "Cauchy scale on each GRE factor's error above its own minimum, in the units "
                       "of the PGO kernel (0: none, as in the paper; off when --gre-cauchy is set)")
-          ->check(CLI::Range(0.0, 1e9))
+          ->check(zero_or_real_in(1e-6, 1e9))
           ->excludes(gre_cauchy)
           ->capture_default_str();
   cmd->add_flag("--paper", args->paper,
@@ -287,7 +330,7 @@ void register_demo(CLI::App& app, CommandRegistry& registry) {
       ->excludes(excess)
       ->excludes(gre_cauchy);
   cmd->add_option("--threads", args->threads, "threads (0: all cores)")
-      ->check(CLI::Range(0, 1024))
+      ->check(integer_in(0, 1024))
       ->capture_default_str();
   cmd->add_flag("--json", args->json, "print one JSON object instead of the report");
   registry.add(cmd, [args, gre_cauchy, excess] {

@@ -22,9 +22,12 @@
 #include "carat/registration/kitti_io.hpp"
 #include "carat/registration/point_cloud_io.hpp"
 #include "carat/registration/pose_perturbation.hpp"
+#include "carat/registration/scan_folder.hpp"
 #include "carat/registration/trajectory_error.hpp"
 #include "carat/registration/trajectory_io.hpp"
+#include "carat/solver/atomic_file.hpp"
 #include "carat/solver/error.hpp"
+#include "cli_support.hpp"
 #include "commands.hpp"
 #include "mapping_methods.hpp"
 #include "progress.hpp"
@@ -57,60 +60,77 @@ struct MapArgs {
   bool json = false;
 };
 
-/// One scan file of the frame folder and how to read it.
-struct FrameFile {
-  fs::path path;
-  bool xyz_bin = false;  // for .bin: 12-byte records (gtsam_points dumps) instead of 16
-};
+/// Refuses a GRE run with full factors that this machine cannot hold: a factor holds at most 96
+/// bytes per source point.
+void check_full_factor_memory(const std::vector<std::shared_ptr<const Frame>>& frames,
+                              const std::vector<FramePair>& pairs) {
+  double bytes = 0.0;
+  for (const FramePair& pair : pairs)
+    bytes += 96.0 * static_cast<double>(frames[pair.source]->size());
+  const double available = static_cast<double>(available_memory_bytes());
+  if (bytes > 0.8 * available) {
+    throw UsageError("--sampling full: the " + std::to_string(pairs.size()) +
+                     " factors of the dense graph would take up to " + format_bytes(bytes) + "; " +
+                     format_bytes(available) +
+                     " are available (use --sampling exact or lossless, which keep a few rows "
+                     "per factor)");
+  }
+}
 
-/// Scans of DIR: DIR/*.bin|*.pcd|*.ply sorted by name (KITTI velodyne/ layout: .bin is
-/// x y z intensity), or DIR/<name>/points.bin sorted by <name> (gtsam_points dumps: x y z).
-std::vector<FrameFile> list_frames(const std::string& dir, const std::string& bin_format) {
-  std::error_code ec;
-  if (!fs::is_directory(dir, ec)) throw Error(dir + ": not a folder of frames");
-  std::vector<FrameFile> flat, nested;
-  for (const auto& entry : fs::directory_iterator(dir, ec)) {
-    const fs::path& p = entry.path();
-    if (entry.is_directory() && fs::is_regular_file(p / "points.bin")) {
-      nested.push_back({p / "points.bin", true});
-    } else if (entry.is_regular_file()) {
-      const std::string ext = p.extension().string();
-      if (ext == ".bin" || ext == ".pcd" || ext == ".ply") flat.push_back({p, false});
+/// Refuses options that do not apply to the method chosen (they would be silently ignored).
+void check_applicable(const CLI::App& command, const MapArgs& args) {
+  const bool gre = args.method == "gre";
+  for (const char* option : {"--sampling", "--residuals", "--rounds", "--gre-excess-cauchy"}) {
+    refuse_unused(command, option, gre, "to --method pgo");
+  }
+  refuse_unused(command, "--information", !gre, "to --method gre (it sets the PGO factors)");
+  refuse_unused(command, "--residuals", args.sampling == "exact" || args.sampling == "random",
+                "to --sampling " + args.sampling);
+}
+
+/// Every pose expressed relative to the first: the solver's step tests are relative to the
+/// size of the values, so poses millions of metres from the origin (georeferenced maps) would
+/// stop the solve at once. Results are moved back with the same transform.
+std::vector<Eigen::Isometry3d> relative_to(const Eigen::Isometry3d& T_world_anchor,
+                                           const std::vector<Eigen::Isometry3d>& T_world_frame) {
+  const Eigen::Isometry3d T_anchor_world = T_world_anchor.inverse();
+  std::vector<Eigen::Isometry3d> out;
+  out.reserve(T_world_frame.size());
+  for (const Eigen::Isometry3d& T : T_world_frame) out.push_back(T_anchor_world * T);
+  return out;
+}
+
+int run_map(const CLI::App& command, const MapArgs& args) {
+  using Clock = std::chrono::steady_clock;
+  check_applicable(command, args);
+  const int threads = thread_count(args.threads);
+  const TrajectoryFormat format = parse_trajectory_format(args.poses_format);
+  const std::vector<ScanFile> files =
+      list_scan_folder(args.frames, parse_bin_layout(args.bin_format));
+  std::unique_ptr<OutputFile> out_file;
+  if (!args.out.empty()) {
+    std::vector<NamedInput> inputs{{"--poses", args.poses}};
+    for (const ScanFile& file : files) inputs.push_back({"--frames", file.path.string()});
+    check_output_file("--out", args.out, inputs);
+    const fs::path out_path = fs::absolute(args.out).lexically_normal();
+    const std::string ext = out_path.extension().string();
+    if (same_file(out_path.parent_path(), args.frames) &&
+        (ext == ".bin" || ext == ".pcd" || ext == ".ply")) {
+      throw UsageError("--out " + args.out + " would become a frame of --frames " + args.frames +
+                       "; write the result elsewhere");
     }
   }
-  if (ec) throw Error(dir + ": cannot list the folder: " + ec.message());
-  if (!flat.empty() && !nested.empty())
-    throw Error(dir + ": holds both scan files and <frame>/points.bin folders; keep one layout");
-  std::vector<FrameFile> frames = flat.empty() ? nested : flat;
-  if (frames.empty())
-    throw Error(dir + ": no frames (expected *.bin, *.pcd, *.ply or <frame>/points.bin)");
-  std::sort(frames.begin(), frames.end(),
-            [](const FrameFile& a, const FrameFile& b) { return a.path < b.path; });
-  if (bin_format != "auto")
-    for (FrameFile& f : frames) f.xyz_bin = bin_format == "xyz";
-  return frames;
-}
-
-PointCloud read_frame(const FrameFile& file, bool drop_non_finite) {
-  ReadOptions options;
-  options.drop_non_finite = drop_non_finite;
-  if (file.path.extension() == ".bin")
-    return read_kitti_bin(file.path, file.xyz_bin ? KittiFormat::kXyz : KittiFormat::kXyzi,
-                          options);
-  return read_point_cloud(file.path, KittiFormat::kXyzi, options);
-}
-
-int run_map(const MapArgs& args) {
-  using Clock = std::chrono::steady_clock;
-  const int threads = args.threads > 0 ? args.threads : tbb::info::default_concurrency();
-  const TrajectoryFormat format = parse_trajectory_format(args.poses_format);
-  const Trajectory reference = read_trajectory(args.poses, format);
-  const std::vector<FrameFile> files = list_frames(args.frames, args.bin_format);
-  if (files.size() != reference.poses.size()) {
+  const Trajectory given = read_trajectory(args.poses, format);
+  if (files.size() != given.poses.size()) {
     throw Error(args.frames + " holds " + std::to_string(files.size()) + " frames but " +
-                args.poses + " has " + std::to_string(reference.poses.size()) + " poses");
+                args.poses + " has " + std::to_string(given.poses.size()) + " poses");
   }
   if (files.size() < 2) throw Error(args.frames + ": at least 2 frames are needed");
+  const Trajectory reference = poses_in_scan_order(given, format, files, args.poses);
+  if (!args.out.empty()) out_file = std::make_unique<OutputFile>(args.out);
+  const Eigen::Isometry3d T_world_anchor = reference.poses.front();
+  const std::vector<Eigen::Isometry3d> reference_poses =
+      relative_to(T_world_anchor, reference.poses);
 
   auto t0 = Clock::now();
   MappingInput input;
@@ -122,20 +142,33 @@ int run_map(const MapArgs& args) {
   input.gre_excess_cauchy_scale = args.gre_excess_cauchy;
   PreprocessOptions preprocess;
   preprocess.voxel_size = args.voxel;
+  ReadOptions read_options;
+  read_options.drop_non_finite = args.drop_non_finite;
   {
     ProgressBar bar("reading and preprocessing", true);
     input.frames = preprocess_frames(
-        files.size(), [&](std::size_t k) { return read_frame(files[k], args.drop_non_finite); },
+        files.size(), [&](std::size_t k) { return read_scan(files[k], read_options); },
         [&](std::size_t k) { return files[k].path.string(); }, preprocess, threads, bar.callback());
   }
   const double preprocess_s = std::chrono::duration<double>(Clock::now() - t0).count();
+  for (const auto& frame : input.frames) {
+    if (frame->constrained_dof() < 6) {
+      throw Error(frame->name() + ": the scan fixes only " +
+                  std::to_string(frame->constrained_dof()) +
+                  " of 6 degrees of freedom (a degenerate scene, e.g. a single plane), so its "
+                  "pose cannot be determined by registration");
+    }
+  }
   input.T_world_initial =
-      perturb_poses(reference.poses, args.perturb_m, args.perturb_deg, args.seed);
+      perturb_poses(reference_poses, args.perturb_m, args.perturb_deg, args.seed);
 
   DenseGraphOptions graph_options;
   graph_options.overlap_threshold = args.overlap;
   graph_options.num_threads = threads;
   input.pairs = build_dense_graph(input.frames, input.T_world_initial, graph_options);
+  if (args.method == "gre" && args.sampling == "full") {
+    check_full_factor_memory(input.frames, input.pairs);
+  }
 
   MethodResult result;
   if (args.method == "pgo") {
@@ -146,18 +179,23 @@ int run_map(const MapArgs& args) {
   } else {
     result = run_registration(input, parse_residual_sampling(args.sampling));
   }
-  const bool can_align = reference.poses.size() >= 3;
+  const bool can_align = reference_poses.size() >= 3;
   AteOptions ate_options;
   ate_options.align = can_align;
   const AteStatistics initial_ate =
-      compute_ate(input.T_world_initial, reference.poses, ate_options);
-  result.ate = compute_ate(result.T_world_frame, reference.poses, ate_options);
+      compute_ate(input.T_world_initial, reference_poses, ate_options);
+  result.ate = compute_ate(result.T_world_frame, reference_poses, ate_options);
 
-  if (!args.out.empty()) {
+  if (out_file) {
     Trajectory optimized;
     optimized.stamps = reference.stamps;
-    optimized.poses = result.T_world_frame;
-    write_trajectory(args.out, optimized, format);
+    for (const Eigen::Isometry3d& T : result.T_world_frame)
+      optimized.poses.push_back(T_world_anchor * T);
+    try {
+      out_file->stream() << format_trajectory(optimized, format);
+    } catch (const Error& e) {
+      throw Error(args.out + ": " + e.what());
+    }
   }
   if (args.json) {
     nlohmann::json j = to_json(result);
@@ -170,16 +208,18 @@ int run_map(const MapArgs& args) {
     j["preprocess_s"] = preprocess_s;
     if (!args.out.empty()) j["out"] = args.out;
     std::printf("%s\n", j.dump(2).c_str());
-    return 0;
+  } else {
+    std::printf("carat map: %zu frames from %s, %zu factors in the dense graph\n",
+                input.frames.size(), args.frames.c_str(), input.pairs.size());
+    std::printf("  start (perturbed by %.3g m / %.3g deg): ATE RMSE %.4f m, %.3f deg\n",
+                args.perturb_m, args.perturb_deg, initial_ate.rmse, initial_ate.rotation_rmse_deg);
+    std::printf("%s", results_table({result}).c_str());
+    std::printf("  rotation ATE RMSE %.4f deg; termination %s\n", result.ate->rotation_rmse_deg,
+                result.termination.c_str());
+    if (!args.out.empty()) std::printf("  wrote %s\n", args.out.c_str());
   }
-  std::printf("carat map: %zu frames from %s, %zu factors in the dense graph\n",
-              input.frames.size(), args.frames.c_str(), input.pairs.size());
-  std::printf("  start (perturbed by %.3g m / %.3g deg): ATE RMSE %.4f m, %.3f deg\n",
-              args.perturb_m, args.perturb_deg, initial_ate.rmse, initial_ate.rotation_rmse_deg);
-  std::printf("%s", results_table({result}).c_str());
-  std::printf("  rotation ATE RMSE %.4f deg; termination %s\n", result.ate->rotation_rmse_deg,
-              result.termination.c_str());
-  if (!args.out.empty()) std::printf("  wrote %s\n", args.out.c_str());
+  flush_standard_output();  // the report is out: now the trajectory goes into place
+  if (out_file) out_file->commit();
   return 0;
 }
 
@@ -189,9 +229,14 @@ void register_map(CLI::App& app, CommandRegistry& registry) {
   auto args = std::make_shared<MapArgs>();
   CLI::App* cmd =
       app.add_subcommand("map", "Optimize a trajectory over real scans by dense registration");
-  cmd->add_option("--frames", args->frames, "folder of scans (*.bin|*.pcd|*.ply or */points.bin)")
+  cmd->add_option("--frames", args->frames,
+                  "folder of scans (*.bin|*.pcd|*.ply or */points.bin, in natural name order)")
+      ->check(path_value())
       ->required();
-  cmd->add_option("--poses", args->poses, "trajectory file: T_world_frame per frame")->required();
+  cmd->add_option("--poses", args->poses,
+                  "trajectory file: T_world_frame per frame (graph.txt: by vertex id)")
+      ->check(path_value())
+      ->required();
   cmd->add_option("--poses-format", args->poses_format, "format of --poses and --out")
       ->check(CLI::IsMember({"kitti", "tum", "graph"}))
       ->capture_default_str();
@@ -211,41 +256,45 @@ void register_map(CLI::App& app, CommandRegistry& registry) {
       ->check(CLI::IsMember({"hessian", "identity"}))
       ->capture_default_str();
   cmd->add_option("--residuals", args->residuals, "M: rows kept per factor")
-      ->check(CLI::Range(29, 100000))
+      ->check(integer_in(29, 100000))
       ->capture_default_str();
   cmd->add_option("--voxel", args->voxel, "downsampling voxel (m)")
-      ->check(CLI::Range(0.01, 100.0))
+      ->check(real_in(0.01, 100.0))
       ->capture_default_str();
   cmd->add_option("--overlap", args->overlap, "overlap threshold of the dense graph")
-      ->check(CLI::Range(0.0, 1.0))
+      ->check(real_in(0.01, 1.0))
       ->capture_default_str();
   cmd->add_option("--max-distance", args->max_distance, "correspondence distance (m)")
-      ->check(CLI::Range(0.01, 100.0))
+      ->check(real_in(0.01, 100.0))
       ->capture_default_str();
   cmd->add_option("--rounds", args->rounds, "gre: correspondence rounds (1: fixed at the start)")
-      ->check(CLI::Range(1, 1000))
+      ->check(integer_in(1, 1000))
       ->capture_default_str();
   cmd->add_option("--gre-excess-cauchy", args->gre_excess_cauchy,
                   "gre: Cauchy scale on each factor's error above its own minimum (0: none, as "
                   "in the paper)")
-      ->check(CLI::Range(0.0, 1e9))
+      ->check(zero_or_real_in(1e-6, 1e9))
       ->capture_default_str();
   cmd->add_option("--perturb-m", args->perturb_m, "perturb poses 1.. by this translation (m)")
-      ->check(CLI::Range(0.0, 100.0))
+      ->check(real_in(0.0, 100.0))
       ->capture_default_str();
   cmd->add_option("--perturb-deg", args->perturb_deg, "... and this rotation (degrees)")
-      ->check(CLI::Range(0.0, 180.0))
+      ->check(real_in(0.0, 180.0))
       ->capture_default_str();
   cmd->add_option("--seed", args->seed, "seed of the perturbation and sampling")
+      ->check(seed_value())
       ->capture_default_str();
-  cmd->add_option("--out", args->out, "write the optimized trajectory here");
+  cmd->add_option("--out", args->out,
+                  "write the optimized trajectory here (format of --poses; never one of the "
+                  "inputs)")
+      ->check(path_value());
   cmd->add_option("--threads", args->threads, "threads (0: all cores)")
-      ->check(CLI::Range(0, 1024))
+      ->check(integer_in(0, 1024))
       ->capture_default_str();
   cmd->add_flag("--drop-non-finite", args->drop_non_finite,
                 "drop NaN / Inf points while reading (default: they are an error)");
   cmd->add_flag("--json", args->json, "print one JSON object instead of the report");
-  registry.add(cmd, [args] { return run_map(*args); });
+  registry.add(cmd, [args, cmd] { return run_map(*cmd, *args); });
 }
 
 }  // namespace carat::cli

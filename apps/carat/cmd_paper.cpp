@@ -31,12 +31,15 @@
 #include "carat/registration/kitti_io.hpp"
 #include "carat/registration/odometry.hpp"
 #include "carat/registration/pose_perturbation.hpp"
+#include "carat/registration/scan_folder.hpp"
 #include "carat/registration/synthetic_world.hpp"
 #include "carat/registration/trajectory_io.hpp"
 #include "carat/residuals/gicp_block.hpp"
 #include "carat/solver/atomic_file.hpp"
 #include "carat/solver/error.hpp"
+#include "carat/solver/output_folder.hpp"
 #include "carat/solver/se3.hpp"
+#include "cli_support.hpp"
 #include "commands.hpp"
 #include "mapping_methods.hpp"
 #include "progress.hpp"
@@ -154,9 +157,24 @@ struct RealPair {
   std::array<double, 7> identity{}, pose{};
 };
 
+/// Whether a data file is there; an entry that is there but is not a regular file (a FIFO, a
+/// folder, a loop of links) is an error naming it, never a wait or a silent skip.
+bool data_present(const fs::path& path) {
+  std::error_code ec;
+  const fs::file_status status = fs::status(path, ec);
+  if (ec && ec != std::errc::no_such_file_or_directory) {
+    throw Error(path.string() + ": " + ec.message());
+  }
+  if (!fs::exists(status)) return false;
+  if (!fs::is_regular_file(status)) {
+    throw Error(path.string() + ": is not a regular file (the paper's data are regular files)");
+  }
+  return true;
+}
+
 std::unique_ptr<RealPair> load_kitti00(const PaperArgs& args) {
   const fs::path dir = fs::path(args.data) / "kitti00_pair";
-  if (!fs::exists(dir / "000000.bin") || !fs::exists(dir / "000001.bin")) return nullptr;
+  if (!data_present(dir / "000000.bin") || !data_present(dir / "000001.bin")) return nullptr;
   auto pair = std::make_unique<RealPair>();
   PreprocessOptions preprocess;
   preprocess.voxel_size = 0.25;
@@ -513,12 +531,20 @@ void kitti07(const PaperArgs& args, int threads, Report* report) {
   std::string& md = report->markdown;
   md += "## Real KITTI 07: GRE exact vs full vs PGO from a perturbed start\n\n";
   const fs::path dir = fs::path(args.data) / "kitti07_seq5";
-  if (!fs::exists(dir / "graph.txt")) {
+  if (!data_present(dir / "graph.txt")) {
     md += "Skipped: `" + dir.string() + "` is not present.\n\n";
     report->json["kitti07"] = {{"skipped", true}};
     return;
   }
-  const Trajectory reference = read_trajectory(dir / "graph.txt", TrajectoryFormat::kGraph);
+  // The frames and their reference poses, paired by vertex id (frame 000003 takes v3).
+  const std::vector<ScanFile> scans = list_scan_folder(dir);
+  const Trajectory reference =
+      poses_in_scan_order(read_trajectory(dir / "graph.txt", TrajectoryFormat::kGraph),
+                          TrajectoryFormat::kGraph, scans, (dir / "graph.txt").string());
+  if (reference.poses.size() < 3) {
+    throw Error((dir / "graph.txt").string() + ": " + std::to_string(reference.poses.size()) +
+                " poses; this section needs at least 3 frames");
+  }
   MappingInput input;
   input.threads = threads;
   input.seed = args.seed;
@@ -526,11 +552,8 @@ void kitti07(const PaperArgs& args, int threads, Report* report) {
   input.rounds = 10;
   PreprocessOptions preprocess;
   preprocess.voxel_size = 0.25;
-  for (std::size_t i = 0; i < reference.poses.size(); ++i) {
-    char name[32];
-    std::snprintf(name, sizeof(name), "%06zu/points.bin", i);
-    input.frames.push_back(preprocess_frame(read_kitti_bin(dir / name, KittiFormat::kXyz),
-                                            preprocess, (dir / name).string()));
+  for (const ScanFile& scan : scans) {
+    input.frames.push_back(preprocess_frame(read_scan(scan), preprocess, scan.path.string()));
   }
   input.T_world_initial = perturb_poses(reference.poses, 0.3, 3.0, args.seed);
   input.pairs = build_dense_graph(input.frames, input.T_world_initial);
@@ -561,12 +584,17 @@ void kitti07(const PaperArgs& args, int threads, Report* report) {
       {"start_ate_rmse", start.rmse}, {"factors", input.pairs.size()}, {"rows", rows}};
 }
 
-int run_paper(const PaperArgs& args) {
-  const int threads = args.threads > 0 ? args.threads : tbb::info::default_concurrency();
-  const fs::path dir(args.out);
+int run_paper(const CLI::App& command, const PaperArgs& args) {
   std::error_code ec;
-  fs::create_directories(dir, ec);
-  if (ec) throw Error(args.out + ": cannot create the output folder: " + ec.message());
+  if (command.count("--data") > 0 && !fs::is_directory(args.data, ec)) {
+    throw UsageError("--data " + args.data +
+                     ": not a folder (leave --data out to skip the "
+                     "real-data sections when ../shared/data is absent)");
+  }
+  check_output_folder("--out", args.out, {{"--data", args.data}});
+  OutputFolder folder(args.out, "carat paper");
+  const int threads = thread_count(args.threads);
+  const fs::path dir = folder.path();  // becomes --out when everything is written
   const auto t0 = Clock::now();
   Report report;
   report.markdown = "# carat vs Koide et al. 2023 (" + std::string(args.quick ? "quick" : "full") +
@@ -585,7 +613,7 @@ int run_paper(const PaperArgs& args) {
   report.files.push_back(dir / "report.md");
   write_file_atomically(dir / "report.md", [&](std::ostream& out) { out << report.markdown; });
   nlohmann::json files = nlohmann::json::array();
-  for (const auto& f : report.files) files.push_back(f.string());
+  for (const auto& f : report.files) files.push_back((fs::path(args.out) / f.filename()).string());
   report.json["files"] = files;
   write_file_atomically(dir / "paper.json",
                         [&](std::ostream& out) { out << report.json.dump(2) << '\n'; });
@@ -595,6 +623,8 @@ int run_paper(const PaperArgs& args) {
     std::printf("%s\nWrote %s/report.md, paper.json and the figures.\n", report.markdown.c_str(),
                 args.out.c_str());
   }
+  flush_standard_output();  // the report is out: now the files go into place
+  folder.commit();
   return 0;
 }
 
@@ -604,21 +634,27 @@ void register_paper(CLI::App& app, CommandRegistry& registry) {
   auto args = std::make_shared<PaperArgs>();
   CLI::App* cmd = app.add_subcommand(
       "paper", "Regenerate the paper's tables and figures (Markdown report + SVG)");
-  cmd->add_option("--out", args->out, "output folder")->capture_default_str();
-  cmd->add_option("--data", args->data, "folder of the real data (kitti00_pair, kitti07_seq5)")
+  cmd->add_option("--out", args->out,
+                  "output folder (an earlier carat output there is replaced whole)")
+      ->check(path_value())
+      ->capture_default_str();
+  cmd->add_option("--data", args->data,
+                  "folder of the real data (kitti00_pair, kitti07_seq5); sections whose data is "
+                  "absent are skipped")
+      ->check(path_value())
       ->capture_default_str();
   cmd->add_flag("--quick", args->quick, "fewer trials and a smaller sequence (< 3 minutes)");
-  cmd->add_option("--seed", args->seed, "random seed")->capture_default_str();
+  cmd->add_option("--seed", args->seed, "random seed")->check(seed_value())->capture_default_str();
   cmd->add_option("--gre-excess-cauchy", args->gre_excess_cauchy,
                   "Cauchy scale on each GRE factor's error above its own minimum (0: none, as in "
                   "the paper)")
-      ->check(CLI::Range(0.0, 1e9))
+      ->check(zero_or_real_in(1e-6, 1e9))
       ->capture_default_str();
   cmd->add_option("--threads", args->threads, "threads (0: all cores)")
-      ->check(CLI::Range(0, 1024))
+      ->check(integer_in(0, 1024))
       ->capture_default_str();
   cmd->add_flag("--json", args->json, "print one JSON object instead of the report");
-  registry.add(cmd, [args] { return run_paper(*args); });
+  registry.add(cmd, [args, cmd] { return run_paper(*cmd, *args); });
 }
 
 }  // namespace carat::cli

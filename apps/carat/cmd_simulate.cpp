@@ -1,7 +1,9 @@
 // carat simulate --out DIR [--frames N] [--laps L] [--circuit-blocks N] [--seed S] [--beams B]:
 // simulates a LiDAR drive through the synthetic city and writes it KITTI-style: DIR/NNNNNN.bin (x y
-// z float32) and DIR/poses.txt (ground truth T_world_frame, KITTI pose format), for `carat map` and
-// for benchmarks of any size.
+// z intensity float32, intensity 0) and DIR/poses.txt (ground truth T_world_frame, KITTI pose
+// format), for `carat map` and for benchmarks of any size. Frames are written as they are
+// simulated (memory does not grow with the drive), into a temporary folder that becomes DIR only
+// when the drive is complete.
 #include <tbb/info.h>
 #include <tbb/task_arena.h>
 
@@ -11,7 +13,10 @@
 #include <string>
 
 #include "carat/registration/synthetic_world.hpp"
+#include "carat/solver/output_folder.hpp"
+#include "cli_support.hpp"
 #include "commands.hpp"
+#include "progress.hpp"
 
 namespace carat::cli {
 namespace {
@@ -28,7 +33,9 @@ struct SimulateArgs {
 };
 
 int run_simulate(const SimulateArgs& args) {
-  const int threads = args.threads > 0 ? args.threads : tbb::info::default_concurrency();
+  check_output_folder("--out", args.out, {});
+  OutputFolder folder(args.out, "carat simulate");  // fails here if --out cannot be written
+  const int threads = thread_count(args.threads);
   SyntheticWorldOptions options;
   options.seed = args.seed;
   options.beams = args.beams;
@@ -38,23 +45,41 @@ int run_simulate(const SimulateArgs& args) {
   drive.frames = args.frames;
   drive.laps = args.laps;
   drive.circuit_blocks_x = args.circuit_blocks;
-  SyntheticSequence sequence;
-  tbb::task_arena arena(threads);
-  arena.execute([&] { sequence = make_synthetic_sequence(world, drive); });
-  write_synthetic_sequence(args.out, sequence);
+
+  // The disk the drive needs, from its first frame, against what is free where it goes.
+  const auto first_pose = world.trajectory(drive).front();
+  const double frame_bytes =
+      16.0 *
+      static_cast<double>(world.scan(first_pose, synthetic_frame_noise_seed(args.seed, 0)).size());
+  const double drive_bytes = static_cast<double>(args.frames) * (1.2 * frame_bytes + 200.0);
+  const double free_bytes = static_cast<double>(available_disk_bytes(args.out));
+  if (drive_bytes > free_bytes) {
+    throw UsageError("--frames " + std::to_string(args.frames) + ": the drive would take about " +
+                     format_bytes(drive_bytes) + " on disk (" + format_bytes(frame_bytes) +
+                     " per frame); " + format_bytes(free_bytes) + " are free where --out " +
+                     args.out + " goes");
+  }
+
   std::size_t points = 0;
-  for (const auto& scan : sequence.scans) points += scan.size();
+  {
+    ProgressBar bar("simulating frames", !args.json);
+    tbb::task_arena arena(threads);
+    arena.execute(
+        [&] { points = write_synthetic_drive(folder.path(), world, drive, bar.callback()); });
+  }
   if (args.json) {
     nlohmann::json j;
     j["out"] = args.out;
-    j["frames"] = sequence.scans.size();
+    j["frames"] = args.frames;
     j["points"] = points;
     j["seed"] = args.seed;
     std::printf("%s\n", j.dump(2).c_str());
   } else {
-    std::printf("wrote %zu frames (%zu points) and poses.txt to %s\n", sequence.scans.size(),
-                points, args.out.c_str());
+    std::printf("wrote %d frames (%zu points) and poses.txt to %s\n", args.frames, points,
+                args.out.c_str());
   }
+  flush_standard_output();  // the report is out: now the drive goes into place
+  folder.commit();
   return 0;
 }
 
@@ -64,24 +89,29 @@ void register_simulate(CLI::App& app, CommandRegistry& registry) {
   auto args = std::make_shared<SimulateArgs>();
   CLI::App* cmd = app.add_subcommand(
       "simulate", "Write a simulated LiDAR drive (KITTI-style .bin frames + poses.txt)");
-  cmd->add_option("--out", args->out, "output folder")->required();
+  cmd->add_option("--out", args->out,
+                  "output folder (created; an earlier carat output there is replaced whole)")
+      ->check(path_value())
+      ->required();
   cmd->add_option("--frames", args->frames, "frames")
-      ->check(CLI::Range(2, 1000000))
+      ->check(integer_in(2, 1000000))
       ->capture_default_str();
   cmd->add_option("--laps", args->laps, "laps of the circuit")
-      ->check(CLI::Range(1, 1000))
+      ->check(integer_in(1, 1000))
       ->capture_default_str();
   cmd->add_option("--circuit-blocks", args->circuit_blocks,
                   "city blocks in a row that the circuit goes around (1: about 200 m a lap; each "
                   "more adds about 108 m)")
-      ->check(CLI::Range(1, 63))
+      ->check(integer_in(1, 63))
       ->capture_default_str();
   cmd->add_option("--beams", args->beams, "LiDAR channels")
-      ->check(CLI::Range(1, 256))
+      ->check(integer_in(1, 256))
       ->capture_default_str();
-  cmd->add_option("--seed", args->seed, "seed of the world and the noise")->capture_default_str();
+  cmd->add_option("--seed", args->seed, "seed of the world and the noise")
+      ->check(seed_value())
+      ->capture_default_str();
   cmd->add_option("--threads", args->threads, "threads (0: all cores)")
-      ->check(CLI::Range(0, 1024))
+      ->check(integer_in(0, 1024))
       ->capture_default_str();
   cmd->add_flag("--json", args->json, "print one JSON object");
   registry.add(cmd, [args] { return run_simulate(*args); });

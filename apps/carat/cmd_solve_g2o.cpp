@@ -8,8 +8,10 @@
 
 #include "carat/residuals/g2o_io.hpp"
 #include "carat/residuals/pose_graph.hpp"
+#include "carat/solver/atomic_file.hpp"
 #include "carat/solver/error.hpp"
 #include "carat/solver/solve.hpp"
+#include "cli_support.hpp"
 #include "commands.hpp"
 
 namespace carat::cli {
@@ -30,7 +32,11 @@ struct SolveG2oArgs {
   bool json = false;
 };
 
-int run_solve_g2o(const SolveG2oArgs& args) {
+int run_solve_g2o(const CLI::App& command, const SolveG2oArgs& args) {
+  refuse_unused(command, "--loss-scale", args.loss != "none", "to --loss none (set --loss)");
+  refuse_unused(command, "--trust-region-growth", args.method == "lm", "to --method gn");
+  refuse_unused(command, "--no-factor-reuse", args.method == "lm", "to --method gn");
+  if (!args.output.empty()) check_output_file("--out", args.output, {{"FILE", args.input}});
   G2oReadOptions read_options;
   if (args.repair_information) read_options.information = InformationRepair::kNearest;
   G2oReadReport read_report;
@@ -58,9 +64,11 @@ int run_solve_g2o(const SolveG2oArgs& args) {
   if (summary.termination == TerminationType::kFailure) {
     throw Error(args.input + ": the solve failed: " + summary.message);
   }
+  std::unique_ptr<OutputFile> out;
   if (!args.output.empty()) {
     update_vertices(built, &graph);
-    write_g2o(args.output, graph);
+    out = std::make_unique<OutputFile>(args.output);
+    write_g2o(out->stream(), graph);
   }
   if (args.json) {
     nlohmann::json j = nlohmann::json::parse(summary.to_json());
@@ -81,6 +89,8 @@ int run_solve_g2o(const SolveG2oArgs& args) {
     std::printf("%s\n%s\n", summary.full_report().c_str(), summary.brief_report().c_str());
     if (!args.output.empty()) std::printf("wrote %s\n", args.output.c_str());
   }
+  flush_standard_output();  // the report is out: now the graph goes into place
+  if (out) out->commit();
   return 0;
 }
 
@@ -90,13 +100,14 @@ void register_solve_g2o(CLI::App& app, CommandRegistry& registry) {
   auto args = std::make_shared<SolveG2oArgs>();
   CLI::App* cmd = app.add_subcommand(
       "solve-g2o", "Optimize a 3D g2o pose graph (VERTEX_SE3:QUAT / EDGE_SE3:QUAT)");
-  cmd->add_option("file", args->input, "g2o file to read")->required();
-  cmd->add_option("--out", args->output, "write the optimized graph here (g2o)");
+  cmd->add_option("file", args->input, "g2o file to read")->check(path_value())->required();
+  cmd->add_option("--out", args->output, "write the optimized graph here (g2o; never the input)")
+      ->check(path_value());
   cmd->add_option("--max-iterations", args->max_iterations, "iteration limit")
-      ->check(CLI::Range(0, 1000000))
+      ->check(integer_in(0, 1000000))
       ->capture_default_str();
   cmd->add_option("--threads", args->threads, "threads for linearization")
-      ->check(CLI::Range(1, 1024))
+      ->check(integer_in(1, 1024))
       ->capture_default_str();
   cmd->add_option("--method", args->method, "lm (Levenberg-Marquardt) or gn (Gauss-Newton)")
       ->check(CLI::IsMember({"lm", "gn"}))
@@ -108,19 +119,19 @@ void register_solve_g2o(CLI::App& app, CommandRegistry& registry) {
       ->check(CLI::IsMember({"none", "huber", "cauchy"}))
       ->capture_default_str();
   cmd->add_option("--loss-scale", args->loss_scale, "scale of the robust loss (whitened units)")
-      ->check(CLI::PositiveNumber)
+      ->check(real_in(1e-6, 1e6))
       ->capture_default_str();
   cmd->add_flag("--no-factor-reuse", args->no_factor_reuse,
                 "factorize afresh every iteration (no steps on an earlier factorization)");
   cmd->add_option("--trust-region-growth", args->trust_region_growth,
                   "most the LM radius grows after one step (Ceres: 3)")
-      ->check(CLI::Range(1.0, 1e6))
+      ->check(real_in(1.0, 1e6))
       ->capture_default_str();
   cmd->add_flag("--repair-information", args->repair_information,
                 "replace an information matrix that is not positive definite by the nearest one "
                 "(eigenvalues raised to 1e-9 of the largest) instead of failing");
   cmd->add_flag("--json", args->json, "print one JSON object instead of the report");
-  registry.add(cmd, [args] { return run_solve_g2o(*args); });
+  registry.add(cmd, [args, cmd] { return run_solve_g2o(*cmd, *args); });
 }
 
 }  // namespace carat::cli

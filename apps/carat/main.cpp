@@ -1,11 +1,31 @@
 // carat: the command-line tool. Each subcommand lives in its own cmd_*.cpp.
 #include <CLI/CLI.hpp>
 #include <cstdio>
+#include <cstring>
 #include <exception>
+#include <filesystem>
+#include <new>
+#include <string>
 
+#include "cli_support.hpp"
 #include "commands.hpp"
 
+namespace {
+
+/// A message as one line of printable text: control bytes (line breaks, escapes) become '?'.
+std::string one_line(const std::string& message) {
+  std::string out(message);
+  for (char& c : out) {
+    if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) c = '?';
+  }
+  return out;
+}
+
+}  // namespace
+
 int main(int argc, char** argv) {
+  // Before any thread starts: interruptions remove carat's temporary files and folders.
+  carat::cli::install_interrupt_cleanup();
   CLI::App app{"carat: sparse nonlinear least squares with exact residual-block compression"};
   app.require_subcommand(1);
   app.set_version_flag("--version", "carat 0.1.0");
@@ -18,15 +38,55 @@ int main(int argc, char** argv) {
   carat::cli::register_map(app, registry);
   carat::cli::register_simulate(app, registry);
   carat::cli::register_paper(app, registry);
+  if (argc > 1 && argv[1][0] != '-') {
+    bool known = false;
+    std::string names;
+    const CLI::App& root = app;
+    for (const CLI::App* sub : root.get_subcommands([](const CLI::App*) { return true; })) {
+      known = known || sub->get_name() == argv[1];
+      names += (names.empty() ? "" : ", ") + sub->get_name();
+    }
+    if (!known) {
+      std::fprintf(stderr, "carat: usage error: unknown subcommand %s (valid: %s)\n",
+                   carat::quote_bytes(argv[1]).c_str(), names.c_str());
+      return 2;
+    }
+  }
   try {
     app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return carat::cli::finish_standard_output(app.exit(e));
+  } catch (const CLI::CallForAllHelp& e) {
+    return carat::cli::finish_standard_output(app.exit(e));
+  } catch (const CLI::CallForVersion& e) {
+    return carat::cli::finish_standard_output(app.exit(e));
   } catch (const CLI::ParseError& e) {
-    return app.exit(e) == 0 ? 0 : 2;
+    std::fprintf(stderr, "carat: usage error: %s (see --help)\n", one_line(e.what()).c_str());
+    return 2;
   }
+  int status = 0;
   try {
-    return registry.run_selected();
+    status = registry.run_selected();
+  } catch (const carat::cli::UsageError& e) {
+    std::fprintf(stderr, "carat: usage error: %s\n", one_line(e.what()).c_str());
+    status = 2;
+  } catch (const std::bad_alloc&) {
+    std::fprintf(stderr,
+                 "carat: error: out of memory (the inputs or options need more memory than this "
+                 "machine has)\n");
+    status = 1;
+  } catch (const std::filesystem::filesystem_error& e) {
+    // "PATH: reason", not the library's "filesystem error: operation: reason [PATH]".
+    const std::string path = e.path1().empty() ? std::string("a path") : e.path1().string();
+    std::fprintf(stderr, "carat: error: %s: %s\n", one_line(path).c_str(),
+                 one_line(e.code().message()).c_str());
+    status = 1;
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "carat: error: %s\n", e.what());
-    return 1;
+    std::fprintf(stderr, "carat: error: %s\n", one_line(e.what()).c_str());
+    status = 1;
+  } catch (...) {
+    std::fprintf(stderr, "carat: error: an unknown error ended the run\n");
+    status = 1;
   }
+  return carat::cli::finish_standard_output(status);
 }

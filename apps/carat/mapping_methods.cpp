@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <string>
 
+#include "cli_support.hpp"
 #include "progress.hpp"
 
 namespace carat::cli {
@@ -147,20 +148,6 @@ nlohmann::json to_json(const MethodResult& result) {
   j["iterations"] = result.iterations;
   j["termination"] = result.termination;
   return j;
-}
-
-std::string format_bytes(std::size_t bytes) {
-  char text[32];
-  const double b = static_cast<double>(bytes);
-  if (b >= 1024.0 * 1024.0 * 1024.0)
-    std::snprintf(text, sizeof(text), "%.2f GiB", b / (1024.0 * 1024.0 * 1024.0));
-  else if (b >= 1024.0 * 1024.0)
-    std::snprintf(text, sizeof(text), "%.1f MiB", b / (1024.0 * 1024.0));
-  else if (b >= 1024.0)
-    std::snprintf(text, sizeof(text), "%.1f KiB", b / 1024.0);
-  else
-    std::snprintf(text, sizeof(text), "%zu B", bytes);
-  return text;
 }
 
 std::string results_table(const std::vector<MethodResult>& results) {

@@ -73,7 +73,4 @@ nlohmann::json to_json(const MethodResult& result);
 /// A fixed-width table: method, ATE (mean ± std, rmse), iterations, times, memory.
 std::string results_table(const std::vector<MethodResult>& results);
 
-/// Bytes as "12.3 MiB".
-std::string format_bytes(std::size_t bytes);
-
 }  // namespace carat::cli

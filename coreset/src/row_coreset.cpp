@@ -103,6 +103,10 @@ int minimum_coreset_rows(int reduced_dim) {
   return reduced_dim * (reduced_dim + 1) / 2 + reduced_dim + 2;
 }
 
+int default_coreset_clusters(int reduced_dim) {
+  return std::max(64, 2 * (internal::lifted_dim(reduced_dim) + 1));
+}
+
 RowCoreset select_coreset_rows(const Eigen::Ref<const RowMatrix>& J_r,
                                const Eigen::Ref<const Eigen::VectorXd>& e,
                                const RowCoresetOptions& options) {
@@ -128,11 +132,13 @@ RowCoreset select_coreset_rows(const Eigen::Ref<const RowMatrix>& J_r,
     throw Error("coreset: target of " + std::to_string(M) + " rows is below the minimum of " +
                 std::to_string(minimum) + " for reduced dimension " + std::to_string(r));
   }
-  if (options.clusters < L + 2) {
+  const int K = options.clusters == 0 ? default_coreset_clusters(r) : options.clusters;
+  if (K < L + 2) {
     throw Error("coreset: " + std::to_string(options.clusters) +
                 " clusters cannot make progress for reduced dimension " + std::to_string(r) +
                 " (lifted dimension " + std::to_string(L) + "); use at least " +
-                std::to_string(L + 2));
+                std::to_string(L + 2) + ", or 0 for the default " +
+                std::to_string(default_coreset_clusters(r)));
   }
 
   // Row-major rows with unit stride, as the lift kernels read them.
@@ -202,10 +208,10 @@ RowCoreset select_coreset_rows(const Eigen::Ref<const RowMatrix>& J_r,
                 " rows overflow (values too large for double)");
   }
   target[L] = static_cast<double>(N);
-  const long row_phase = std::max<long>(8 * M, static_cast<long>(options.clusters) * kChunkRows);
-  while (items.size() > options.clusters && items.rows() > row_phase) {
+  const long row_phase = std::max<long>(8 * M, static_cast<long>(K) * kChunkRows);
+  while (items.size() > K && items.rows() > row_phase) {
     const int before = items.size();
-    internal::reduce_level(items, options.clusters, M);
+    internal::reduce_level(items, K, M);
     if (items.size() == before) break;
   }
 
@@ -236,7 +242,7 @@ RowCoreset select_coreset_rows(const Eigen::Ref<const RowMatrix>& J_r,
   internal::lift_rows(J, E, r, rows.ids.data(), survivors, rows.sums.data());
 
   // Phase 3: rows down to M.
-  reduce_rows(rows, M, options.exact_size, options.clusters, L);
+  reduce_rows(rows, M, options.exact_size, K, L);
 
   polish_weights(J, E, r, target, rows);
 

@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <memory>
 #include <string>
 #include <vector>
@@ -69,9 +70,10 @@ AlignResult align(const PointCloud& target, const KdTree& target_tree, const Poi
                                settings.max_correspondence_distance);
       result.search_s += std::chrono::duration<double>(Clock::now() - t0).count();
       if (static_cast<int>(pairs.size()) < settings.min_correspondences) {
-        throw Error("align: only " + std::to_string(pairs.size()) + " correspondences within " +
-                    std::to_string(settings.max_correspondence_distance) + " m (need " +
-                    std::to_string(settings.min_correspondences) +
+        char distance[32];
+        std::snprintf(distance, sizeof(distance), "%g", settings.max_correspondence_distance);
+        throw Error("only " + std::to_string(pairs.size()) + " correspondences within " + distance +
+                    " m (need " + std::to_string(settings.min_correspondences) +
                     "); the clouds do not overlap at this estimate");
       }
       t0 = Clock::now();
@@ -120,14 +122,17 @@ AlignResult align(const PointCloud& target, const KdTree& target_tree, const Poi
       Eigen::VectorXd b = Eigen::VectorXd::Zero(6);
       result.error = block->accumulate(params, H, b);
       result.H = H;
-      // Degeneracy on a scale-free H: rotations measured at the source's RMS radius, so every
-      // direction is in metres. Along a surface normal GICP weighs a point 1000 x more than
-      // along the surface (covariance eigenvalues 1e-3, 1, 1); a direction below 5e-3 of the
-      // best one is held only by the in-surface terms, i.e. not by the geometry.
-      double radius_sq = 0.0;
-      for (std::size_t i = 0; i < source.size(); ++i) radius_sq += source.point(i).squaredNorm();
-      const double radius =
-          std::sqrt(std::max(radius_sq / std::max<std::size_t>(source.size(), 1), 1e-12));
+      // Degeneracy on a scale-free H: rotations measured at the source's median radius (an
+      // outlier far away would inflate a mean), so every direction is in metres. Along a surface
+      // normal GICP weighs a point 1000 x more than along the surface (covariance eigenvalues
+      // 1e-3, 1, 1); a direction below 5e-3 of the best one is held only by the in-surface
+      // terms, i.e. not by the geometry.
+      std::vector<double> radii(source.size());
+      for (std::size_t i = 0; i < source.size(); ++i) radii[i] = source.point(i).norm();
+      const std::size_t middle = radii.size() / 2;
+      std::nth_element(radii.begin(), radii.begin() + static_cast<std::ptrdiff_t>(middle),
+                       radii.end());
+      const double radius = std::max(radii.empty() ? 0.0 : radii[middle], 1e-6);
       se3::Vector6d scale;
       scale << 1.0 / radius, 1.0 / radius, 1.0 / radius, 1.0, 1.0, 1.0;
       const se3::Matrix6d normalized = scale.asDiagonal() * result.H * scale.asDiagonal();

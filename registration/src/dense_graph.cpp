@@ -25,8 +25,7 @@ std::vector<FramePair> build_dense_graph(
                 std::to_string(T_world_frame.size()) + " poses");
   }
   if (frames.size() < 2)
-    throw Error("build_dense_graph: at least 2 frames are needed, got " +
-                std::to_string(frames.size()));
+    throw Error("the dense graph needs at least 2 frames, got " + std::to_string(frames.size()));
   if (!(options.overlap_threshold >= 0.0 && options.overlap_threshold <= 1.0))
     throw Error("build_dense_graph: overlap_threshold must be in [0, 1]");
   if (!(options.max_distance > 0.0)) throw Error("build_dense_graph: max_distance must be > 0");

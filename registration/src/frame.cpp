@@ -4,6 +4,8 @@
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <atomic>
 #include <cmath>
@@ -21,6 +23,7 @@ Frame::Frame(PointCloud cloud) : cloud_(std::make_unique<PointCloud>(std::move(c
   if (!cloud_->has_covariances())
     throw Error("Frame: the cloud has no covariances (run estimate_covariances first)");
   tree_ = std::make_unique<KdTree>(*cloud_);
+  measure_constraint();
 }
 
 Frame::Frame(PointCloud cloud, const CovarianceOptions& covariance)
@@ -28,6 +31,43 @@ Frame::Frame(PointCloud cloud, const CovarianceOptions& covariance)
   tree_ = std::make_unique<KdTree>(*cloud_);
   // Covariances do not move the points, so the tree stays valid.
   estimate_covariances(*cloud_, *tree_, covariance);
+  measure_constraint();
+}
+
+void Frame::measure_constraint() {
+  const PointCloud& cloud = *cloud_;
+  // Rotations are measured in metres at the median radius, and no point's lever arm counts for
+  // more than 10 median radii: a few outliers far away cannot hide how the rest of the scan
+  // constrains the pose.
+  std::vector<double> radii(cloud.size());
+  for (std::size_t k = 0; k < cloud.size(); ++k) radii[k] = cloud.point(k).norm();
+  const std::size_t middle = radii.size() / 2;
+  std::nth_element(radii.begin(), radii.begin() + static_cast<std::ptrdiff_t>(middle), radii.end());
+  const double radius = std::max(radii.empty() ? 0.0 : radii[middle], 1e-6);
+  // H = sum J^T C^-1 J with J = [-[p]x / radius, I].
+  Eigen::Matrix<double, 6, 6> H = Eigen::Matrix<double, 6, 6>::Zero();
+  for (std::size_t k = 0; k < cloud.size(); ++k) {
+    const Eigen::Matrix3d C = cloud.covariance(k);
+    const Eigen::LDLT<Eigen::Matrix3d> ldlt(C);
+    if (ldlt.info() != Eigen::Success) continue;
+    const Eigen::Matrix3d info = ldlt.solve(Eigen::Matrix3d::Identity());
+    if (!info.allFinite()) continue;
+    Eigen::Matrix<double, 3, 6> J;
+    Eigen::Vector3d p = cloud.point(k) / radius;
+    if (p.norm() > 10.0) p *= 10.0 / p.norm();
+    J.leftCols<3>() << 0.0, p.z(), -p.y(), -p.z(), 0.0, p.x(), p.y(), -p.x(), 0.0;
+    J.rightCols<3>().setIdentity();
+    H.noalias() += J.transpose() * info * J;
+  }
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>> eigen(H, Eigen::EigenvaluesOnly);
+  const double largest = eigen.eigenvalues().maxCoeff();
+  constrained_dof_ = 0;
+  min_eigenvalue_ratio_ = 0.0;
+  if (!(largest > 0.0) || !std::isfinite(largest)) return;
+  min_eigenvalue_ratio_ = std::max(0.0, eigen.eigenvalues().minCoeff() / largest);
+  for (int k = 0; k < 6; ++k) {
+    if (eigen.eigenvalues()[k] > 5e-3 * largest) ++constrained_dof_;
+  }
 }
 
 std::shared_ptr<const Frame> preprocess_frame(const PointCloud& raw,
@@ -42,7 +82,12 @@ std::shared_ptr<const Frame> preprocess_frame(const PointCloud& raw,
     throw Error(name + ": only " + std::to_string(raw.size()) + " points (at least " +
                 std::to_string(options.min_points) + " are needed)");
   }
-  PointCloud cloud = voxel_downsample(raw, options.voxel_size);
+  PointCloud cloud;
+  try {
+    cloud = voxel_downsample(raw, options.voxel_size);
+  } catch (const Error& e) {
+    throw Error(name + ": " + e.what());
+  }
   if (static_cast<int>(cloud.size()) < options.min_points) {
     char voxel[32];
     std::snprintf(voxel, sizeof(voxel), "%g", options.voxel_size);
@@ -52,7 +97,9 @@ std::shared_ptr<const Frame> preprocess_frame(const PointCloud& raw,
   CovarianceOptions covariance;
   covariance.neighbors = options.covariance_neighbors;
   covariance.num_threads = options.num_threads;
-  return std::make_shared<const Frame>(std::move(cloud), covariance);
+  auto frame = std::make_shared<Frame>(std::move(cloud), covariance);
+  frame->set_name(name);
+  return frame;
 }
 
 std::vector<std::shared_ptr<const Frame>> preprocess_frames(

@@ -10,6 +10,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <string>
 #include <utility>
 
@@ -198,6 +199,13 @@ RegistrationProblem build_registration_problem(
   for (int i = 0; i < n; ++i) {
     if (!T_world_frame[static_cast<std::size_t>(i)].matrix().allFinite())
       throw Error("global registration: pose " + std::to_string(i) + " is not finite");
+    const Frame& frame = *frames[static_cast<std::size_t>(i)];
+    if (i > 0 && frame.constrained_dof() < 6) {
+      throw Error("global registration: frame " + std::to_string(i) +
+                  (frame.name().empty() ? std::string() : " (" + frame.name() + ")") +
+                  " is degenerate: its scan fixes only " + std::to_string(frame.constrained_dof()) +
+                  " of 6 degrees of freedom (e.g. a single plane), so its pose is not determined");
+    }
     out.frame_variables.push_back(out.problem.add_se3(T_world_frame[static_cast<std::size_t>(i)]));
   }
   out.problem.set_constant(out.frame_variables.front());
@@ -223,11 +231,15 @@ RegistrationProblem build_registration_problem(
           find_correspondences(frames[i]->cloud(), frames[i]->tree(), frames[j]->cloud(), T_ij,
                                options.max_correspondence_distance);
       if (static_cast<int>(correspondences.size()) < options.min_correspondences) {
+        char distance[32];
+        std::snprintf(distance, sizeof(distance), "%g", options.max_correspondence_distance);
+        const std::string names = frames[i]->name().empty() || frames[j]->name().empty()
+                                      ? std::string()
+                                      : " (" + frames[i]->name() + ", " + frames[j]->name() + ")";
         throw Error("global registration: " + pair_name(pair) + " has only " +
-                    std::to_string(correspondences.size()) + " correspondences within " +
-                    std::to_string(options.max_correspondence_distance) + " m (need " +
-                    std::to_string(options.min_correspondences) +
-                    "); the frames do not overlap at the initial poses");
+                    std::to_string(correspondences.size()) + " correspondences within " + distance +
+                    " m (need " + std::to_string(options.min_correspondences) +
+                    "); the frames do not overlap at the initial poses" + names);
       }
       auto full = std::make_shared<const GicpBlock>(correspondences, T_ij);
       factor.correspondences = correspondences.size();

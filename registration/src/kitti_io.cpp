@@ -3,64 +3,100 @@
 #include <bit>
 #include <cmath>
 #include <cstring>
-#include <fstream>
+#include <new>
 #include <string>
 #include <vector>
 
 #include "carat/solver/atomic_file.hpp"
 #include "carat/solver/error.hpp"
+#include "carat/solver/input_file.hpp"
 
 namespace carat {
+namespace {
 
-PointCloud read_kitti_bin(const std::filesystem::path& path, KittiFormat format,
-                          const ReadOptions& options) {
-  const std::string name = path.string();
-  std::error_code ec;
-  if (!std::filesystem::is_regular_file(path, ec)) throw Error(name + ": no such file");
-  const auto bytes = std::filesystem::file_size(path, ec);
-  if (ec) throw Error(name + ": cannot read the file size");
+/// Records read at a time.
+constexpr std::size_t kChunkRecords = 65536;
+
+PointCloud read_kitti_from(ByteSource& source, KittiFormat format, const ReadOptions& options) {
+  static_assert(std::endian::native == std::endian::little, "KITTI files are little-endian");
+  const std::string& name = source.name();
   const std::size_t record = format == KittiFormat::kXyzi ? 16 : 12;
+  const std::uint64_t bytes = source.remaining().value_or(0);
   if (bytes == 0) throw Error(name + ": empty file");
   if (bytes % record != 0) {
     throw Error(name + ": " + std::to_string(bytes) + " bytes is not a whole number of " +
                 std::to_string(record) + "-byte records (truncated, or not " +
                 (format == KittiFormat::kXyzi ? "x y z intensity" : "x y z") + " float32 data)");
   }
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw Error(name + ": cannot open for reading");
-  std::vector<char> buffer(bytes);
-  if (!in.read(buffer.data(), static_cast<std::streamsize>(bytes)))
-    throw Error(name + ": read error");
-  const std::size_t n = bytes / record;
+  const std::uint64_t n = bytes / record;
+  if (n > options.max_points) {
+    throw Error(name + ": holds " + std::to_string(n) + " points, more than the " +
+                std::to_string(options.max_points) + " carat reads from one file");
+  }
   PointCloud cloud;
-  cloud.points.reserve(n);
-  for (std::size_t i = 0; i < n; ++i) {
-    float xyz[3];
-    std::memcpy(xyz, buffer.data() + i * record, sizeof(xyz));
-    if (!std::isfinite(xyz[0]) || !std::isfinite(xyz[1]) || !std::isfinite(xyz[2])) {
-      if (options.drop_non_finite) continue;
-      throw Error(name + ": point " + std::to_string(i) + " is not finite");
+  try {
+    cloud.points.reserve(static_cast<std::size_t>(n));
+  } catch (const std::bad_alloc&) {
+    throw Error(name + ": not enough memory for " + std::to_string(n) + " points");
+  }
+  std::vector<char> chunk(kChunkRecords * record);
+  std::uint64_t index = 0;
+  while (index < n) {
+    const std::size_t count =
+        static_cast<std::size_t>(std::min<std::uint64_t>(kChunkRecords, n - index));
+    std::size_t got = 0;
+    while (got < count * record) {
+      const std::size_t part = source.read(chunk.data() + got, count * record - got);
+      if (part == 0) throw Error(name + ": the file became shorter while it was read");
+      got += part;
     }
-    cloud.points.emplace_back(xyz[0], xyz[1], xyz[2]);
+    for (std::size_t k = 0; k < count; ++k, ++index) {
+      float xyz[3];
+      std::memcpy(xyz, chunk.data() + k * record, sizeof(xyz));
+      if (!std::isfinite(xyz[0]) || !std::isfinite(xyz[1]) || !std::isfinite(xyz[2])) {
+        if (options.drop_non_finite) continue;
+        throw Error(name + ": point " + std::to_string(index) + " is not finite");
+      }
+      cloud.points.emplace_back(xyz[0], xyz[1], xyz[2]);
+    }
   }
   return cloud;
 }
 
+}  // namespace
+
+PointCloud read_kitti_bin(const std::filesystem::path& path, KittiFormat format,
+                          const ReadOptions& options) {
+  InputFile file(path, InputKind::kRegular);
+  return read_kitti_from(file, format, options);
+}
+
+PointCloud parse_kitti_bin(std::string_view bytes, KittiFormat format, const std::string& name,
+                           const ReadOptions& options) {
+  MemorySource source(bytes, name);
+  return read_kitti_from(source, format, options);
+}
+
 void write_kitti_bin(const std::filesystem::path& path, const PointCloud& cloud,
                      KittiFormat format) {
-  static_assert(std::endian::native == std::endian::little, "KITTI files are little-endian");
   const std::size_t floats = format == KittiFormat::kXyzi ? 4 : 3;
-  std::vector<float> buffer(cloud.size() * floats, 0.0f);
   for (std::size_t i = 0; i < cloud.size(); ++i) {
-    const Eigen::Vector3f& p = cloud.points[i];
-    if (!p.allFinite()) {
+    if (!cloud.points[i].allFinite()) {
       throw Error(path.string() + ": point " + std::to_string(i) + " is not finite");
     }
-    for (int c = 0; c < 3; ++c) buffer[i * floats + c] = p[c];
   }
   write_file_atomically(path, [&](std::ostream& out) {
-    out.write(reinterpret_cast<const char*>(buffer.data()),
-              static_cast<std::streamsize>(buffer.size() * sizeof(float)));
+    std::vector<float> buffer;
+    buffer.reserve(kChunkRecords * floats);
+    for (std::size_t first = 0; first < cloud.size(); first += kChunkRecords) {
+      const std::size_t last = std::min(cloud.size(), first + kChunkRecords);
+      buffer.assign((last - first) * floats, 0.0f);
+      for (std::size_t i = first; i < last; ++i) {
+        for (std::size_t c = 0; c < 3; ++c) buffer[(i - first) * floats + c] = cloud.points[i][c];
+      }
+      out.write(reinterpret_cast<const char*>(buffer.data()),
+                static_cast<std::streamsize>(buffer.size() * sizeof(float)));
+    }
   });
 }
 

@@ -5,13 +5,12 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
-#include <fstream>
-#include <iterator>
 #include <unordered_map>
 #include <unordered_set>
 
 #include "carat/solver/atomic_file.hpp"
 #include "carat/solver/error.hpp"
+#include "carat/solver/input_file.hpp"
 
 namespace carat {
 namespace {
@@ -32,18 +31,6 @@ std::vector<std::string_view> split(std::string_view line) {
     if (i > start) tokens.push_back(line.substr(start, i - start));
   }
   return tokens;
-}
-
-// A token as it may appear in a message: printable characters only, at most 40 of them.
-std::string quote(std::string_view token) {
-  constexpr std::size_t kMax = 40;
-  std::string out = "'";
-  for (std::size_t i = 0; i < token.size() && i < kMax; ++i) {
-    const char c = token[i];
-    out += (c >= 0x20 && c < 0x7f) ? c : '?';
-  }
-  if (token.size() > kMax) out += "...";
-  return out + "'";
 }
 
 std::string format_number(double value) {
@@ -75,10 +62,10 @@ class LineParser {
     double value = 0.0;
     const auto [ptr, ec] = std::from_chars(digits.data(), digits.data() + digits.size(), value);
     if (ec == std::errc::result_out_of_range && ptr == digits.data() + digits.size()) {
-      fail(std::string(what) + " " + quote(token) + " is out of range");
+      fail(std::string(what) + " " + quote_bytes(token) + " is out of range");
     }
     if (ec != std::errc() || ptr != digits.data() + digits.size()) {
-      fail(std::string("cannot read ") + what + " from " + quote(token));
+      fail(std::string("cannot read ") + what + " from " + quote_bytes(token));
     }
     if (!std::isfinite(value)) fail(std::string(what) + " is not finite");
     return value;
@@ -135,11 +122,11 @@ class LineParser {
     const char* first = token.data() + 1;
     const char* last = token.data() + token.size();
     if (token.size() < 2 || token[0] != 'v' || *first < '0' || *first > '9') {
-      fail("expected a vertex id 'vN', found " + quote(token));
+      fail("expected a vertex id 'vN', found " + quote_bytes(token));
     }
     const auto [ptr, ec] = std::from_chars(first, last, id);
     if (ec != std::errc() || ptr != last || id > kMaxGraphId) {
-      fail("cannot read a vertex id (v0 ... v2^53) from " + quote(token));
+      fail("cannot read a vertex id (v0 ... v2^53) from " + quote_bytes(token));
     }
     return id;
   }
@@ -167,22 +154,19 @@ TrajectoryFormat parse_trajectory_format(std::string_view name) {
   if (name == "kitti") return TrajectoryFormat::kKitti;
   if (name == "tum") return TrajectoryFormat::kTum;
   if (name == "graph") return TrajectoryFormat::kGraph;
-  throw Error("unknown trajectory format " + quote(name) + " (valid: kitti, tum, graph)");
+  throw Error("unknown trajectory format " + quote_bytes(name) + " (valid: kitti, tum, graph)");
 }
 
-Trajectory parse_trajectory(std::string_view text, TrajectoryFormat format,
-                            const std::string& name) {
+namespace {
+
+Trajectory read_trajectory_lines(LineReader& reader, TrajectoryFormat format) {
+  const std::string& name = reader.name();
   Trajectory trajectory;
   std::unordered_map<std::uint64_t, std::size_t> id_line;
   std::size_t previous_stamp_line = 0;
-  std::size_t line = 0;
-  std::size_t begin = 0;
-  while (begin < text.size()) {
-    std::size_t end = text.find('\n', begin);
-    if (end == std::string_view::npos) end = text.size();
-    const std::string_view content = text.substr(begin, end - begin);
-    begin = end + 1;
-    ++line;
+  std::string_view content;
+  while (reader.next_line(&content)) {
+    const std::size_t line = reader.line_number();
     const auto tokens = split(content);
     if (tokens.empty()) continue;
     if (format == TrajectoryFormat::kTum && tokens[0][0] == '#') continue;
@@ -227,18 +211,19 @@ Trajectory parse_trajectory(std::string_view text, TrajectoryFormat format,
   return trajectory;
 }
 
+}  // namespace
+
+Trajectory parse_trajectory(std::string_view text, TrajectoryFormat format,
+                            const std::string& name) {
+  MemorySource source(text, name);
+  LineReader reader(source);
+  return read_trajectory_lines(reader, format);
+}
+
 Trajectory read_trajectory(const std::filesystem::path& path, TrajectoryFormat format) {
-  const std::string name = path.string();
-  std::error_code ec;
-  if (!std::filesystem::exists(path, ec)) throw Error(name + ": no such file");
-  if (std::filesystem::is_directory(path, ec)) {
-    throw Error(name + ": is a directory, not a trajectory file");
-  }
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw Error(name + ": cannot open for reading");
-  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  if (in.bad()) throw Error(name + ": read error");
-  return parse_trajectory(text, format, name);
+  InputFile file(path, InputKind::kStreamable);
+  LineReader reader(file);
+  return read_trajectory_lines(reader, format);
 }
 
 std::string format_trajectory(const Trajectory& trajectory, TrajectoryFormat format) {

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <string>
 #include <utility>
 #include <vector>
@@ -26,9 +27,10 @@ PointCloud voxel_downsample(const PointCloud& cloud, double voxel_size) {
       const double cell = std::floor(static_cast<double>(cloud.points[i][a]) * inv);
       // Range-check in floating point first: casting a huge or non-finite value is undefined.
       if (!(cell >= -static_cast<double>(kOffset) && cell < static_cast<double>(kOffset))) {
-        throw Error("voxel_downsample: point " + std::to_string(i) +
-                    " is too far from the origin for voxels of " + std::to_string(voxel_size) +
-                    " m");
+        char limit[64];
+        std::snprintf(limit, sizeof(limit), "%g m voxels (|coordinate| < %g m)", voxel_size,
+                      static_cast<double>(kOffset) * voxel_size);
+        throw Error("point " + std::to_string(i) + " is too far from the origin for " + limit);
       }
       key = (key << 21) | static_cast<std::uint64_t>(static_cast<std::int64_t>(cell) + kOffset);
     }

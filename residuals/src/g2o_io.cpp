@@ -5,8 +5,6 @@
 #include <charconv>
 #include <cmath>
 #include <cstdio>
-#include <fstream>
-#include <sstream>
 #include <string_view>
 #include <unordered_map>
 #include <vector>
@@ -14,6 +12,7 @@
 #include "carat/residuals/pose_prior_block.hpp"
 #include "carat/solver/atomic_file.hpp"
 #include "carat/solver/error.hpp"
+#include "carat/solver/input_file.hpp"
 
 namespace carat {
 namespace {
@@ -42,7 +41,10 @@ class LineParser {
     double value = 0.0;
     const auto [ptr, ec] = std::from_chars(token.data(), token.data() + token.size(), value);
     if (ec != std::errc() || ptr != token.data() + token.size()) {
-      fail(std::string("cannot read ") + what + " from '" + std::string(token) + "'");
+      if (ec == std::errc::result_out_of_range && ptr == token.data() + token.size()) {
+        fail(std::string(what) + " " + quote_bytes(token) + " is out of range");
+      }
+      fail(std::string("cannot read ") + what + " from " + quote_bytes(token));
     }
     if (!std::isfinite(value)) fail(std::string(what) + " is not finite");
     return value;
@@ -52,7 +54,7 @@ class LineParser {
     std::int64_t value = 0;
     const auto [ptr, ec] = std::from_chars(token.data(), token.data() + token.size(), value);
     if (ec != std::errc() || ptr != token.data() + token.size()) {
-      fail("cannot read a vertex id from '" + std::string(token) + "'");
+      fail("cannot read a vertex id (an integer in [-2^63, 2^63)) from " + quote_bytes(token));
     }
     return value;
   }
@@ -108,18 +110,36 @@ se3::Matrix6d nearest_positive_definite(const se3::Matrix6d& information, const 
 
 }  // namespace
 
-PoseGraph parse_g2o(std::istream& in, const std::string& name, const G2oReadOptions& options,
-                    G2oReadReport* report) {
+namespace {
+
+/// A std::istream read like a file.
+class StreamSource final : public ByteSource {
+ public:
+  StreamSource(std::istream& in, const std::string& name) : in_(in), name_(name) {}
+  std::size_t read(char* out, std::size_t n) override {
+    in_.read(out, static_cast<std::streamsize>(n));
+    if (in_.bad()) throw Error(name_ + ": read error");
+    return static_cast<std::size_t>(in_.gcount());
+  }
+  std::optional<std::uint64_t> remaining() const override { return std::nullopt; }
+  const std::string& name() const override { return name_; }
+
+ private:
+  std::istream& in_;
+  const std::string& name_;
+};
+
+PoseGraph read_g2o_lines(LineReader& reader, const G2oReadOptions& options, G2oReadReport* report) {
+  const std::string& name = reader.name();
   if (report) report->repaired_lines.clear();
   PoseGraph graph;
   std::unordered_map<std::int64_t, std::size_t> vertex_line;
   std::vector<std::size_t> edge_lines;
-  std::string text;
-  std::size_t line = 0;
-  while (std::getline(in, text)) {
-    ++line;
+  std::string_view text;
+  while (reader.next_line(&text)) {
+    const std::size_t line = reader.line_number();
     const auto hash = text.find('#');
-    const auto tokens = split(std::string_view(text).substr(0, hash));
+    const auto tokens = split(text.substr(0, hash));
     if (tokens.empty()) continue;
     const LineParser p(name, line);
     const std::string_view tag = tokens[0];
@@ -164,10 +184,9 @@ PoseGraph parse_g2o(std::istream& in, const std::string& name, const G2oReadOpti
       p.fail("2D records (" + std::string(tag) +
              ") are not supported; carat reads 3D graphs (VERTEX_SE3:QUAT / EDGE_SE3:QUAT)");
     } else {
-      p.fail("unknown record '" + std::string(tag) + "'");
+      p.fail("unknown record " + quote_bytes(tag));
     }
   }
-  if (in.bad()) throw Error(name + ": read error");
   if (graph.vertices.empty())
     throw Error(name + ": no VERTEX_SE3:QUAT records (empty or not a 3D g2o file)");
   for (std::size_t e = 0; e < graph.edges.size(); ++e) {
@@ -185,46 +204,60 @@ PoseGraph parse_g2o(std::istream& in, const std::string& name, const G2oReadOpti
   return graph;
 }
 
+}  // namespace
+
+PoseGraph parse_g2o(std::istream& in, const std::string& name, const G2oReadOptions& options,
+                    G2oReadReport* report) {
+  StreamSource source(in, name);
+  LineReader reader(source);
+  return read_g2o_lines(reader, options, report);
+}
+
+PoseGraph parse_g2o(std::string_view text, const std::string& name, const G2oReadOptions& options,
+                    G2oReadReport* report) {
+  MemorySource source(text, name);
+  LineReader reader(source);
+  return read_g2o_lines(reader, options, report);
+}
+
 PoseGraph read_g2o(const std::filesystem::path& path, const G2oReadOptions& options,
                    G2oReadReport* report) {
-  std::error_code ec;
-  if (!std::filesystem::exists(path, ec)) throw Error(path.string() + ": no such file");
-  if (std::filesystem::is_directory(path, ec))
-    throw Error(path.string() + ": is a directory, not a g2o file");
-  std::ifstream in(path);
-  if (!in) throw Error(path.string() + ": cannot open for reading");
-  return parse_g2o(in, path.string(), options, report);
+  InputFile file(path, InputKind::kStreamable);
+  LineReader reader(file);
+  return read_g2o_lines(reader, options, report);
+}
+
+void write_g2o(std::ostream& out, const PoseGraph& graph) {
+  char buffer[128];
+  const auto put_pose = [&](const Eigen::Isometry3d& T) {
+    const Eigen::Quaterniond q(T.linear());
+    const Eigen::Vector3d& t = T.translation();
+    std::snprintf(buffer, sizeof(buffer), " %.17g %.17g %.17g", t.x(), t.y(), t.z());
+    out << buffer;
+    std::snprintf(buffer, sizeof(buffer), " %.17g %.17g %.17g %.17g", q.x(), q.y(), q.z(), q.w());
+    out << buffer;
+  };
+  for (const auto& v : graph.vertices) {
+    out << "VERTEX_SE3:QUAT " << v.id;
+    put_pose(v.T_world_vertex);
+    out << '\n';
+  }
+  for (const auto& e : graph.edges) {
+    out << "EDGE_SE3:QUAT " << e.from << ' ' << e.to;
+    put_pose(e.T_from_to);
+    for (int r = 0; r < 6; ++r) {
+      for (int c = r; c < 6; ++c) {
+        std::snprintf(buffer, sizeof(buffer), " %.17g", e.information(r, c));
+        out << buffer;
+      }
+    }
+    out << '\n';
+  }
+  for (std::int64_t id : graph.fixed) out << "FIX " << id << '\n';
 }
 
 void write_g2o(const std::filesystem::path& path, const PoseGraph& graph) {
-  write_file_atomically(path, [&](std::ostream& out) {
-    char buffer[128];
-    const auto put_pose = [&](const Eigen::Isometry3d& T) {
-      const Eigen::Quaterniond q(T.linear());
-      const Eigen::Vector3d& t = T.translation();
-      std::snprintf(buffer, sizeof(buffer), " %.17g %.17g %.17g", t.x(), t.y(), t.z());
-      out << buffer;
-      std::snprintf(buffer, sizeof(buffer), " %.17g %.17g %.17g %.17g", q.x(), q.y(), q.z(), q.w());
-      out << buffer;
-    };
-    for (const auto& v : graph.vertices) {
-      out << "VERTEX_SE3:QUAT " << v.id;
-      put_pose(v.T_world_vertex);
-      out << '\n';
-    }
-    for (const auto& e : graph.edges) {
-      out << "EDGE_SE3:QUAT " << e.from << ' ' << e.to;
-      put_pose(e.T_from_to);
-      for (int r = 0; r < 6; ++r) {
-        for (int c = r; c < 6; ++c) {
-          std::snprintf(buffer, sizeof(buffer), " %.17g", e.information(r, c));
-          out << buffer;
-        }
-      }
-      out << '\n';
-    }
-    for (std::int64_t id : graph.fixed) out << "FIX " << id << '\n';
-  });
+  write_file_atomically(path, [&](std::ostream& out) { write_g2o(out, graph); });
 }
 
 }  // namespace carat

@@ -4,7 +4,11 @@
 #include <tbb/parallel_for.h>
 
 #include <Eigen/Core>
+#include <algorithm>
 #include <cmath>
+#include <exception>
+#include <string>
+#include <vector>
 
 #include "huge_pages.hpp"
 
@@ -22,6 +26,39 @@ bool finite(const double* x, std::size_t n) {
     if (!std::isfinite(x[i])) return false;
   }
   return true;
+}
+
+/// Which row of a block is not finite, for the message: its residual, else its Jacobian row.
+std::string first_bad_row(const ResidualBlock& block, ParameterPointers params) {
+  const int n = block.num_rows();
+  const int r = block.reduced_dim();
+  constexpr int kChunk = 256;
+  std::vector<int> rows;
+  std::vector<double> residuals, jacobian;
+  try {
+    for (int begin = 0; begin < n; begin += kChunk) {
+      const int count = std::min(kChunk, n - begin);
+      rows.resize(static_cast<std::size_t>(count));
+      for (int k = 0; k < count; ++k) rows[static_cast<std::size_t>(k)] = begin + k;
+      residuals.assign(static_cast<std::size_t>(count), 0.0);
+      jacobian.assign(static_cast<std::size_t>(count) * static_cast<std::size_t>(r), 0.0);
+      block.evaluate_rows(params, rows, residuals.data(), jacobian.data());
+      for (int k = 0; k < count; ++k) {
+        const double value = residuals[static_cast<std::size_t>(k)];
+        if (!std::isfinite(value)) {
+          return "row " + std::to_string(begin + k) + " is not finite (residual " +
+                 std::to_string(value) + ")";
+        }
+        if (!finite(jacobian.data() + static_cast<std::size_t>(k) * r,
+                    static_cast<std::size_t>(r))) {
+          return "the Jacobian of row " + std::to_string(begin + k) + " is not finite";
+        }
+      }
+    }
+  } catch (const std::exception& e) {
+    return std::string("evaluating its rows failed: ") + e.what();
+  }
+  return "its sums overflow (every row is finite)";
 }
 
 }  // namespace
@@ -110,8 +147,10 @@ bool BlockEvaluator::linearize(int which, BlockLinearizations* out, std::string*
     const auto D = static_cast<std::size_t>(out->dim[i]);
     if (!std::isfinite(out->cost[i]) || !finite(out->b.data() + out->b_offset[i], D) ||
         !finite(out->h.data() + out->h_offset[i], D * D)) {
-      *error = "residual block " + std::to_string(i) + " produced a non-finite " +
-               (std::isfinite(out->cost[i]) ? "Jacobian" : "residual");
+      const ParameterPointers params(ptrs.data() + param_begin_[i],
+                                     param_begin_[i + 1] - param_begin_[i]);
+      *error =
+          "residual block " + std::to_string(i) + ": " + first_bad_row(*blocks[i].block, params);
       return false;
     }
   }

@@ -1,6 +1,7 @@
 #include "carat/solver/loss_function.hpp"
 
 #include <cmath>
+#include <cstdio>
 #include <string>
 #include <utility>
 
@@ -8,9 +9,24 @@
 
 namespace carat {
 
+namespace {
+
+/// Scales whose square is a normal double (so that the loss's own arithmetic cannot overflow or
+/// divide by zero): [1e-150, 1e150].
+constexpr double kMinScale = 1e-150;
+constexpr double kMaxScale = 1e150;
+
+std::string scale_text(double value) {
+  char buffer[32];
+  std::snprintf(buffer, sizeof(buffer), "%g", value);
+  return buffer;
+}
+
+}  // namespace
+
 HuberLoss::HuberLoss(double delta) : delta_(delta) {
-  if (!(delta > 0.0) || !std::isfinite(delta)) {
-    throw Error("HuberLoss: delta must be finite and > 0, got " + std::to_string(delta));
+  if (!(delta >= kMinScale && delta <= kMaxScale)) {
+    throw Error("HuberLoss: delta must be in [1e-150, 1e150], got " + scale_text(delta));
   }
 }
 
@@ -22,8 +38,8 @@ LossValue HuberLoss::evaluate(double s) const {
 }
 
 CauchyLoss::CauchyLoss(double scale) : c2_(scale * scale) {
-  if (!(scale > 0.0) || !std::isfinite(scale)) {
-    throw Error("CauchyLoss: scale must be finite and > 0, got " + std::to_string(scale));
+  if (!(scale >= kMinScale && scale <= kMaxScale)) {
+    throw Error("CauchyLoss: scale must be in [1e-150, 1e150], got " + scale_text(scale));
   }
 }
 

@@ -2,8 +2,10 @@
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 #include <string>
+#include <vector>
 
 #include "carat/solver/error.hpp"
 #include "carat/solver/se3.hpp"
@@ -34,7 +36,37 @@ void write_quaternion(Eigen::Quaterniond q, double* out) {
   out[3] = q.w();
 }
 
+/// d(q Exp(w)) / dw at w = 0 for q = [qx, qy, qz, qw]: 1/2 q * [e_j, 0], as 4 rows of a
+/// row-major matrix with `stride` columns starting at `out`.
+void quaternion_plus_jacobian(const double* q, double* out, int stride) {
+  const double x = q[0], y = q[1], z = q[2], w = q[3];
+  const double rows[4][3] = {{w, -z, y}, {z, w, -x}, {-y, x, w}, {-x, -y, -z}};
+  for (int r = 0; r < 4; ++r) {
+    for (int c = 0; c < 3; ++c) out[r * stride + c] = 0.5 * rows[r][c];
+  }
+}
+
 }  // namespace
+
+void Manifold::plus_jacobian(const double* x, double* jacobian) const {
+  const int a = ambient_size();
+  const int t = tangent_size();
+  constexpr double kStep = 1e-6;
+  std::vector<double> delta(static_cast<std::size_t>(t), 0.0);
+  std::vector<double> forward(static_cast<std::size_t>(a)), backward(static_cast<std::size_t>(a));
+  for (int j = 0; j < t; ++j) {
+    delta[static_cast<std::size_t>(j)] = kStep;
+    plus(x, delta.data(), forward.data());
+    delta[static_cast<std::size_t>(j)] = -kStep;
+    plus(x, delta.data(), backward.data());
+    delta[static_cast<std::size_t>(j)] = 0.0;
+    for (int i = 0; i < a; ++i) {
+      jacobian[i * t + j] =
+          (forward[static_cast<std::size_t>(i)] - backward[static_cast<std::size_t>(i)]) /
+          (2.0 * kStep);
+    }
+  }
+}
 
 EuclideanManifold::EuclideanManifold(int size) : size_(size) {
   if (size < 1) throw Error("EuclideanManifold: size must be >= 1, got " + std::to_string(size));
@@ -46,6 +78,12 @@ void EuclideanManifold::plus(const double* x, const double* delta, double* out) 
 
 void EuclideanManifold::minus(const double* y, const double* x, double* delta) const {
   for (int i = 0; i < size_; ++i) delta[i] = y[i] - x[i];
+}
+
+void EuclideanManifold::plus_jacobian(const double* /*x*/, double* jacobian) const {
+  for (int i = 0; i < size_; ++i) {
+    for (int j = 0; j < size_; ++j) jacobian[i * size_ + j] = i == j ? 1.0 : 0.0;
+  }
 }
 
 bool EuclideanManifold::is_valid(const double* x) const { return all_finite(x, size_); }
@@ -62,6 +100,10 @@ void SO3Manifold::minus(const double* y, const double* x, double* delta) const {
   out = w;
 }
 
+void SO3Manifold::plus_jacobian(const double* x, double* jacobian) const {
+  quaternion_plus_jacobian(x, jacobian, 3);
+}
+
 bool SO3Manifold::is_valid(const double* x) const { return all_finite(x, 4) && unit_quaternion(x); }
 
 void SE3Manifold::plus(const double* x, const double* delta, double* out) const {
@@ -74,6 +116,16 @@ void SE3Manifold::minus(const double* y, const double* x, double* delta) const {
   const se3::Vector6d xi = se3::log(se3::from_storage(x).inverse() * se3::from_storage(y));
   Eigen::Map<se3::Vector6d> out(delta);
   out = xi;
+}
+
+void SE3Manifold::plus_jacobian(const double* x, double* jacobian) const {
+  // [q; t] [+] [w; v] = [q Exp(w); t + R(q) V(w) v]: at 0, dq/dw as for SO(3), dt/dv = R.
+  std::fill(jacobian, jacobian + 42, 0.0);
+  quaternion_plus_jacobian(x, jacobian, 6);
+  const Eigen::Matrix3d R = read_quaternion(x).normalized().toRotationMatrix();
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) jacobian[(4 + r) * 6 + 3 + c] = R(r, c);
+  }
 }
 
 bool SE3Manifold::is_valid(const double* x) const { return all_finite(x, 7) && unit_quaternion(x); }

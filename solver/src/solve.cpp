@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <string>
 #include <vector>
@@ -56,6 +57,13 @@ double free_parameter_norm(const Problem& problem, const std::vector<int>& var_o
 /// changes below it are not measurable.
 double cost_rounding(double cost) {
   return 64.0 * std::numeric_limits<double>::epsilon() * std::abs(cost);
+}
+
+/// A number as %g writes it (std::to_string prints 1e-12 as "0.000000").
+std::string number(double value) {
+  char buffer[32];
+  std::snprintf(buffer, sizeof(buffer), "%.6g", value);
+  return buffer;
 }
 
 /// The termination message when max_iterations ends the solve.
@@ -149,7 +157,7 @@ bool Solver::take_step(IterationSummary& row, double new_cost, int iteration,
   if (std::abs(decrease) <= options_.function_tolerance * old_cost) {
     finish(TerminationType::kConvergence,
            "function tolerance reached: |cost change| / cost = " +
-               std::to_string(old_cost > 0.0 ? std::abs(decrease) / old_cost : 0.0));
+               number(old_cost > 0.0 ? std::abs(decrease) / old_cost : 0.0));
     return true;
   }
   if (last) {
@@ -264,7 +272,7 @@ void Solver::run() {
     const double gradient_max = gradient_.cwiseAbs().maxCoeff();
     if (gradient_max <= options_.gradient_tolerance) {
       finish(TerminationType::kConvergence,
-             "gradient tolerance reached: max |gradient| = " + std::to_string(gradient_max));
+             "gradient tolerance reached: max |gradient| = " + number(gradient_max));
       break;
     }
     if (iteration > options_.max_iterations) {
@@ -328,6 +336,7 @@ void Solver::run() {
         }
         continue;
       }
+      ++summary_.num_unsuccessful_steps;
       record(row, iteration_start);
       finish(TerminationType::kFailure,
              "Gauss-Newton: the system is not positive definite even with damping (gauge not fixed "
@@ -342,6 +351,7 @@ void Solver::run() {
     if (!delta.allFinite()) {
       row.linear_solver_failed = true;
       ++summary_.num_linear_solver_failures;
+      ++summary_.num_unsuccessful_steps;
       record(row, iteration_start);
       finish(TerminationType::kFailure, "the linear solve produced a non-finite step");
       break;
@@ -350,9 +360,10 @@ void Solver::run() {
     const double x_norm = free_parameter_norm(problem_, var_offset, buffers_[current_].data());
     if (row.step_norm <= options_.parameter_tolerance * (x_norm + options_.parameter_tolerance)) {
       row.trust_region_radius = radius;
+      ++summary_.num_unsuccessful_steps;  // the step is not taken
       record(row, iteration_start);
       finish(TerminationType::kConvergence,
-             "parameter tolerance reached: |step| = " + std::to_string(row.step_norm));
+             "parameter tolerance reached: |step| = " + number(row.step_norm));
       break;
     }
 
@@ -425,6 +436,9 @@ void Solver::run() {
 SolverSummary solve(const SolverOptions& options, Problem& problem) {
   const auto start = Clock::now();
   SolverSummary summary;
+  summary.method =
+      options.method == Method::kLevenbergMarquardt ? "levenberg_marquardt" : "gauss_newton";
+  summary.num_threads = options.num_threads;
   std::string error;
   if (!options.validate(&error)) {
     summary.termination = TerminationType::kFailure;

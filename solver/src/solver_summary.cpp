@@ -1,5 +1,6 @@
 #include "carat/solver/solver_summary.hpp"
 
+#include <cmath>
 #include <cstdio>
 #include <nlohmann/json.hpp>
 #include <string>
@@ -28,6 +29,11 @@ const char* to_string(TerminationType type) {
 }
 
 std::string SolverSummary::brief_report() const {
+  if (iterations.empty() && termination == TerminationType::kFailure) {
+    // Nothing was evaluated (invalid options, a block that failed at the start): no costs.
+    return format("carat %s: %s (%s), %.3f s", method.c_str(), to_string(termination),
+                  message.c_str(), time.total_s);
+  }
   return format("carat %s: cost %.6e -> %.6e, %d iterations (%d accepted), %s, %.3f s",
                 method.c_str(), initial_cost, final_cost, num_iterations, num_successful_steps,
                 to_string(termination), time.total_s);
@@ -46,9 +52,16 @@ std::string SolverSummary::iteration_table() const {
     } else if (it.reused_factorization) {
       note = "  (reused factorization)";
     }
-    out += format("%4d % 8.6e % 3.2e % 3.2e % 3.2e % 3.2e % 3.2e % 4.2e % 4.2e%s\n", it.iteration,
-                  it.cost, it.cost_change, it.gradient_max_norm, it.step_norm, it.relative_decrease,
-                  it.trust_region_radius, it.iteration_time_s, it.cumulative_time_s, note);
+    // A value that is not a number is shown as "-", never as "nan" or "-nan".
+    const auto cell = [](const char* fmt, double value, int width) {
+      return std::isfinite(value) ? format(fmt, value) : format("%*s", width, "-");
+    };
+    out += format("%4d", it.iteration) + " " + cell("% 8.6e", it.cost, 13) + " " +
+           cell("% 3.2e", it.cost_change, 9) + " " + cell("% 3.2e", it.gradient_max_norm, 9) + " " +
+           cell("% 3.2e", it.step_norm, 9) + " " + cell("% 3.2e", it.relative_decrease, 9) + " " +
+           cell("% 3.2e", it.trust_region_radius, 9) + " " +
+           cell("% 4.2e", it.iteration_time_s, 9) + " " + cell("% 4.2e", it.cumulative_time_s, 9) +
+           note + "\n";
   }
   return out;
 }

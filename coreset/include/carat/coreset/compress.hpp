@@ -15,7 +15,7 @@ namespace carat {
 /// Settings of compress().
 struct CompressionOptions {
   int target_rows = 0;     ///< M; 0: the minimum r(r+1)/2 + r + 2 for the block's reduced dim r
-  int clusters = 64;       ///< K clusters per Fast-Caratheodory level
+  int clusters = 0;        ///< K clusters per level; 0: default_coreset_clusters(r)
   std::uint64_t seed = 1;  ///< seed of the shuffle
   bool exact_size = true;  ///< exactly M rows (when the block has more than M)
 };

@@ -18,7 +18,8 @@ namespace carat {
 /// Settings of the quadratic coreset.
 struct RowCoresetOptions {
   int target_rows = 0;     ///< M; 0 means the minimum L + 1 (29 for r = 6)
-  int clusters = 64;       ///< K clusters per Fast-Caratheodory level (>= L + 2)
+  int clusters = 0;        ///< K clusters per Fast-Caratheodory level (>= L + 2); 0: the default,
+                           ///< default_coreset_clusters(r) = max(64, 2 (L + 1))
   std::uint64_t seed = 1;  ///< seed of the row shuffle (same seed, same rows)
   bool exact_size = true;  ///< return exactly M rows (when N > M); else at most M
 };
@@ -31,6 +32,11 @@ struct RowCoreset {
 
 /// Smallest valid target for reduced dimension r: r(r+1)/2 + r + 2.
 int minimum_coreset_rows(int reduced_dim);
+
+/// Clusters per level when RowCoresetOptions::clusters is 0: max(64, 2 (L + 1)) with
+/// L = r(r+1)/2 + r + 1, so that each level keeps at most half of the clusters (64 for r <= 6;
+/// 184 for r = 12).
+int default_coreset_clusters(int reduced_dim);
 
 /// Selects the coreset of the rows (J_r: N x r row-major, e: N). N <= M returns every row with
 /// weight 1. Throws carat::Error for M below the minimum, K < L + 2, sizes that do not match,

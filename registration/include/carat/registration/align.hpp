@@ -26,7 +26,8 @@ struct AlignSettings {
   int max_iterations = 30;              ///< outer iterations (correspondence searches)
   double translation_tolerance = 1e-4;  ///< converged when a step moves less (metres) ...
   double rotation_tolerance = 1e-4;     ///< ... and turns less (radians)
-  int min_correspondences = 30;         ///< fewer pairs than this is a failure
+  int min_correspondences = 29;         ///< fewer pairs than this is a failure (as few points as
+                                        ///< preprocess_frame() accepts)
   int num_threads = 1;                  ///< threads for the search and the linearization
 };
 

@@ -41,15 +41,32 @@ class Frame {
   const KdTree& tree() const { return *tree_; }
   /// Number of points.
   std::size_t size() const { return cloud_->size(); }
+  /// The name given to preprocess_frame() (a file, "synthetic frame 3"), for messages; may be
+  /// empty.
+  const std::string& name() const { return name_; }
+  /// Sets the name used in messages.
+  void set_name(std::string name) { name_ = std::move(name); }
+  /// Directions of the frame's pose (of 6) that its own geometry fixes for registration: the
+  /// eigenvalues of sum_k J_k^T C_k^-1 J_k over its points (J = d(T p_k)/d xi at identity,
+  /// rotations scaled by the RMS point radius so all six are in metres) above 5e-3 of the
+  /// largest, the test `carat align` applies to a pair. A plane fixes 3, a line at most 4.
+  int constrained_dof() const { return constrained_dof_; }
+  /// Smallest / largest of those eigenvalues (0 for a degenerate frame).
+  double min_eigenvalue_ratio() const { return min_eigenvalue_ratio_; }
 
  private:
+  void measure_constraint();
+
   std::unique_ptr<PointCloud> cloud_;  // on the heap: the tree keeps a reference to it
   std::unique_ptr<KdTree> tree_;
+  std::string name_;
+  int constrained_dof_ = 0;
+  double min_eigenvalue_ratio_ = 0.0;
 };
 
 /// Downsamples `raw`, estimates covariances and builds the tree. `name` (a file name or
-/// "frame 12") is used in errors; throws carat::Error for bad options or a frame with fewer
-/// than min_points points after downsampling.
+/// "frame 12") is used in errors and kept as the frame's name(); throws carat::Error for bad
+/// options or a frame with fewer than min_points points after downsampling.
 std::shared_ptr<const Frame> preprocess_frame(const PointCloud& raw,
                                               const PreprocessOptions& options,
                                               const std::string& name);

@@ -88,9 +88,10 @@ struct RegistrationProblem {
 
 /// Builds the problem at T_world_frame (the first frame's pose held constant). Factors are
 /// built and compressed in parallel; results do not depend on the thread count. Throws
-/// carat::Error for mismatched counts, bad options, non-finite poses, or a pair with fewer
-/// than min_correspondences correspondences (naming the pair). `progress` gets (factors done,
-/// factors).
+/// carat::Error for mismatched counts, bad options, non-finite poses, a frame after the first
+/// whose own geometry fixes fewer than 6 directions (Frame::constrained_dof(), e.g. a plane),
+/// or a pair with fewer than min_correspondences correspondences (naming the pair). `progress` gets
+/// (factors done, factors).
 RegistrationProblem build_registration_problem(
     std::span<const std::shared_ptr<const Frame>> frames, std::span<const FramePair> pairs,
     std::span<const Eigen::Isometry3d> T_world_frame, const GlobalRegistrationOptions& options,

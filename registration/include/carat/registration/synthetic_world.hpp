@@ -21,6 +21,7 @@
 #include <Eigen/Geometry>
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <span>
 #include <vector>
@@ -145,5 +146,15 @@ std::vector<Eigen::Isometry3d> apply_drift(std::span<const Eigen::Isometry3d> T_
 /// every file is written atomically. Throws carat::Error when scans and poses differ in number
 /// or a file cannot be written.
 void write_synthetic_sequence(const std::filesystem::path& dir, const SyntheticSequence& sequence);
+
+/// Simulates the drive along world.trajectory(options) and writes it into DIR frame by frame,
+/// with the same files as make_synthetic_sequence() then write_synthetic_sequence(), holding
+/// only one scan per running thread in memory (so a drive of any length fits). Scans run in
+/// parallel with TBB. `progress`, if set, gets (frames written, frames). Returns the number of
+/// points written. Throws carat::Error as trajectory() and write_synthetic_sequence() do.
+std::size_t write_synthetic_drive(
+    const std::filesystem::path& dir, const SyntheticWorld& world,
+    const SyntheticTrajectoryOptions& options,
+    const std::function<void(std::size_t, std::size_t)>& progress = {});
 
 }  // namespace carat

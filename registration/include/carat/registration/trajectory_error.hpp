@@ -39,7 +39,10 @@ struct AteStatistics {
 
 /// Settings of compute_ate().
 struct AteOptions {
-  bool align = true;  ///< align the estimate onto the reference with align_umeyama() first
+  bool align = true;  ///< align the estimate onto the reference with align_umeyama() first; when
+                      ///< the estimate's positions lie on a line (or coincide) the rotation about
+                      ///< them, which positions cannot fix, is the one that best aligns the
+                      ///< orientations
 };
 
 /// ATE of `estimate` against `reference` (pose k of one corresponds to pose k of the other).
@@ -52,8 +55,14 @@ AteStatistics compute_ate(std::span<const Eigen::Isometry3d> estimate,
 /// Pairs poses by stamp: candidate pairs differ by at most `max_difference` (seconds), the
 /// closest candidates are taken first (ties: lower estimate index, then lower reference index)
 /// and each pose is used at most once. Returns (estimate index, reference index) pairs sorted by
-/// estimate index. Stamps need not be sorted. Throws carat::Error for non-finite stamps or a
-/// negative or non-finite max_difference.
+/// estimate index. Stamps need not be sorted or distinct. Throws carat::Error for non-finite
+/// stamps or a negative or non-finite max_difference.
+///
+/// Exactly: with differences |estimate_stamp - reference_stamp| as rounded in double, the result
+/// is that of scanning all candidates in increasing (difference, estimate index, reference index)
+/// and taking each whose two poses are both still unused, for every input (equal stamps and equal
+/// differences included); the candidates are never listed. O((n + m) log(n + m)) time and
+/// O(n + m) memory for n estimate and m reference stamps, whatever `max_difference`.
 std::vector<std::pair<int, int>> associate_by_stamp(std::span<const double> estimate_stamps,
                                                     std::span<const double> reference_stamps,
                                                     double max_difference = 0.01);

@@ -39,7 +39,9 @@ struct Trajectory {
 Trajectory parse_trajectory(std::string_view text, TrajectoryFormat format,
                             const std::string& name);
 
-/// Reads a trajectory file (missing, unreadable or empty file -> carat::Error naming it).
+/// Reads a trajectory file line by line: a regular file, or a FIFO or device (e.g. `<(command)`).
+/// Throws carat::Error naming it for a missing, unreadable or empty file, a directory, a line
+/// longer than 64 KiB or holding a NUL byte, and as parse_trajectory() does.
 Trajectory read_trajectory(const std::filesystem::path& path, TrajectoryFormat format);
 
 /// Formats a trajectory as text that parse_trajectory() reads back to the same poses (numbers in

@@ -5,7 +5,9 @@
 
 #include <filesystem>
 #include <istream>
+#include <ostream>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "carat/residuals/pose_graph.hpp"
@@ -33,9 +35,10 @@ struct G2oReadReport {
   std::vector<std::size_t> repaired_lines;  ///< lines whose information matrix was replaced
 };
 
-/// Reads a g2o file. Throws carat::Error naming the file, the line and the problem for a
-/// missing or empty file, an unknown record, a wrong number count, a non-finite number, a
-/// degenerate quaternion, a duplicate vertex, an edge to a missing vertex, or (unless
+/// Reads a g2o file line by line (a regular file, or a FIFO or device). Throws carat::Error naming
+/// the file, the line and the problem for a missing or empty file, a directory, a line longer
+/// than 64 KiB or holding a NUL byte, an unknown record, a wrong number count, a non-finite number,
+/// a degenerate quaternion, a duplicate vertex, an edge to a missing vertex, or (unless
 /// options.information says otherwise) an information matrix that is not positive definite.
 PoseGraph read_g2o(const std::filesystem::path& path, const G2oReadOptions& options = {},
                    G2oReadReport* report = nullptr);
@@ -44,7 +47,14 @@ PoseGraph read_g2o(const std::filesystem::path& path, const G2oReadOptions& opti
 PoseGraph parse_g2o(std::istream& in, const std::string& name, const G2oReadOptions& options = {},
                     G2oReadReport* report = nullptr);
 
+/// Parses g2o text held in memory; `name` is used in error messages.
+PoseGraph parse_g2o(std::string_view text, const std::string& name,
+                    const G2oReadOptions& options = {}, G2oReadReport* report = nullptr);
+
 /// Writes a pose graph in g2o format atomically (temporary file, then rename); full precision.
 void write_g2o(const std::filesystem::path& path, const PoseGraph& graph);
+
+/// Writes a pose graph in g2o format to a stream; full precision.
+void write_g2o(std::ostream& out, const PoseGraph& graph);
 
 }  // namespace carat

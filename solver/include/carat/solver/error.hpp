@@ -2,6 +2,7 @@
 
 #include <stdexcept>
 #include <string>
+#include <string_view>
 
 namespace carat {
 
@@ -11,5 +12,18 @@ class Error : public std::runtime_error {
   /// Creates an error with a complete, human-readable message.
   explicit Error(const std::string& message) : std::runtime_error(message) {}
 };
+
+/// Bytes of an input as an error message may show them: in single quotes, printable ASCII only
+/// (any other byte becomes '?'), at most `max_chars` of them (then "..."), so that a message stays
+/// one short line whatever the input holds.
+inline std::string quote_bytes(std::string_view bytes, std::size_t max_chars = 40) {
+  std::string out = "'";
+  for (std::size_t i = 0; i < bytes.size() && i < max_chars; ++i) {
+    const char c = bytes[i];
+    out += (c >= 0x20 && c < 0x7f) ? c : '?';
+  }
+  if (bytes.size() > max_chars) out += "...";
+  return out + "'";
+}
 
 }  // namespace carat

@@ -27,7 +27,8 @@ class LossFunction {
 /// Huber: rho(s) = s for s <= d^2, 2 d sqrt(s) - d^2 beyond (d: scale in residual units).
 class HuberLoss final : public LossFunction {
  public:
-  /// delta > 0 is the residual norm where the loss turns linear.
+  /// delta in [1e-150, 1e150] (so that delta^2 is a normal double) is the residual norm where
+  /// the loss turns linear; throws carat::Error otherwise.
   explicit HuberLoss(double delta);
   LossValue evaluate(double s) const override;
   const char* name() const override { return "huber"; }
@@ -39,7 +40,8 @@ class HuberLoss final : public LossFunction {
 /// Cauchy: rho(s) = c^2 log(1 + s / c^2) (c: scale in residual units).
 class CauchyLoss final : public LossFunction {
  public:
-  /// scale > 0 is the residual norm where the loss starts to flatten.
+  /// scale in [1e-150, 1e150] (so that scale^2 is a normal double) is the residual norm where
+  /// the loss starts to flatten; throws carat::Error otherwise.
   explicit CauchyLoss(double scale);
   LossValue evaluate(double s) const override;
   const char* name() const override { return "cauchy"; }

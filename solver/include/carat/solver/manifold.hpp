@@ -19,6 +19,10 @@ class Manifold {
   virtual void plus(const double* x, const double* delta, double* x_plus_delta) const = 0;
   /// delta = y [-] x, so that x [+] (y [-] x) = y (locally).
   virtual void minus(const double* y, const double* x, double* delta) const = 0;
+  /// d(x [+] delta) / d delta at delta = 0: ambient_size() x tangent_size(), row-major. The
+  /// default takes central differences through plus() (steps of 1e-6); carat's manifolds
+  /// override it exactly. Automatic differentiation uses it to reach tangent Jacobians.
+  virtual void plus_jacobian(const double* x, double* jacobian) const;
   /// Checks a stored value (finite, normalized where required); false with no side effects.
   virtual bool is_valid(const double* x) const = 0;
   /// Short name for reports ("euclidean(3)", "so3", "se3").
@@ -34,6 +38,7 @@ class EuclideanManifold final : public Manifold {
   int tangent_size() const override { return size_; }
   void plus(const double* x, const double* delta, double* x_plus_delta) const override;
   void minus(const double* y, const double* x, double* delta) const override;
+  void plus_jacobian(const double* x, double* jacobian) const override;
   bool is_valid(const double* x) const override;
   const char* name() const override { return "euclidean"; }
 
@@ -48,6 +53,7 @@ class SO3Manifold final : public Manifold {
   int tangent_size() const override { return 3; }
   void plus(const double* x, const double* delta, double* x_plus_delta) const override;
   void minus(const double* y, const double* x, double* delta) const override;
+  void plus_jacobian(const double* x, double* jacobian) const override;
   bool is_valid(const double* x) const override;
   const char* name() const override { return "so3"; }
 };
@@ -59,6 +65,7 @@ class SE3Manifold final : public Manifold {
   int tangent_size() const override { return 6; }
   void plus(const double* x, const double* delta, double* x_plus_delta) const override;
   void minus(const double* y, const double* x, double* delta) const override;
+  void plus_jacobian(const double* x, double* jacobian) const override;
   bool is_valid(const double* x) const override;
   const char* name() const override { return "se3"; }
 };

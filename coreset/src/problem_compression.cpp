@@ -1,0 +1,182 @@
+#include "carat/coreset/problem_compression.hpp"
+
+#include <tbb/info.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <exception>
+#include <memory>
+
+#include "carat/solver/error.hpp"
+#include "carat/solver/evaluate.hpp"
+#include "carat/solver/solve.hpp"
+
+namespace carat {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double seconds_since(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+std::string number(double value) {
+  char buffer[32];
+  std::snprintf(buffer, sizeof(buffer), "%.6g", value);
+  return buffer;
+}
+
+}  // namespace
+
+ProblemCompressionReport compress_problem(Problem& problem,
+                                          const ProblemCompressionOptions& options) {
+  const auto t0 = Clock::now();
+  ProblemCompressionReport report;
+  const auto blocks = problem.blocks();
+  std::vector<std::shared_ptr<CompressedBlock>> compressed(blocks.size());
+  std::vector<std::string> errors(blocks.size());
+  tbb::task_arena arena(std::clamp(options.num_threads, 1, tbb::info::default_concurrency()));
+  arena.execute([&] {
+    tbb::parallel_for(std::size_t{0}, blocks.size(), [&](std::size_t k) {
+      const auto& entry = blocks[k];
+      const ResidualBlockId id{static_cast<std::int32_t>(k)};
+      if (options.select && !options.select(id, *entry.block)) return;
+      const int r = entry.block->reduced_dim();
+      const int target = options.compression.target_rows > 0 ? options.compression.target_rows
+                                                             : r * (r + 1) / 2 + r + 2;
+      const int floor = options.min_rows > 0 ? options.min_rows : target;
+      if (entry.block->num_rows() <= floor) return;
+      std::vector<const double*> params;
+      for (VariableId v : entry.variables) params.push_back(problem.value(v).data());
+      CompressionOptions compression = options.compression;
+      compression.seed = options.compression.seed + k;
+      try {
+        compressed[k] = compress(entry.block, params, compression);
+      } catch (const std::exception& e) {
+        errors[k] = e.what();
+      }
+    });
+  });
+  for (std::size_t k = 0; k < blocks.size(); ++k) {
+    if (!errors[k].empty()) {
+      throw Error("compress_problem: residual block " + std::to_string(k) + ": " + errors[k]);
+    }
+  }
+  for (std::size_t k = 0; k < blocks.size(); ++k) {
+    const auto& block = blocks[k].block;
+    report.rows_before += static_cast<std::size_t>(block->num_rows());
+    report.bytes_before += block->memory_bytes();
+    if (compressed[k]) {
+      ++report.compressed_blocks;
+      problem.replace_residual_block(ResidualBlockId{static_cast<std::int32_t>(k)}, compressed[k]);
+    }
+    const auto& now = problem.blocks()[k].block;
+    report.rows_after += static_cast<std::size_t>(now->num_rows());
+    report.bytes_after += now->memory_bytes();
+  }
+  report.seconds = seconds_since(t0);
+  return report;
+}
+
+std::string RecompressedSolveSummary::brief_report() const {
+  return "recompressed solve: full cost " + number(initial_cost) + " -> " + number(final_cost) +
+         " (max |gradient| " + number(final_gradient_max_norm) + "), " +
+         std::to_string(recompressions) + " compressions, " + std::to_string(inner_iterations) +
+         " inner iterations, " + std::to_string(full_rows) + " -> " +
+         std::to_string(compressed_rows) + " rows, " + to_string(termination) + " (" + message +
+         "), " + number(total_s) + " s";
+}
+
+RecompressedSolveSummary solve_recompressed(Problem& problem,
+                                            const RecompressedSolveOptions& options) {
+  const auto start = Clock::now();
+  RecompressedSolveSummary summary;
+  std::string why;
+  if (!options.inner.validate(&why)) throw Error("solve_recompressed: inner options: " + why);
+  if (options.max_recompressions < 1) {
+    throw Error("solve_recompressed: max_recompressions must be >= 1, got " +
+                std::to_string(options.max_recompressions));
+  }
+  if (!(options.function_tolerance >= 0.0) || !(options.gradient_tolerance >= 0.0)) {
+    throw Error("solve_recompressed: tolerances must be >= 0");
+  }
+  const int threads = std::max(1, options.compression.num_threads);
+  summary.full_rows = problem.num_residual_rows();
+  auto t0 = Clock::now();
+  ProblemEvaluation full = evaluate_problem(problem, threads);
+  summary.full_evaluation_s += seconds_since(t0);
+  summary.initial_cost = summary.final_cost = full.cost;
+  summary.final_gradient_max_norm = full.gradient_max_norm;
+  const auto finish = [&](TerminationType type, std::string message) {
+    summary.termination = type;
+    summary.message = std::move(message);
+    summary.total_s = seconds_since(start);
+    return summary;
+  };
+  if (!full.finite) return finish(TerminationType::kFailure, "the initial full cost is not finite");
+  if (full.gradient_max_norm <= options.gradient_tolerance) {
+    return finish(TerminationType::kConvergence, "full gradient tolerance reached at the start");
+  }
+  SolverOptions inner = options.inner;
+  inner.num_threads = threads;
+  std::vector<double> accepted(problem.all_values().begin(), problem.all_values().end());
+  while (summary.recompressions < options.max_recompressions) {
+    ++summary.recompressions;
+    Problem work = problem;  // same variables and values; its blocks are replaced
+    t0 = Clock::now();
+    const ProblemCompressionReport compression = compress_problem(work, options.compression);
+    summary.compression_s += seconds_since(t0);
+    summary.compressed_rows = compression.rows_after;
+    t0 = Clock::now();
+    const SolverSummary solved = solve(inner, work);
+    summary.inner_solve_s += seconds_since(t0);
+    summary.inner_iterations += solved.num_iterations;
+    if (solved.termination == TerminationType::kFailure) {
+      return finish(TerminationType::kFailure, "the compressed solve failed: " + solved.message);
+    }
+    problem.set_all_values(work.all_values());
+    t0 = Clock::now();
+    const ProblemEvaluation next = evaluate_problem(problem, threads);
+    summary.full_evaluation_s += seconds_since(t0);
+    summary.records.push_back({next.cost, next.gradient_max_norm, solved.final_cost,
+                               solved.num_iterations, compression.rows_after});
+    if (!next.finite || !(next.cost <= full.cost)) {
+      // The compressed problem led away from the full optimum: keep the last accepted point. One
+      // step of the compressed problem is one step of the full problem's model, so retry with
+      // one inner iteration before giving up.
+      problem.set_all_values(accepted);
+      if (inner.max_iterations > 1) {
+        inner.max_iterations = 1;
+        continue;
+      }
+      return finish(TerminationType::kNoConvergence,
+                    "a compressed step did not lower the full cost (" + number(next.cost) +
+                        " after " + number(full.cost) + ")");
+    }
+    const double change = full.cost - next.cost;
+    full = next;
+    inner.max_iterations = options.inner.max_iterations;
+    accepted.assign(problem.all_values().begin(), problem.all_values().end());
+    summary.final_cost = full.cost;
+    summary.final_gradient_max_norm = full.gradient_max_norm;
+    if (full.gradient_max_norm <= options.gradient_tolerance) {
+      return finish(
+          TerminationType::kConvergence,
+          "full gradient tolerance reached: max |gradient| = " + number(full.gradient_max_norm));
+    }
+    if (change <= options.function_tolerance * std::max(full.cost, 1e-300)) {
+      return finish(TerminationType::kConvergence,
+                    "full function tolerance reached: |cost change| / cost = " +
+                        number(full.cost > 0.0 ? change / full.cost : 0.0));
+    }
+  }
+  return finish(TerminationType::kNoConvergence, "maximum number of compressions reached (" +
+                                                     std::to_string(options.max_recompressions) +
+                                                     ")");
+}
+
+}  // namespace carat

@@ -1,0 +1,56 @@
+#pragma once
+
+/// A folder of scans, as `carat map` reads it: DIR/*.bin|*.pcd|*.ply (KITTI velodyne layout:
+/// .bin is x y z intensity), or DIR/<frame>/points.bin (gtsam_points dumps: x y z), in natural
+/// name order (2.bin before 10.bin); hidden names are skipped. Poses pair with the scans by line
+/// (KITTI, TUM) or by vertex id (graph.txt: scan 000003 takes v3).
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "carat/registration/kitti_io.hpp"
+#include "carat/registration/point_cloud.hpp"
+#include "carat/registration/trajectory_io.hpp"
+
+namespace carat {
+
+/// One scan of a folder and how to read it.
+struct ScanFile {
+  std::filesystem::path path;                   ///< the file (DIR/x.bin or DIR/<frame>/points.bin)
+  std::string name;                             ///< the frame's name: file stem or folder name
+  KittiFormat bin_format = KittiFormat::kXyzi;  ///< record layout when the file is .bin
+};
+
+/// How .bin records of a scan folder are laid out.
+enum class BinLayout {
+  kAuto,  ///< x y z for <frame>/points.bin, x y z intensity for DIR/*.bin
+  kXyz,   ///< 12 bytes per point everywhere
+  kXyzi,  ///< 16 bytes per point everywhere
+};
+
+/// Parses "auto", "xyz" or "xyzi"; throws carat::Error listing them otherwise.
+BinLayout parse_bin_layout(std::string_view name);
+
+/// The scans of `dir` in natural name order. Throws carat::Error naming the path when `dir` is
+/// not a folder, holds no scans, mixes the two layouts, or holds a scan name (*.bin, *.pcd,
+/// *.ply) that is not a regular file (skipping it would pair every later scan with the wrong
+/// pose).
+std::vector<ScanFile> list_scan_folder(const std::filesystem::path& dir,
+                                       BinLayout layout = BinLayout::kAuto);
+
+/// Reads one scan (by its extension). Throws carat::Error as the readers do.
+PointCloud read_scan(const ScanFile& scan, const ReadOptions& options = {});
+
+/// The poses of `trajectory` in scan order: KITTI and TUM poses by line (the counts must be
+/// equal), graph.txt poses by vertex id: scan `000003` takes `v3` when every scan's name is a
+/// number, otherwise the scans in order take the ids in increasing order. The result's stamps
+/// are the ids (graph) or the trajectory's stamps. Throws carat::Error naming `poses_name` and
+/// the scan for different counts, a scan without its id, or two scans with one number.
+Trajectory poses_in_scan_order(const Trajectory& trajectory, TrajectoryFormat format,
+                               const std::vector<ScanFile>& scans, const std::string& poses_name);
+
+/// Whether `a` comes before `b` in natural order: runs of digits compare as numbers.
+bool natural_less(std::string_view a, std::string_view b);
+
+}  // namespace carat

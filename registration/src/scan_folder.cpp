@@ -1,0 +1,150 @@
+#include "carat/registration/scan_folder.hpp"
+
+#include <algorithm>
+#include <charconv>
+#include <map>
+#include <system_error>
+
+#include "carat/registration/point_cloud_io.hpp"
+#include "carat/solver/error.hpp"
+
+namespace carat {
+namespace fs = std::filesystem;
+
+BinLayout parse_bin_layout(std::string_view name) {
+  if (name == "auto") return BinLayout::kAuto;
+  if (name == "xyz") return BinLayout::kXyz;
+  if (name == "xyzi") return BinLayout::kXyzi;
+  throw Error("unknown .bin layout " + quote_bytes(name) + " (valid: auto, xyz, xyzi)");
+}
+
+bool natural_less(std::string_view a, std::string_view b) {
+  std::size_t i = 0, j = 0;
+  const auto digit = [](char c) { return c >= '0' && c <= '9'; };
+  while (i < a.size() && j < b.size()) {
+    if (digit(a[i]) && digit(b[j])) {
+      std::size_t ie = i, je = j;
+      while (ie < a.size() && digit(a[ie])) ++ie;
+      while (je < b.size() && digit(b[je])) ++je;
+      // Compare as numbers: skip leading zeros, then by length, then digit by digit.
+      std::size_t is = i, js = j;
+      while (is + 1 < ie && a[is] == '0') ++is;
+      while (js + 1 < je && b[js] == '0') ++js;
+      if (ie - is != je - js) return ie - is < je - js;
+      const int c = a.substr(is, ie - is).compare(b.substr(js, je - js));
+      if (c != 0) return c < 0;
+      if (ie - i != je - j) return ie - i < je - j;  // fewer leading zeros first
+      i = ie;
+      j = je;
+    } else {
+      if (a[i] != b[j]) return a[i] < b[j];
+      ++i;
+      ++j;
+    }
+  }
+  return a.size() - i < b.size() - j;
+}
+
+std::vector<ScanFile> list_scan_folder(const fs::path& dir, BinLayout layout) {
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec)) throw Error(dir.string() + ": not a folder of frames");
+  std::vector<ScanFile> flat, nested;
+  fs::directory_iterator it(dir, ec);
+  if (ec) throw Error(dir.string() + ": cannot list the folder: " + ec.message());
+  for (const auto& entry : it) {
+    const fs::path& p = entry.path();
+    const std::string file = p.filename().string();
+    if (file.empty() || file[0] == '.') continue;  // hidden, as ls does (also macOS ._ files)
+    std::error_code status_ec;
+    const bool is_dir = entry.is_directory(status_ec);
+    if (is_dir && fs::exists(p / "points.bin", status_ec)) {
+      if (!fs::is_regular_file(p / "points.bin", status_ec)) {
+        throw Error((p / "points.bin").string() +
+                    ": is not a regular file (frames are read from regular files)");
+      }
+      nested.push_back({p / "points.bin", file, KittiFormat::kXyz});
+      continue;
+    }
+    const std::string ext = p.extension().string();
+    if (ext != ".bin" && ext != ".pcd" && ext != ".ply") continue;
+    if (is_dir) continue;
+    if (!entry.is_regular_file(status_ec)) {
+      throw Error(p.string() + ": is not a regular file (frames are read from regular files)");
+    }
+    flat.push_back({p, p.stem().string(), KittiFormat::kXyzi});
+  }
+  if (!flat.empty() && !nested.empty()) {
+    throw Error(dir.string() +
+                ": holds both scan files and <frame>/points.bin folders; keep one layout");
+  }
+  std::vector<ScanFile> scans = flat.empty() ? std::move(nested) : std::move(flat);
+  if (scans.empty()) {
+    throw Error(dir.string() + ": no frames (expected *.bin, *.pcd, *.ply or <frame>/points.bin)");
+  }
+  std::sort(scans.begin(), scans.end(), [](const ScanFile& a, const ScanFile& b) {
+    if (a.name != b.name) return natural_less(a.name, b.name);
+    return a.path < b.path;
+  });
+  if (layout != BinLayout::kAuto) {
+    for (ScanFile& scan : scans) {
+      scan.bin_format = layout == BinLayout::kXyz ? KittiFormat::kXyz : KittiFormat::kXyzi;
+    }
+  }
+  return scans;
+}
+
+PointCloud read_scan(const ScanFile& scan, const ReadOptions& options) {
+  return read_point_cloud(scan.path, scan.bin_format, options);
+}
+
+Trajectory poses_in_scan_order(const Trajectory& trajectory, TrajectoryFormat format,
+                               const std::vector<ScanFile>& scans, const std::string& poses_name) {
+  if (trajectory.poses.size() != scans.size()) {
+    const fs::path folder = scans.empty() ? fs::path() : scans.front().path.parent_path();
+    throw Error(poses_name + " has " + std::to_string(trajectory.poses.size()) +
+                " poses but there are " + std::to_string(scans.size()) + " frames" +
+                (folder.empty() ? std::string() : " in " + folder.string()));
+  }
+  if (format != TrajectoryFormat::kGraph) return trajectory;
+  std::map<std::uint64_t, std::size_t> by_id;
+  for (std::size_t k = 0; k < trajectory.stamps.size(); ++k) {
+    by_id.emplace(static_cast<std::uint64_t>(trajectory.stamps[k]), k);
+  }
+  std::vector<std::uint64_t> numbers;
+  for (const ScanFile& scan : scans) {
+    std::uint64_t number = 0;
+    const std::string& name = scan.name;
+    const auto [ptr, ec] = std::from_chars(name.data(), name.data() + name.size(), number);
+    if (name.empty() || ec != std::errc() || ptr != name.data() + name.size()) {
+      numbers.clear();
+      break;
+    }
+    numbers.push_back(number);
+  }
+  Trajectory ordered;
+  if (numbers.empty()) {  // names are not numbers: ids in increasing order
+    for (const auto& [id, k] : by_id) {
+      ordered.stamps.push_back(trajectory.stamps[k]);
+      ordered.poses.push_back(trajectory.poses[k]);
+    }
+    return ordered;
+  }
+  std::map<std::uint64_t, std::size_t> scan_of_number;
+  for (std::size_t f = 0; f < scans.size(); ++f) {
+    const auto [it, inserted] = scan_of_number.emplace(numbers[f], f);
+    if (!inserted) {
+      throw Error(scans[f].path.string() + ": has the same frame number (" +
+                  std::to_string(numbers[f]) + ") as " + scans[it->second].path.string());
+    }
+    const auto pose = by_id.find(numbers[f]);
+    if (pose == by_id.end()) {
+      throw Error(poses_name + ": has no vertex v" + std::to_string(numbers[f]) + " for frame " +
+                  scans[f].path.string() + " (graph poses pair with frames by id)");
+    }
+    ordered.stamps.push_back(trajectory.stamps[pose->second]);
+    ordered.poses.push_back(trajectory.poses[pose->second]);
+  }
+  return ordered;
+}
+
+}  // namespace carat

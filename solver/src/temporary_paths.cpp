@@ -1,0 +1,56 @@
+#include "carat/solver/temporary_paths.hpp"
+
+#include <algorithm>
+#include <mutex>
+#include <vector>
+
+namespace carat {
+namespace {
+
+struct Registry {
+  std::mutex mutex;
+  std::vector<std::filesystem::path> paths;
+};
+
+Registry& registry() {
+  static Registry* const instance = new Registry;  // never destroyed: usable until exit
+  return *instance;
+}
+
+}  // namespace
+
+std::filesystem::path create_temporary(const std::function<std::filesystem::path()>& create) {
+  Registry& r = registry();
+  const std::lock_guard lock(r.mutex);
+  std::filesystem::path path = create();
+  r.paths.push_back(path);
+  return path;
+}
+
+void release_temporary(const std::filesystem::path& path, const std::function<void()>& finish) {
+  Registry& r = registry();
+  const std::lock_guard lock(r.mutex);
+  const auto forget = [&] {
+    const auto it = std::find(r.paths.begin(), r.paths.end(), path);
+    if (it != r.paths.end()) r.paths.erase(it);
+  };
+  try {
+    if (finish) finish();
+  } catch (...) {
+    forget();
+    throw;
+  }
+  forget();
+}
+
+void remove_temporaries_for_exit() noexcept {
+  Registry& r = registry();
+  r.mutex.lock();  // never unlocked: the process ends next
+  for (const auto& path : r.paths) {
+    std::error_code ignored;
+    std::filesystem::remove_all(path, ignored);
+  }
+  r.paths.clear();
+}
+
+}  // namespace carat

@@ -1,0 +1,134 @@
+// Compressing whole problems, and solving them to the full optimum with compressed blocks: the
+// curve fit y = exp(m x + c) (10,000 rows, one block), where a single compression stops far from
+// the full optimum and re-compression reaches it, and the evaluation of full costs.
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "carat/coreset/problem_compression.hpp"
+#include "carat/solver/autodiff_block.hpp"
+#include "carat/solver/evaluate.hpp"
+#include "carat/solver/solve.hpp"
+
+namespace carat {
+namespace {
+
+struct ExpResidual {
+  template <typename T>
+  bool operator()(const Eigen::Vector2d& xy, const T* mc, T* residual) const {
+    using std::exp;
+    residual[0] = T(xy.y()) - exp(mc[0] * xy.x() + mc[1]);
+    return true;
+  }
+};
+
+std::vector<Eigen::Vector2d> curve_data(int n, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> noise(0.0, 0.2);
+  std::vector<Eigen::Vector2d> data;
+  for (int k = 0; k < n; ++k) {
+    const double x = 5.0 * k / n;
+    data.emplace_back(x, std::exp(0.3 * x + 0.1) + noise(rng));
+  }
+  return data;
+}
+
+/// The curve fit as a problem of one block of 10,000 rows over (m, c), started at (0, 0).
+Problem curve_problem() {
+  Problem problem;
+  const VariableId mc = problem.add_euclidean(Eigen::Vector2d(0.0, 0.0));
+  problem.add_residual_block(
+      make_autodiff_block<1, VariableSize<2>>(ExpResidual{}, curve_data(10000, 1)), {mc});
+  return problem;
+}
+
+SolverOptions tight() {
+  SolverOptions options;
+  options.function_tolerance = 1e-15;
+  options.gradient_tolerance = 1e-12;
+  options.parameter_tolerance = 1e-14;
+  options.max_iterations = 200;
+  return options;
+}
+
+TEST(ProblemCompressionTest, CompressesEveryLargeBlockAndReportsTheBytes) {
+  Problem problem = curve_problem();
+  const double before = evaluate_problem(problem).cost;
+  const ProblemCompressionReport report = compress_problem(problem);
+  EXPECT_EQ(report.compressed_blocks, 1);
+  EXPECT_EQ(report.rows_before, 10000u);
+  EXPECT_EQ(report.rows_after, 7u);  // D = 2: 2 * 3 / 2 + 2 + 2
+  EXPECT_LT(report.bytes_after * 100, report.bytes_before);
+  // Exact at the point of compression: the same cost and gradient.
+  const ProblemEvaluation full = evaluate_problem(curve_problem());
+  const ProblemEvaluation small = evaluate_problem(problem);
+  EXPECT_NEAR(small.cost, before, 1e-12 * before);
+  EXPECT_LT((small.gradient - full.gradient).norm(), 1e-10 * full.gradient.norm());
+  // A block with fewer rows than M stays as it is; a filter can skip blocks.
+  Problem filtered = curve_problem();
+  ProblemCompressionOptions none;
+  none.select = [](ResidualBlockId, const ResidualBlock&) { return false; };
+  EXPECT_EQ(compress_problem(filtered, none).compressed_blocks, 0);
+}
+
+TEST(ProblemCompressionTest, RecompressionReachesTheFullOptimum) {
+  Problem full = curve_problem();
+  const SolverSummary direct = solve(tight(), full);
+  ASSERT_TRUE(direct.is_solution_usable()) << direct.message;
+  const double optimum = evaluate_problem(full).cost;
+
+  // One compression at the start, solved to its own optimum: a different point.
+  Problem once = curve_problem();
+  compress_problem(once);
+  solve(tight(), once);
+  Problem judged = curve_problem();
+  judged.set_all_values(once.all_values());
+  const double once_cost = evaluate_problem(judged).cost;
+  EXPECT_GT(once_cost, optimum * (1.0 + 1e-3)) << "a single compression should stop elsewhere";
+
+  // Re-compression until the full problem's tests hold: the full optimum.
+  Problem recompressed = curve_problem();
+  RecompressedSolveOptions options;
+  options.inner = tight();
+  const RecompressedSolveSummary summary = solve_recompressed(recompressed, options);
+  EXPECT_EQ(summary.termination, TerminationType::kConvergence) << summary.brief_report();
+  EXPECT_LE(std::abs(summary.final_cost - optimum), 1e-9 * optimum) << summary.brief_report();
+  EXPECT_NEAR(recompressed.value(VariableId{0})[0], full.value(VariableId{0})[0], 1e-6);
+  EXPECT_NEAR(recompressed.value(VariableId{0})[1], full.value(VariableId{0})[1], 1e-6);
+  EXPECT_EQ(summary.full_rows, 10000u);
+  EXPECT_EQ(summary.compressed_rows, 7u);
+  EXPECT_GE(summary.recompressions, 2);
+  EXPECT_EQ(summary.records.size(), static_cast<std::size_t>(summary.recompressions));
+  EXPECT_DOUBLE_EQ(summary.records.back().full_cost, summary.final_cost);
+  EXPECT_LT(summary.final_gradient_max_norm, 1e-3);  // from about 1e5 at the start
+  // The problem's blocks are untouched: still the full one.
+  EXPECT_EQ(recompressed.num_residual_rows(), 10000u);
+}
+
+TEST(ProblemCompressionTest, BadOptionsAreErrors) {
+  Problem problem = curve_problem();
+  RecompressedSolveOptions options;
+  options.max_recompressions = 0;
+  EXPECT_THROW(solve_recompressed(problem, options), Error);
+  options.max_recompressions = 3;
+  options.inner.max_iterations = -1;
+  EXPECT_THROW(solve_recompressed(problem, options), Error);
+  ProblemCompressionOptions small;
+  small.compression.target_rows = 3;  // below the minimum of 7 for D = 2
+  EXPECT_THROW(
+      {
+        try {
+          compress_problem(problem, small);
+        } catch (const Error& e) {
+          EXPECT_NE(std::string(e.what()).find("compress_problem: residual block 0: coreset: "
+                                               "target of 3 rows is below the minimum of 7"),
+                    std::string::npos)
+              << e.what();
+          throw;
+        }
+      },
+      Error);
+}
+
+}  // namespace
+}  // namespace carat
