@@ -191,6 +191,17 @@ TEST(CoresetTest, BadInputIsAClearError) {
   const Eigen::VectorXd short_e = Eigen::VectorXd::Zero(10);
   expect_error([&] { select_coreset_rows(rows.J, short_e); },
                "coreset: 500 Jacobian rows but 10 residuals");
+  // A dimension whose elimination would not fit: refused before any allocation.
+  Rows wide = random_rows(400, 160, 1.0, 7);
+  expect_error([&] { select_coreset_rows(wide.J, wide.e); },
+               "coreset: reduced dimension 160 (lifted dimension 13041) with 26084 clusters needs "
+               "about");
+  // The default clusters follow the dimension: D = 12 works without setting them.
+  Rows twelve = random_rows(3000, 12, 1.0, 8);
+  const RowCoreset coreset = select_coreset_rows(twelve.J, twelve.e);
+  EXPECT_EQ(coreset.rows.size(), 92u);
+  EXPECT_EQ(default_coreset_clusters(12), 184);
+  EXPECT_EQ(default_coreset_clusters(6), 64);
 }
 
 }  // namespace

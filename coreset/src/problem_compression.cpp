@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdio>
 #include <exception>
+#include <limits>
 #include <memory>
 
 #include "carat/solver/error.hpp"
@@ -145,10 +146,16 @@ RecompressedSolveSummary solve_recompressed(Problem& problem,
     summary.records.push_back({next.cost, next.gradient_max_norm, solved.final_cost,
                                solved.num_iterations, compression.rows_after});
     if (!next.finite || !(next.cost <= full.cost)) {
+      problem.set_all_values(accepted);
+      // A rise within the rounding of the cost (a sum of many terms): nothing left to gain.
+      const double rounding = 1e3 * std::numeric_limits<double>::epsilon() * full.cost;
+      if (next.finite && next.cost - full.cost <= rounding) {
+        return finish(TerminationType::kConvergence,
+                      "the full cost no longer decreases beyond its rounding");
+      }
       // The compressed problem led away from the full optimum: keep the last accepted point. One
       // step of the compressed problem is one step of the full problem's model, so retry with
       // one inner iteration before giving up.
-      problem.set_all_values(accepted);
       if (inner.max_iterations > 1) {
         inner.max_iterations = 1;
         continue;

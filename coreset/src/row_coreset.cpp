@@ -140,6 +140,18 @@ RowCoreset select_coreset_rows(const Eigen::Ref<const RowMatrix>& J_r,
                 std::to_string(L + 2) + ", or 0 for the default " +
                 std::to_string(default_coreset_clusters(r)));
   }
+  // The scratch a level needs grows as L x K (the elimination's tableau) and L x N / 32 (the
+  // chunk sums): refuse what cannot be held instead of failing inside an allocation.
+  constexpr double kMaxScratchBytes = 4e9;
+  const double scratch = 8.0 * static_cast<double>(L + 1) *
+                         (2.0 * static_cast<double>(K) + static_cast<double>(N) / 32.0 + 8.0);
+  if (scratch > kMaxScratchBytes) {
+    throw Error("coreset: reduced dimension " + std::to_string(r) + " (lifted dimension " +
+                std::to_string(L) + ") with " + std::to_string(K) + " clusters needs about " +
+                std::to_string(static_cast<long>(scratch / 1e6)) +
+                " MB of scratch, more than the 4000 MB allowed; compress a reduced Jacobian "
+                "(reduced_dim()) or fewer rows at a time");
+  }
 
   // Row-major rows with unit stride, as the lift kernels read them.
   RowMatrix J_copy;

@@ -32,10 +32,12 @@ carat::Problem make_problem(const camera_scene::Scene& scene, std::vector<carat:
                                    camera_scene::Reprojection{}, scene.observations[k]),
                                {(*ids)[k]});
   }
+  // Translation rows first, as RelativePoseBlock (and g2o, and Ceres's pose_graph_3d) take them.
   carat::se3::Matrix6d information = carat::se3::Matrix6d::Zero();
-  information.diagonal()
-      << carat::se3::Vector6d::Constant(1.0 / std::pow(scene.odometry_sigma_rad, 2)).head<3>(),
-      carat::se3::Vector6d::Constant(1.0 / std::pow(scene.odometry_sigma_m, 2)).head<3>();
+  for (int a = 0; a < 3; ++a) {
+    information(a, a) = 1.0 / (scene.odometry_sigma_m * scene.odometry_sigma_m);
+    information(3 + a, 3 + a) = 1.0 / (scene.odometry_sigma_rad * scene.odometry_sigma_rad);
+  }
   for (std::size_t k = 0; k + 1 < ids->size(); ++k) {
     problem.add_residual_block(
         std::make_shared<carat::RelativePoseBlock>(scene.odometry[k], information),

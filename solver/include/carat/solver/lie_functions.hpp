@@ -11,12 +11,17 @@
 
 namespace carat::lie {
 
-/// The value part of a scalar (the scalar itself for double; .value() of a dual number).
-inline double value_of(double x) { return x; }
-/// The value part of a dual number.
+/// The value part of a scalar: the scalar itself for double, .value() of Eigen's AutoDiffScalar,
+/// .a of a Ceres Jet (so that functors can branch on values, e.g. a point behind a camera).
 template <typename T>
-auto value_of(const T& x) -> decltype(x.value()) {
-  return x.value();
+double value_of(const T& x) {
+  if constexpr (requires { x.value(); }) {
+    return static_cast<double>(x.value());
+  } else if constexpr (requires { x.a; }) {
+    return static_cast<double>(x.a);
+  } else {
+    return static_cast<double>(x);
+  }
 }
 
 /// out = a x b.
