@@ -107,46 +107,68 @@ RecompressedSolveSummary solve_recompressed(Problem& problem,
   }
   const int threads = std::max(1, options.compression.num_threads);
   summary.full_rows = problem.num_residual_rows();
-  auto t0 = Clock::now();
-  ProblemEvaluation full = evaluate_problem(problem, threads);
-  summary.full_evaluation_s += seconds_since(t0);
-  summary.initial_cost = summary.final_cost = full.cost;
-  summary.final_gradient_max_norm = full.gradient_max_norm;
   const auto finish = [&](TerminationType type, std::string message) {
+    // The reported cost is the full problem's, evaluated once more at the returned point.
+    const auto t0 = Clock::now();
+    const ProblemEvaluation final = evaluate_problem(problem, threads);
+    summary.full_evaluation_s += seconds_since(t0);
+    summary.final_cost = final.cost;
+    summary.final_gradient_max_norm = final.gradient_max_norm;
     summary.termination = type;
     summary.message = std::move(message);
     summary.total_s = seconds_since(start);
     return summary;
   };
+  // A compression at a point is also the full problem's cost and gradient there: the coreset
+  // reproduces every block's b and c exactly, so evaluating the compressed copy (a few rows per
+  // block) replaces a pass over all rows.
+  const auto compressed_at = [&](const std::vector<double>& values, Problem* work,
+                                 ProblemEvaluation* model) {
+    *work = problem;
+    work->set_all_values(values);
+    const auto t0 = Clock::now();
+    const ProblemCompressionReport report = compress_problem(*work, options.compression);
+    summary.compression_s += seconds_since(t0);
+    summary.compressed_rows = report.rows_after;
+    ++summary.recompressions;
+    const auto t1 = Clock::now();
+    *model = evaluate_problem(*work, threads);
+    summary.full_evaluation_s += seconds_since(t1);
+  };
+  std::vector<double> accepted(problem.all_values().begin(), problem.all_values().end());
+  Problem work;
+  ProblemEvaluation full;
+  compressed_at(accepted, &work, &full);
+  summary.initial_cost = full.cost;
   if (!full.finite) return finish(TerminationType::kFailure, "the initial full cost is not finite");
   if (full.gradient_max_norm <= options.gradient_tolerance) {
     return finish(TerminationType::kConvergence, "full gradient tolerance reached at the start");
   }
   SolverOptions inner = options.inner;
   inner.num_threads = threads;
-  std::vector<double> accepted(problem.all_values().begin(), problem.all_values().end());
-  while (summary.recompressions < options.max_recompressions) {
-    ++summary.recompressions;
-    Problem work = problem;  // same variables and values; its blocks are replaced
-    t0 = Clock::now();
-    const ProblemCompressionReport compression = compress_problem(work, options.compression);
-    summary.compression_s += seconds_since(t0);
-    summary.compressed_rows = compression.rows_after;
-    t0 = Clock::now();
-    const SolverSummary solved = solve(inner, work);
+  for (;;) {
+    Problem solved_work = work;
+    auto t0 = Clock::now();
+    const SolverSummary solved = solve(inner, solved_work);
     summary.inner_solve_s += seconds_since(t0);
     summary.inner_iterations += solved.num_iterations;
     if (solved.termination == TerminationType::kFailure) {
       return finish(TerminationType::kFailure, "the compressed solve failed: " + solved.message);
     }
-    problem.set_all_values(work.all_values());
-    t0 = Clock::now();
-    const ProblemEvaluation next = evaluate_problem(problem, threads);
-    summary.full_evaluation_s += seconds_since(t0);
+    if (summary.recompressions >= options.max_recompressions) {
+      problem.set_all_values(solved_work.all_values());
+      return finish(TerminationType::kNoConvergence,
+                    "maximum number of compressions reached (" +
+                        std::to_string(options.max_recompressions) + ")");
+    }
+    const std::vector<double> candidate(solved_work.all_values().begin(),
+                                        solved_work.all_values().end());
+    Problem next_work;
+    ProblemEvaluation next;
+    compressed_at(candidate, &next_work, &next);
     summary.records.push_back({next.cost, next.gradient_max_norm, solved.final_cost,
-                               solved.num_iterations, compression.rows_after});
+                               solved.num_iterations, summary.compressed_rows});
     if (!next.finite || !(next.cost <= full.cost)) {
-      problem.set_all_values(accepted);
       // A rise within the rounding of the cost (a sum of many terms): nothing left to gain.
       const double rounding = 1e3 * std::numeric_limits<double>::epsilon() * full.cost;
       if (next.finite && next.cost - full.cost <= rounding) {
@@ -166,10 +188,10 @@ RecompressedSolveSummary solve_recompressed(Problem& problem,
     }
     const double change = full.cost - next.cost;
     full = next;
+    work = std::move(next_work);
+    accepted = candidate;
+    problem.set_all_values(accepted);
     inner.max_iterations = options.inner.max_iterations;
-    accepted.assign(problem.all_values().begin(), problem.all_values().end());
-    summary.final_cost = full.cost;
-    summary.final_gradient_max_norm = full.gradient_max_norm;
     if (full.gradient_max_norm <= options.gradient_tolerance) {
       return finish(
           TerminationType::kConvergence,
@@ -181,9 +203,6 @@ RecompressedSolveSummary solve_recompressed(Problem& problem,
                         number(full.cost > 0.0 ? change / full.cost : 0.0));
     }
   }
-  return finish(TerminationType::kNoConvergence, "maximum number of compressions reached (" +
-                                                     std::to_string(options.max_recompressions) +
-                                                     ")");
 }
 
 }  // namespace carat

@@ -57,10 +57,11 @@ struct RecompressedSolveOptions {
   double gradient_tolerance = 1e-10;  ///< stop when the full max |gradient| is below this
 };
 
-/// One outer iteration of solve_recompressed(): a compression, a solve, a full evaluation.
+/// One outer iteration of solve_recompressed(): a solve of the compressed problem, judged at the
+/// compression of its result.
 struct RecompressionRecord {
-  double full_cost = 0.0;               ///< full cost after this iteration's solve
-  double full_gradient_max_norm = 0.0;  ///< full max |gradient| there
+  double full_cost = 0.0;               ///< full cost at the solve's result (from its coreset)
+  double full_gradient_max_norm = 0.0;  ///< full max |gradient| there (from its coreset)
   double compressed_final_cost = 0.0;   ///< the compressed problem's own final cost
   int inner_iterations = 0;             ///< iterations of the compressed solve
   std::size_t compressed_rows = 0;      ///< rows of the compressed problem
@@ -87,10 +88,13 @@ struct RecompressedSolveSummary {
 };
 
 /// Minimizes the full problem's cost with compressed copies of it (see the file comment) and
-/// writes the result into `problem` (whose blocks are not changed). Each outer iteration is
-/// accepted only if it lowers the full cost; otherwise the solve stops at the last accepted
-/// point. Does not throw for numerical trouble (reported as termination); throws carat::Error
-/// for invalid options or a block compress() refuses.
+/// writes the result into `problem` (whose blocks are not changed). The compression at a solve's
+/// result also judges it: a coreset keeps each block's b and c exactly, so the compressed copy's
+/// cost and gradient are the full problem's there, without a pass over all rows; the final cost
+/// is the full problem's, evaluated once at the end. Each outer iteration is accepted only if it
+/// lowers the full cost; otherwise the solve retries with one inner iteration, then stops at the
+/// last accepted point. Does not throw for numerical trouble (reported as termination); throws
+/// carat::Error for invalid options or a block compress() refuses.
 RecompressedSolveSummary solve_recompressed(Problem& problem,
                                             const RecompressedSolveOptions& options = {});
 

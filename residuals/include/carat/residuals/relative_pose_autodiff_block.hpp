@@ -56,6 +56,10 @@ class RelativePoseAutoDiffBlock final : public GroupedRowsBlock<Data, kGroupRows
   void reduced_map(ParameterPointers params, double* A) const override {
     relative_pose_reduced_map(params, A);
   }
+  double accumulate(ParameterPointers params, Eigen::Ref<Eigen::MatrixXd> H_r,
+                    Eigen::Ref<Eigen::VectorXd> b_r) const override {
+    return this->template accumulate_groups<6>(params, H_r, b_r);
+  }
 
  private:
   RelativePoseAutoDiffBlock(Functor functor, std::shared_ptr<const std::vector<Data>> data,

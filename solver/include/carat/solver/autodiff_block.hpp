@@ -89,6 +89,11 @@ class AutoDiffBlock final : public GroupedRowsBlock<Data, kGroupRows> {
                       std::make_shared<const std::vector<Data>>(std::move(data)),
                       std::move(manifolds), std::move(name), {}) {}
 
+  double accumulate(ParameterPointers params, Eigen::Ref<Eigen::MatrixXd> H_r,
+                    Eigen::Ref<Eigen::VectorXd> b_r) const override {
+    return this->template accumulate_groups<kTangentDim>(params, H_r, b_r);
+  }
+
  private:
   static constexpr std::array<int, sizeof...(Variables)> kAmbient{Variables::ambient...};
   static constexpr std::array<int, sizeof...(Variables)> kTangent{Variables::tangent...};

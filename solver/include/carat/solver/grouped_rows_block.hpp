@@ -7,6 +7,7 @@
 /// once per call for consecutive rows), and extracts the data of selected rows so that a
 /// compressed block keeps only those data.
 
+#include <Eigen/Core>
 #include <algorithm>
 #include <array>
 #include <cstdint>
@@ -128,6 +129,33 @@ class GroupedRowsBlock : public ResidualBlock {
   struct Context {
     virtual ~Context() = default;
   };
+
+  /// accumulate() for a reduced dimension R known at compile time: each group is evaluated once
+  /// and added to fixed-size sums, without staging rows (the default accumulate() copies them
+  /// in chunks). Blocks that hold an extract (a row map) use the default.
+  template <int R>
+  double accumulate_groups(ParameterPointers params, Eigen::Ref<Eigen::MatrixXd> H_r,
+                           Eigen::Ref<Eigen::VectorXd> b_r) const {
+    if (!row_map_.empty()) return ResidualBlock::accumulate(params, H_r, b_r);
+    auto context = prepare(params);
+    Eigen::Matrix<double, R, R> H = Eigen::Matrix<double, R, R>::Zero();
+    Eigen::Matrix<double, R, 1> b = Eigen::Matrix<double, R, 1>::Zero();
+    double c = 0.0;
+    Eigen::Matrix<double, kGroupRows, 1> e;
+    Eigen::Matrix<double, kGroupRows, R, Eigen::RowMajor> J;
+    for (const Data& datum : *data_) {
+      if (!evaluate_group(*context, datum, e.data(), J.data())) {
+        e.setConstant(std::numeric_limits<double>::quiet_NaN());
+        J.setConstant(std::numeric_limits<double>::quiet_NaN());
+      }
+      H.noalias() += J.transpose() * J;
+      b.noalias() += J.transpose() * e;
+      c += e.squaredNorm();
+    }
+    H_r += H;
+    b_r += b;
+    return c;
+  }
 
   GroupedRowsBlock(std::shared_ptr<const std::vector<Data>> data, std::vector<int> tangent_dims,
                    std::string name, std::vector<std::uint32_t> row_map = {})

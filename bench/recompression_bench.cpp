@@ -1,0 +1,182 @@
+// When solving with re-compressed blocks beats solving the full problem, and when it does not:
+// the same built problem solved to the same tight tolerances by
+//   BM_Solve/<problem>/0   the full problem, Levenberg-Marquardt;
+//   BM_Solve/<problem>/1   solve_recompressed(): compress, solve, judge on the full problem,
+//                          compress again, until the full problem's tests hold (its optimum);
+//   BM_Solve/<problem>/2   one compression at the start, then solved (not the full optimum:
+//                          the counter cost_vs_full says how far).
+// Problems: 0 the curve fit y = exp(m x + c) (10,000 rows, 2 unknowns, from (0, 0)); 1 camera
+// localization (20 frames x 3,000 matches, start 0.1 m / 1 degree off); 2 the same from 0.5 m /
+// 5 degrees; 3 a dense LiDAR registration graph (synthetic world, 40 frames, full GICP factors,
+// drift start). Counters: iterations (inner for 1 and 2), compressions, cost_vs_full.
+//
+//   ./build/bench/recompression_bench
+#include <benchmark/benchmark.h>
+
+#include <memory>
+#include <random>
+
+#include "../examples/camera_localization/camera_scene.hpp"
+#include "carat/coreset/problem_compression.hpp"
+#include "carat/registration/dense_graph.hpp"
+#include "carat/registration/frame.hpp"
+#include "carat/registration/global_registration.hpp"
+#include "carat/registration/synthetic_world.hpp"
+#include "carat/residuals/relative_pose_block.hpp"
+#include "carat/solver/autodiff_block.hpp"
+#include "carat/solver/evaluate.hpp"
+#include "carat/solver/solve.hpp"
+
+namespace {
+
+struct ExpResidual {
+  template <typename T>
+  bool operator()(const Eigen::Vector2d& xy, const T* mc, T* residual) const {
+    using std::exp;
+    residual[0] = T(xy.y()) - exp(mc[0] * xy.x() + mc[1]);
+    return true;
+  }
+};
+
+carat::Problem curve_problem() {
+  std::mt19937_64 rng(1);
+  std::normal_distribution<double> noise(0.0, 0.2);
+  std::vector<Eigen::Vector2d> data;
+  for (int k = 0; k < 10000; ++k) {
+    const double x = 5.0 * k / 10000;
+    data.emplace_back(x, std::exp(0.3 * x + 0.1) + noise(rng));
+  }
+  carat::Problem problem;
+  const carat::VariableId mc = problem.add_euclidean(Eigen::Vector2d(0.0, 0.0));
+  problem.add_residual_block(
+      carat::make_autodiff_block<1, carat::VariableSize<2>>(ExpResidual{}, data), {mc});
+  return problem;
+}
+
+carat::Problem camera_problem(double start_m, double start_deg) {
+  const camera_scene::Scene scene = camera_scene::make_scene(20, 3000, start_m, start_deg);
+  carat::Problem problem;
+  std::vector<carat::VariableId> ids;
+  for (const auto& T : scene.T_world_camera_start) ids.push_back(problem.add_se3(T));
+  for (std::size_t k = 0; k < ids.size(); ++k) {
+    problem.add_residual_block(carat::make_autodiff_block<2, carat::Se3Variable>(
+                                   camera_scene::Reprojection{}, scene.observations[k]),
+                               {ids[k]});
+  }
+  carat::se3::Matrix6d information = carat::se3::Matrix6d::Zero();
+  for (int a = 0; a < 3; ++a) {
+    information(a, a) = 1.0 / (scene.odometry_sigma_m * scene.odometry_sigma_m);
+    information(3 + a, 3 + a) = 1.0 / (scene.odometry_sigma_rad * scene.odometry_sigma_rad);
+  }
+  for (std::size_t k = 0; k + 1 < ids.size(); ++k) {
+    problem.add_residual_block(
+        std::make_shared<carat::RelativePoseBlock>(scene.odometry[k], information),
+        {ids[k], ids[k + 1]});
+  }
+  return problem;
+}
+
+carat::Problem registration_problem() {
+  carat::SyntheticWorldOptions world_options;
+  world_options.seed = 7;
+  const carat::SyntheticWorld world(world_options);
+  carat::SyntheticTrajectoryOptions drive;
+  drive.frames = 40;
+  drive.laps = 2;
+  const carat::SyntheticSequence sequence = carat::make_synthetic_sequence(world, drive);
+  std::vector<std::shared_ptr<const carat::Frame>> frames;
+  for (const auto& scan : sequence.scans) {
+    frames.push_back(carat::preprocess_frame(scan, carat::PreprocessOptions{}, "frame"));
+  }
+  carat::DriftOptions drift;
+  drift.seed = 3;
+  drift.translation_sigma = 0.005;
+  drift.rotation_sigma_deg = 0.03;
+  const auto initial = carat::apply_drift(sequence.T_world_frame, drift);
+  const auto pairs = carat::build_dense_graph(frames, initial);
+  carat::GlobalRegistrationOptions options;
+  options.sampling = carat::ResidualSampling::kFull;
+  return carat::build_registration_problem(frames, pairs, initial, options).problem;
+}
+
+const carat::Problem& problem(int which) {
+  static const carat::Problem curve = curve_problem();
+  static const carat::Problem camera = camera_problem(0.1, 1.0);
+  static const carat::Problem camera_far = camera_problem(0.5, 5.0);
+  static const carat::Problem registration = registration_problem();
+  switch (which) {
+    case 0:
+      return curve;
+    case 1:
+      return camera;
+    case 2:
+      return camera_far;
+    default:
+      return registration;
+  }
+}
+
+carat::SolverOptions tight() {
+  carat::SolverOptions options;
+  options.function_tolerance = 1e-12;
+  options.gradient_tolerance = 1e-10;
+  options.max_iterations = 200;
+  return options;
+}
+
+/// The full optimum's cost, once per problem.
+double optimum(int which) {
+  static std::array<double, 4> costs{-1.0, -1.0, -1.0, -1.0};
+  auto& c = costs[static_cast<std::size_t>(which)];
+  if (c < 0.0) {
+    carat::Problem p = problem(which);
+    carat::solve(tight(), p);
+    c = carat::evaluate_problem(p).cost;
+  }
+  return c;
+}
+
+void BM_Solve(benchmark::State& state) {
+  const int which = static_cast<int>(state.range(0));
+  const int mode = static_cast<int>(state.range(1));
+  const double best = optimum(which);
+  double cost = 0.0;
+  int iterations = 0, compressions = 0;
+  for (auto _ : state) {
+    carat::Problem p = problem(which);  // shares the blocks: a cheap copy of values
+    if (mode == 0) {
+      iterations = carat::solve(tight(), p).num_iterations;
+      state.PauseTiming();
+      cost = carat::evaluate_problem(p).cost;
+      state.ResumeTiming();
+    } else if (mode == 1) {
+      carat::RecompressedSolveOptions options;
+      options.inner = tight();
+      const carat::RecompressedSolveSummary s = carat::solve_recompressed(p, options);
+      iterations = s.inner_iterations;
+      compressions = s.recompressions;
+      cost = s.final_cost;
+    } else {
+      carat::compress_problem(p);
+      iterations = carat::solve(tight(), p).num_iterations;
+      compressions = 1;
+      state.PauseTiming();
+      carat::Problem judged = problem(which);
+      judged.set_all_values(p.all_values());
+      cost = carat::evaluate_problem(judged).cost;
+      state.ResumeTiming();
+    }
+  }
+  state.counters["iterations"] = iterations;
+  state.counters["compressions"] = compressions;
+  state.counters["cost_vs_full"] = cost / best - 1.0;
+}
+
+}  // namespace
+
+BENCHMARK(BM_Solve)
+    ->ArgsProduct({{0, 1, 2, 3}, {0, 1, 2}})
+    ->Unit(benchmark::kMillisecond)
+    ->MeasureProcessCPUTime();
+
+BENCHMARK_MAIN();
