@@ -311,7 +311,9 @@ if [[ -f "${CARAT_DATA_DIR:-}/kitti07_seq5/graph.txt" ]]; then
 fi
 
 # paper --quick: the report, the figures and the JSON numbers the issue asks for.
-check paper_quick 0 "" -- "$CARAT" paper --quick --json --out "$scratch/paper" --data "${CARAT_DATA_DIR:-/nonexistent}"
+paper_data=()
+if [[ -d "${CARAT_DATA_DIR:-}" ]]; then paper_data=(--data "$CARAT_DATA_DIR"); fi
+check paper_quick 0 "" -- "$CARAT" paper --quick --json --out "$scratch/paper" "${paper_data[@]}"
 cp "$scratch/out" "$scratch/paper.json"
 for f in report.md paper.json fig7_time_breakdown.svg; do
   if [[ ! -s "$scratch/paper/$f" ]]; then echo "FAIL paper did not write $f"; fail=$((fail + 1)); else pass=$((pass + 1)); fi
