@@ -6,6 +6,16 @@ pass=0
 scratch=$(mktemp -d)
 trap 'rm -rf "$scratch"' EXIT
 
+# A tiny three-pose graph (one loop) that every script solves or breaks.
+cat >"$scratch/tiny.g2o" <<'G2O'
+VERTEX_SE3:QUAT 0 0 0 0 0 0 0 1
+VERTEX_SE3:QUAT 1 0.9 0.1 0 0 0 0.05 0.99875
+VERTEX_SE3:QUAT 2 2.1 -0.1 0 0 0 0 1
+EDGE_SE3:QUAT 0 1 1 0 0 0 0 0 1 1 0 0 0 0 0 1 0 0 0 0 1 0 0 0 1 0 0 1 0 1
+EDGE_SE3:QUAT 1 2 1 0 0 0 0 0 1 1 0 0 0 0 0 1 0 0 0 0 1 0 0 0 1 0 0 1 0 1
+EDGE_SE3:QUAT 0 2 2 0 0 0 0 0 1 1 0 0 0 0 0 1 0 0 0 0 1 0 0 0 1 0 0 1 0 1
+G2O
+
 check() {  # check NAME EXPECTED_RC EXPECTED_STDERR_SUBSTRING -- command...
   local name=$1 want_rc=$2 want_err=$3
   shift 4

@@ -5,15 +5,7 @@
 # Needs CARAT (the binary).
 source "$(dirname "$0")/cli_common.sh"
 
-# Fixtures: a tiny pose graph, trajectories, a few points, a short simulated drive.
-cat >"$scratch/tiny.g2o" <<'G2O'
-VERTEX_SE3:QUAT 0 0 0 0 0 0 0 1
-VERTEX_SE3:QUAT 1 0.9 0.1 0 0 0 0.05 0.99875
-VERTEX_SE3:QUAT 2 2.1 -0.1 0 0 0 0 1
-EDGE_SE3:QUAT 0 1 1 0 0 0 0 0 1 1 0 0 0 0 0 1 0 0 0 0 1 0 0 0 1 0 0 1 0 1
-EDGE_SE3:QUAT 1 2 1 0 0 0 0 0 1 1 0 0 0 0 0 1 0 0 0 0 1 0 0 0 1 0 0 1 0 1
-EDGE_SE3:QUAT 0 2 2 0 0 0 0 0 1 1 0 0 0 0 0 1 0 0 0 0 1 0 0 0 1 0 0 1 0 1
-G2O
+# Fixtures (besides the tiny pose graph from cli_common.sh): trajectories, a few points, a short simulated drive.
 cat >"$scratch/ref.kitti" <<'KITTI'
 1 0 0 0 0 1 0 0 0 0 1 0
 0 -1 0 2 1 0 0 1 0 0 1 0.5

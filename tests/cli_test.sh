@@ -47,15 +47,7 @@ done
 if [[ $(grep -c . "$scratch/demo/gre_exact_kitti.txt") -ne 24 ]]; then echo "FAIL demo trajectory has the wrong length"; fail=$((fail + 1)); else pass=$((pass + 1)); fi
 grep -q "<svg" "$scratch/demo/graph.svg" && grep -q "<line" "$scratch/demo/graph.svg" || { echo "FAIL graph.svg has no edges"; fail=$((fail + 1)); }
 
-# solve-g2o on a generated graph: write it with the library via the demo? Use a tiny inline graph.
-cat >"$scratch/tiny.g2o" <<'G2O'
-VERTEX_SE3:QUAT 0 0 0 0 0 0 0 1
-VERTEX_SE3:QUAT 1 0.9 0.1 0 0 0 0.05 0.99875
-VERTEX_SE3:QUAT 2 2.1 -0.1 0 0 0 0 1
-EDGE_SE3:QUAT 0 1 1 0 0 0 0 0 1 1 0 0 0 0 0 1 0 0 0 0 1 0 0 0 1 0 0 1 0 1
-EDGE_SE3:QUAT 1 2 1 0 0 0 0 0 1 1 0 0 0 0 0 1 0 0 0 0 1 0 0 0 1 0 0 1 0 1
-EDGE_SE3:QUAT 0 2 2 0 0 0 0 0 1 1 0 0 0 0 0 1 0 0 0 0 1 0 0 0 1 0 0 1 0 1
-G2O
+# solve-g2o on the tiny graph from cli_common.sh.
 check solve_g2o_json 0 "" -- "$CARAT" solve-g2o "$scratch/tiny.g2o" --json --out "$scratch/solved.g2o"
 cp "$scratch/out" "$scratch/solve.json"
 for key in vertices edges initial_cost final_cost iterations termination time_s time_breakdown; do

@@ -9,29 +9,13 @@
 #include "carat/solver/autodiff_block.hpp"
 #include "carat/solver/evaluate.hpp"
 #include "carat/solver/solve.hpp"
+#include "curve_fit_problem.hpp"
 
 namespace carat {
 namespace {
 
-struct ExpResidual {
-  template <typename T>
-  bool operator()(const Eigen::Vector2d& xy, const T* mc, T* residual) const {
-    using std::exp;
-    residual[0] = T(xy.y()) - exp(mc[0] * xy.x() + mc[1]);
-    return true;
-  }
-};
-
-std::vector<Eigen::Vector2d> curve_data(int n, std::uint64_t seed) {
-  std::mt19937_64 rng(seed);
-  std::normal_distribution<double> noise(0.0, 0.2);
-  std::vector<Eigen::Vector2d> data;
-  for (int k = 0; k < n; ++k) {
-    const double x = 5.0 * k / n;
-    data.emplace_back(x, std::exp(0.3 * x + 0.1) + noise(rng));
-  }
-  return data;
-}
+using test::curve_data;
+using test::ExpResidual;
 
 /// The curve fit as a problem of one block of 10,000 rows over (m, c), started at (0, 0).
 Problem curve_problem() {

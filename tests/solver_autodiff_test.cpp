@@ -22,6 +22,7 @@
 #include "carat/solver/se3.hpp"
 #include "carat/solver/so3.hpp"
 #include "carat/solver/solve.hpp"
+#include "curve_fit_problem.hpp"
 
 namespace carat {
 namespace {
@@ -96,15 +97,7 @@ TEST(LieFunctionsTest, DerivativesAtZeroAreExact) {
   }
 }
 
-/// y = exp(m x + c): the classic curve fit, one row per observation.
-struct ExpResidual {
-  template <typename T>
-  bool operator()(const Eigen::Vector2d& xy, const T* mc, T* residual) const {
-    using std::exp;
-    residual[0] = T(xy.y()) - exp(mc[0] * xy.x() + mc[1]);
-    return true;
-  }
-};
+using test::ExpResidual;
 
 struct ExpResidualDouble {
   bool operator()(const Eigen::Vector2d& xy, const double* mc, double* residual) const {
@@ -113,16 +106,7 @@ struct ExpResidualDouble {
   }
 };
 
-std::vector<Eigen::Vector2d> curve_data(int n) {
-  std::mt19937_64 rng(3);
-  std::normal_distribution<double> noise(0.0, 0.2);
-  std::vector<Eigen::Vector2d> data;
-  for (int k = 0; k < n; ++k) {
-    const double x = 5.0 * k / n;
-    data.emplace_back(x, std::exp(0.3 * x + 0.1) + noise(rng));
-  }
-  return data;
-}
+std::vector<Eigen::Vector2d> curve_data(int n) { return test::curve_data(n, 3); }
 
 TEST(AutoDiffBlockTest, CurveFitPassesTheBlockContract) {
   const auto block = make_autodiff_block<1, VariableSize<2>>(ExpResidual{}, curve_data(500));

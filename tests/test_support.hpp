@@ -3,7 +3,10 @@
 // Helpers shared by carat's tests.
 
 #include <filesystem>
+#include <functional>
 #include <string>
+
+#include "carat/solver/error.hpp"
 
 namespace carat::test {
 
@@ -15,6 +18,16 @@ bool has_data(const std::string& relative);
 
 /// A fresh, empty scratch directory for one test.
 std::filesystem::path scratch_dir(const std::string& name);
+
+/// The message of the carat::Error that `f` throws, or "(no error)" when it throws none.
+inline std::string error_of(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
 
 }  // namespace carat::test
 
