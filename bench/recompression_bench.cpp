@@ -17,6 +17,7 @@
 #include <random>
 
 #include "../examples/camera_localization/camera_scene.hpp"
+#include "../tests/curve_fit_problem.hpp"
 #include "carat/coreset/problem_compression.hpp"
 #include "carat/registration/dense_graph.hpp"
 #include "carat/registration/frame.hpp"
@@ -29,27 +30,13 @@
 
 namespace {
 
-struct ExpResidual {
-  template <typename T>
-  bool operator()(const Eigen::Vector2d& xy, const T* mc, T* residual) const {
-    using std::exp;
-    residual[0] = T(xy.y()) - exp(mc[0] * xy.x() + mc[1]);
-    return true;
-  }
-};
-
 carat::Problem curve_problem() {
-  std::mt19937_64 rng(1);
-  std::normal_distribution<double> noise(0.0, 0.2);
-  std::vector<Eigen::Vector2d> data;
-  for (int k = 0; k < 10000; ++k) {
-    const double x = 5.0 * k / 10000;
-    data.emplace_back(x, std::exp(0.3 * x + 0.1) + noise(rng));
-  }
+  const std::vector<Eigen::Vector2d> data = carat::test::curve_data(10000, 1);
   carat::Problem problem;
   const carat::VariableId mc = problem.add_euclidean(Eigen::Vector2d(0.0, 0.0));
   problem.add_residual_block(
-      carat::make_autodiff_block<1, carat::VariableSize<2>>(ExpResidual{}, data), {mc});
+      carat::make_autodiff_block<1, carat::VariableSize<2>>(carat::test::ExpResidual{}, data),
+      {mc});
   return problem;
 }
 
