@@ -71,7 +71,9 @@ BlockCheckReport check_residual_block(const ResidualBlock& block,
                                       std::span<const Manifold* const> manifolds,
                                       ParameterPointers params, const BlockCheckOptions& options) {
   BlockCheckReport report;
-  const auto dims = block.tangent_dims();
+  // A copy: a span over a temporary (one of the faults looked for) dangles after the next call.
+  const std::span<const int> first_dims = block.tangent_dims();
+  const std::vector<int> dims(first_dims.begin(), first_dims.end());
   if (manifolds.size() != dims.size() || params.size() != dims.size()) {
     throw Error("check_residual_block: the block has " + std::to_string(dims.size()) +
                 " variables but " + std::to_string(manifolds.size()) + " manifolds and " +
@@ -88,7 +90,7 @@ BlockCheckReport check_residual_block(const ResidualBlock& block,
 
   // tangent_dims(): one span, stable, matching the manifolds.
   const auto again = block.tangent_dims();
-  if (again.data() != dims.data() || again.size() != dims.size() ||
+  if (again.data() != first_dims.data() || again.size() != dims.size() ||
       !std::equal(dims.begin(), dims.end(), again.begin())) {
     fail("tangent_dims() returns a different span on each call (a span over a temporary?)");
   }
