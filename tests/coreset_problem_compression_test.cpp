@@ -68,7 +68,9 @@ TEST(ProblemCompressionTest, RecompressionReachesTheFullOptimum) {
   Problem judged = curve_problem();
   judged.set_all_values(once.all_values());
   const double once_cost = evaluate_problem(judged).cost;
-  EXPECT_GT(once_cost, optimum * (1.0 + 1e-3)) << "a single compression should stop elsewhere";
+  // How far depends on which 7 rows are drawn (0.04 % to 13 % over seeds and builds); always
+  // orders of magnitude beyond the 1e-9 that re-compression reaches below.
+  EXPECT_GT(once_cost, optimum * (1.0 + 1e-5)) << "a single compression should stop elsewhere";
 
   // Re-compression until the full problem's tests hold: the full optimum.
   Problem recompressed = curve_problem();

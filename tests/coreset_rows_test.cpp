@@ -66,6 +66,19 @@ INSTANTIATE_TEST_SUITE_P(
                       Case{300000, 512, 64, 6, 1e-3, 19}, Case{10000, 0, 64, 3, 1e6, 20},
                       Case{91, 0, 128, 12, 1.0, 21}, Case{200, 0, 128, 12, 1.0, 22}));
 
+// Every reduced dimension from 1 to 16 with the default clusters: rows up to 15 columns travel
+// packed (and are lifted on the fly, 8 or 16 doubles a row), 16 columns lifted; both exact.
+INSTANTIATE_TEST_SUITE_P(
+    EveryDimension, CoresetProperty,
+    ::testing::Values(Case{4000, 0, 0, 1, 1.0, 101}, Case{4000, 0, 0, 2, 1.0, 102},
+                      Case{4000, 0, 0, 3, 1.0, 103}, Case{4000, 0, 0, 4, 1.0, 104},
+                      Case{4000, 0, 0, 5, 1.0, 105}, Case{4000, 0, 0, 6, 1.0, 106},
+                      Case{4000, 0, 0, 7, 1.0, 107}, Case{4000, 0, 0, 8, 1.0, 108},
+                      Case{4000, 0, 0, 9, 1.0, 109}, Case{4000, 0, 0, 10, 1.0, 110},
+                      Case{4000, 0, 0, 11, 1.0, 111}, Case{4000, 0, 0, 12, 1.0, 112},
+                      Case{4000, 0, 0, 13, 1.0, 113}, Case{4000, 0, 0, 14, 1.0, 114},
+                      Case{4000, 0, 0, 15, 1.0, 115}, Case{4000, 0, 0, 16, 1.0, 116}));
+
 TEST(CoresetTest, ColumnsOfVeryDifferentScales) {
   // Each coordinate is scaled on its own, so columns 12 orders of magnitude apart stay exact.
   Rows rows = random_rows(30000, 6, 1.0, 23);

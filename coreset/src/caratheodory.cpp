@@ -58,8 +58,8 @@ WeightedSubset caratheodory(const Eigen::MatrixXd& points, std::span<const doubl
   const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> by_coordinate =
       points;
   std::vector<double> w(weights.begin(), weights.end());
-  const std::vector<char>& alive =
-      internal::eliminate(by_coordinate.data(), L, n, n, w.data(), {}, min_points);
+  const std::vector<char>& alive = internal::eliminate(
+      by_coordinate.data(), L, n, internal::PointLayout{n}, w.data(), {}, min_points);
   WeightedSubset out;
   for (std::size_t i = 0; i < alive.size(); ++i) {
     if (!alive[i]) continue;

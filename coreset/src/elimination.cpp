@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <type_traits>
 
 #include "simd.hpp"
 
@@ -17,11 +18,13 @@ struct PaddedMatrix {
   Eigen::Index cols = 0;     ///< number of live columns
   Eigen::Index stride = 0;   ///< doubles per row (cols rounded up to 8)
 
+  /// Shape r x c; contents unspecified except the padding columns, which are zero.
   void resize(Eigen::Index r, Eigen::Index c) {
     rows = r;
     cols = c;
     stride = (c + 7) / 8 * 8;
-    data.assign(static_cast<std::size_t>(r * stride), 0.0);
+    data.resize(static_cast<std::size_t>(r * stride));
+    for (Eigen::Index i = 0; i < r; ++i) std::fill(row(i) + c, row(i) + stride, 0.0);
   }
   double* row(Eigen::Index r) { return data.data() + r * stride; }
   double& operator()(Eigen::Index r, Eigen::Index c) {
@@ -29,10 +32,105 @@ struct PaddedMatrix {
   }
 };
 
-/// Gauss-Jordan with partial pivoting on T (in place): column by column, a pivot above
-/// `tolerance` becomes a unit pivot row and is cleared from every other row; a column without one
-/// is free. Returns the rank; pivot_col[r] is the basic column of row r.
+/// Pivots per panel of the blocked Gauss-Jordan.
+constexpr int kPanel = 8;
+
+/// The delayed update of one panel on columns [begin, end) (multiples of 8), the same
+/// arithmetic as eliminating the panel's pivots one by one over these columns: pivot k (row
+/// p0 + k, 1 / pivot in scale[k]) is used after the pivots before it, w_k = scale[k] (T[p0 + k]
+/// - sum_{j<k} F[p0 + k, j] w_j); then every row r outside the pivot rows gets
+/// T[r] - sum_k F[r, k] w_k and pivot row k gets w_k - sum_{j>k} F[p0 + k, j] w_j. F holds each
+/// row's elimination factors (m x kPanel, zero beyond count). One pass over the columns, a
+/// vector V of them at a time, with the pivots' w in registers: kPanel multiply-adds per load
+/// and store instead of one.
+template <class V, int N>
+__attribute__((always_inline)) inline void apply_panel_body(double* __restrict base,
+                                                            Eigen::Index rows, Eigen::Index stride,
+                                                            Eigen::Index p0, int count,
+                                                            const double* __restrict F,
+                                                            const double* __restrict scale,
+                                                            Eigen::Index begin, Eigen::Index end) {
+  constexpr int W = sizeof(V) / sizeof(double);
+  Eigen::Index c = begin;
+  // N vectors of columns per pass (each factor load serves N multiply-adds), then one.
+  const auto pass = [&]<int M>(std::integral_constant<int, M>) {
+    V w[M][kPanel];
+    for (int q = 0; q < M; ++q) {
+      for (int k = 0; k < kPanel; ++k) {
+        if (k < count) {
+          V a;
+          __builtin_memcpy(&a, base + (p0 + k) * stride + c + q * W, sizeof(V));
+          const double* f = F + (p0 + k) * kPanel;
+          for (int j = 0; j < k; ++j) a -= f[j] * w[q][j];
+          w[q][k] = scale[k] * a;
+        } else {
+          w[q][k] = V{} * 0.0;
+        }
+      }
+    }
+    for (Eigen::Index r = 0; r < rows; ++r) {
+      if (r == p0) {
+        r = p0 + count - 1;
+        continue;
+      }
+      double* __restrict row = base + r * stride + c;
+      const double* f = F + r * kPanel;
+      V v[M];
+      for (int q = 0; q < M; ++q) __builtin_memcpy(&v[q], row + q * W, sizeof(V));
+      for (int k = 0; k < kPanel; ++k) {
+        for (int q = 0; q < M; ++q) v[q] -= f[k] * w[q][k];
+      }
+      for (int q = 0; q < M; ++q) __builtin_memcpy(row + q * W, &v[q], sizeof(V));
+    }
+    for (int q = 0; q < M; ++q) {
+      for (int k = 0; k < count; ++k) {
+        V t = w[q][k];
+        const double* f = F + (p0 + k) * kPanel;
+        for (int j = k + 1; j < count; ++j) t -= f[j] * w[q][j];
+        __builtin_memcpy(base + (p0 + k) * stride + c + q * W, &t, sizeof(V));
+      }
+    }
+  };
+  for (; c + N * W <= end; c += N * W) pass(std::integral_constant<int, N>{});
+  for (; c < end; c += W) pass(std::integral_constant<int, 1>{});
+}
+
+/// apply_panel_body four columns at a time (eight pivots' vectors fit 16 registers).
 CARAT_MULTIVERSION
+void apply_panel_4(double* base, Eigen::Index rows, Eigen::Index stride, Eigen::Index p0, int count,
+                   const double* F, const double* scale, Eigen::Index begin, Eigen::Index end) {
+  apply_panel_body<v4d, 1>(base, rows, stride, p0, count, F, scale, begin, end);
+}
+
+#if CARAT_HAVE_AVX512_PATH
+/// apply_panel_body sixteen columns at a time (AVX-512: 32 registers hold two columns of eight).
+CARAT_TARGET_AVX512
+void apply_panel_8(double* base, Eigen::Index rows, Eigen::Index stride, Eigen::Index p0, int count,
+                   const double* F, const double* scale, Eigen::Index begin, Eigen::Index end) {
+  apply_panel_body<v8d, 2>(base, rows, stride, p0, count, F, scale, begin, end);
+}
+#endif
+
+/// apply_panel_body at the vector width this CPU has.
+void apply_panel(double* base, Eigen::Index rows, Eigen::Index stride, Eigen::Index p0, int count,
+                 const double* F, const double* scale, Eigen::Index begin, Eigen::Index end) {
+#if CARAT_HAVE_AVX512_PATH
+  if (cpu_has_avx512()) {
+    apply_panel_8(base, rows, stride, p0, count, F, scale, begin, end);
+    return;
+  }
+#endif
+  apply_panel_4(base, rows, stride, p0, count, F, scale, begin, end);
+}
+
+/// Gauss-Jordan with partial pivoting on T (in place), blocked: panels of kPanel columns are
+/// eliminated column by column on their own columns only (a pivot above `tolerance` becomes a
+/// unit pivot row and is cleared from every other row; a column without one is free), in a
+/// column-major copy of the panel, recording each row's factors, and the rest of the matrix then
+/// gets the panel's row operations in one pass (apply_panel). Returns the rank; pivot_col[r] is
+/// the basic column of row r. On return the free columns hold the reduced row echelon form; the
+/// basic columns (unit vectors there) are left unspecified, as nothing reads them.
+CARAT_MULTIVERSION_WIDE
 Eigen::Index gauss_jordan(PaddedMatrix& T, double tolerance, std::vector<Eigen::Index>& pivot_col,
                           std::vector<Eigen::Index>& free_col) {
   const Eigen::Index m = T.rows;
@@ -41,62 +139,135 @@ Eigen::Index gauss_jordan(PaddedMatrix& T, double tolerance, std::vector<Eigen::
   double* __restrict base = T.data.data();
   pivot_col.clear();
   free_col.clear();
+  // Each row's elimination factor per pivot of the current panel (m x kPanel), and the panel
+  // itself column-major (kPanel columns of mp rows, rows past m zero).
+  const Eigen::Index mp = (m + 7) / 8 * 8;
+  thread_local std::vector<double> F, panel_columns, factor;
+  F.resize(static_cast<std::size_t>(m * kPanel));
+  panel_columns.assign(static_cast<std::size_t>(kPanel * mp), 0.0);
+  factor.resize(static_cast<std::size_t>(mp));
+  double* __restrict pc = panel_columns.data();
+  double scale[kPanel];
   Eigen::Index rank = 0;
-  for (Eigen::Index col = 0; col < n; ++col) {
+  for (Eigen::Index panel = 0; panel < n; panel += kPanel) {
     if (rank == m) {
-      free_col.push_back(col);
-      continue;
+      for (Eigen::Index c = panel; c < n; ++c) free_col.push_back(c);
+      break;
     }
-    Eigen::Index best = rank;
-    double best_abs = std::abs(base[rank * stride + col]);
-    for (Eigen::Index r = rank + 1; r < m; ++r) {
-      const double v = std::abs(base[r * stride + col]);
-      if (v > best_abs) {
-        best_abs = v;
-        best = r;
-      }
-    }
-    if (!(best_abs > tolerance)) {
-      free_col.push_back(col);
-      continue;
-    }
-    // Columns before `from` are zero in the pivot row (basic columns) or not read again.
-    const Eigen::Index first = free_col.empty() ? col : std::min(col, free_col.front());
-    const Eigen::Index from = first / 8 * 8;
-    double* __restrict pivot_row = base + rank * stride;
-    if (best != rank) {
-      double* __restrict other = base + best * stride;
-      for (Eigen::Index c = from; c < stride; ++c) std::swap(pivot_row[c], other[c]);
-    }
-    const double inverse = 1.0 / pivot_row[col];
-    for (Eigen::Index c = from; c < stride; ++c) pivot_row[c] *= inverse;
-    pivot_row[col] = 1.0;
+    std::fill(F.begin(), F.end(), 0.0);
     for (Eigen::Index r = 0; r < m; ++r) {
-      if (r == rank) continue;
-      double* __restrict row = base + r * stride;
-      const double factor = row[col];
-      if (factor == 0.0) continue;
-      for (Eigen::Index c = from; c < stride; ++c) row[c] -= factor * pivot_row[c];
-      row[col] = 0.0;
+      const double* row = base + r * stride + panel;
+      for (int j = 0; j < kPanel; ++j) pc[j * mp + r] = row[j];
     }
-    pivot_col.push_back(col);
-    ++rank;
+    const Eigen::Index p0 = rank;
+    int count = 0;
+    const Eigen::Index panel_end = std::min<Eigen::Index>(n, panel + kPanel);
+    for (Eigen::Index col = panel; col < panel_end; ++col) {
+      if (rank == m) {
+        free_col.push_back(col);
+        continue;
+      }
+      double* __restrict column = pc + (col - panel) * mp;
+      // The largest |entry| in rows [rank, m): eight independent maxima (rows before rank
+      // masked out, rows past m are zero), then the first row that holds it.
+      const v8d none = {-1.0, -1.0, -1.0, -1.0, -1.0, -1.0, -1.0, -1.0};
+      const v8d lane = {0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0};
+      const auto magnitudes = [&](Eigen::Index r, v8d& v) {
+        __builtin_memcpy(&v, column + r, sizeof(v));
+        v = v < 0.0 ? -v : v;
+        v = lane + static_cast<double>(r) < static_cast<double>(rank) ? none : v;
+      };
+      v8d largest = none;
+      for (Eigen::Index r = rank / 8 * 8; r < mp; r += 8) {
+        v8d v;
+        magnitudes(r, v);
+        largest = v > largest ? v : largest;
+      }
+      double best_abs = largest[0];
+      for (int q = 1; q < 8; ++q) best_abs = std::max(best_abs, largest[q]);
+      Eigen::Index best = rank;
+      for (Eigen::Index r = rank / 8 * 8; r < mp; r += 8) {
+        v8d v;
+        magnitudes(r, v);
+        const v8l hit = v == best_abs;
+        bool found = false;
+        for (int q = 0; q < 8; ++q) found = found || hit[q] != 0;
+        if (!found) continue;
+        int q = 0;
+        while (hit[q] == 0) ++q;
+        best = r + q;
+        break;
+      }
+      if (!(best_abs > tolerance)) {
+        free_col.push_back(col);
+        continue;
+      }
+      if (best != rank) {
+        // Whole rows move (their columns outside the panel are brought up to date later), and
+        // so do their panel entries and factors of this panel.
+        double* __restrict pivot_row = base + rank * stride;
+        double* __restrict other = base + best * stride;
+        for (Eigen::Index c = 0; c < stride; c += 8) {
+          v8d x;
+          v8d y;
+          __builtin_memcpy(&x, pivot_row + c, sizeof(x));
+          __builtin_memcpy(&y, other + c, sizeof(y));
+          __builtin_memcpy(pivot_row + c, &y, sizeof(y));
+          __builtin_memcpy(other + c, &x, sizeof(x));
+        }
+        for (int j = 0; j < kPanel; ++j) {
+          std::swap(F[rank * kPanel + j], F[best * kPanel + j]);
+          std::swap(pc[j * mp + rank], pc[j * mp + best]);
+        }
+      }
+      const double inverse = 1.0 / column[rank];
+      scale[count] = inverse;
+      double pivot[kPanel];
+      for (int j = 0; j < kPanel; ++j) pivot[j] = pc[j * mp + rank] * inverse;
+      pivot[col - panel] = 1.0;
+      // The factors are the pivot column's entries; the pivot row's own is unused.
+      for (Eigen::Index r = 0; r < m; ++r) F[r * kPanel + count] = column[r];
+      F[rank * kPanel + count] = 0.0;
+      // Every panel column minus factor x pivot entry (the pivot column becomes exactly zero
+      // off the pivot: f - f * 1), then the pivot row set to the normalized one.
+      std::copy(column, column + mp, factor.begin());
+      for (int j = 0; j < kPanel; ++j) {
+        double* __restrict target = pc + j * mp;
+        const double pj = pivot[j];
+        if (pj == 0.0) continue;  // e.g. the panel's basic columns so far: nothing changes
+        for (Eigen::Index r = 0; r < mp; ++r) target[r] -= factor[static_cast<std::size_t>(r)] * pj;
+        target[rank] = pj;
+      }
+      pivot_col.push_back(col);
+      ++count;
+      ++rank;
+    }
+    // Back to T: only the panel's free columns are read again (row operations act on every
+    // column alone, so basic columns left stale in T change nothing else).
+    for (auto f = free_col.rbegin(); f != free_col.rend() && *f >= panel; ++f) {
+      const double* column = pc + (*f - panel) * mp;
+      for (Eigen::Index r = 0; r < m; ++r) base[r * stride + *f] = column[r];
+    }
+    if (count == 0) continue;
+    // Columns the panel's operations change outside the panel: free columns before it (their
+    // 8-column blocks; the basic columns there are not read again) and every column after it.
+    const Eigen::Index first_free = free_col.empty() ? panel : std::min(panel, free_col.front());
+    apply_panel(base, m, stride, p0, count, F.data(), scale, first_free / 8 * 8, panel);
+    apply_panel(base, m, stride, p0, count, F.data(), scale, panel + kPanel, stride);
   }
   return rank;
 }
 
-typedef double v4d __attribute__((vector_size(32)));
-
 /// The tableau of the free columns, column-major: column k holds the coefficients of free point k
-/// on the current basis rows, padded with zeros to a multiple of four rows.
+/// on the current basis rows, padded with zeros to a multiple of eight rows.
 struct Tableau {
   std::vector<double> data;  ///< cols x stride
   Eigen::Index rows = 0;     ///< basis rows
-  Eigen::Index stride = 0;   ///< rows rounded up to 4
+  Eigen::Index stride = 0;   ///< rows rounded up to 8
 
   void resize(Eigen::Index r, Eigen::Index c) {
     rows = r;
-    stride = (r + 3) / 4 * 4;
+    stride = (r + 7) / 8 * 8;
     data.assign(static_cast<std::size_t>(c * stride), 0.0);
   }
   double* col(Eigen::Index k) { return data.data() + k * stride; }
@@ -106,25 +277,26 @@ struct Tableau {
 /// row r): the smallest bw[r] / -column[r] over rows with -column[r] > 0, if it is below alpha
 /// (then alpha becomes it and its first row is returned), else -1. Branch-free over the rows:
 /// the signs are data, and a mispredicted branch per row cost more than the divisions.
-CARAT_MULTIVERSION
+CARAT_MULTIVERSION_WIDE
 Eigen::Index ratio_test(const double* __restrict column, const double* __restrict bw,
                         Eigen::Index stride, double* __restrict ratio, double& alpha) {
   constexpr double inf = std::numeric_limits<double>::infinity();
-  const v4d infinity = {inf, inf, inf, inf};
-  const v4d zero = {0.0, 0.0, 0.0, 0.0};
-  v4d best = infinity;
-  for (Eigen::Index r = 0; r < stride; r += 4) {
-    v4d c;
-    v4d w;
+  const v8d infinity = v8d{} + inf;
+  const v8d zero = v8d{} * 0.0;
+  v8d best = infinity;
+  for (Eigen::Index r = 0; r < stride; r += 8) {
+    v8d c;
+    v8d w;
     __builtin_memcpy(&c, column + r, sizeof(c));
     __builtin_memcpy(&w, bw + r, sizeof(w));
-    const v4d v = -c;
-    const v4d q = w / v;  // only kept where v > 0
-    const v4d x = v > zero ? q : infinity;
+    const v8d v = -c;
+    const v8d q = w / v;  // only kept where v > 0
+    const v8d x = v > zero ? q : infinity;
     __builtin_memcpy(ratio + r, &x, sizeof(x));
     best = x < best ? x : best;
   }
-  const double smallest = std::min(std::min(best[0], best[1]), std::min(best[2], best[3]));
+  double smallest = best[0];
+  for (int q = 1; q < 8; ++q) smallest = std::min(smallest, best[q]);
   if (!(smallest < alpha)) return -1;
   alpha = smallest;
   Eigen::Index r = 0;
@@ -133,71 +305,160 @@ Eigen::Index ratio_test(const double* __restrict column, const double* __restric
 }
 
 /// bw[r] = max(0, bw[r] + alpha * column[r]): the basis weights after a step of alpha.
-CARAT_MULTIVERSION
+CARAT_MULTIVERSION_WIDE
 void step_basis(double* __restrict bw, const double* __restrict column, double alpha,
                 Eigen::Index stride) {
-  const v4d zero = {0.0, 0.0, 0.0, 0.0};
-  for (Eigen::Index r = 0; r < stride; r += 4) {
-    v4d c;
-    v4d w;
+  const v8d zero = v8d{} * 0.0;
+  for (Eigen::Index r = 0; r < stride; r += 8) {
+    v8d c;
+    v8d w;
     __builtin_memcpy(&c, column + r, sizeof(c));
     __builtin_memcpy(&w, bw + r, sizeof(w));
-    const v4d x = w + alpha * c;
-    const v4d clamped = zero < x ? x : zero;
+    const v8d x = w + alpha * c;
+    const v8d clamped = zero < x ? x : zero;
     __builtin_memcpy(bw + r, &clamped, sizeof(clamped));
   }
 }
 
-/// The basis exchange when free column k enters at basis row j_row: every later column c gets
-/// F(j_row, c) / F(j_row, k) in row j_row and F(r, c) - F(r, k) * that in every other row.
-CARAT_MULTIVERSION
-void exchange(Tableau& F, Eigen::Index cols, Eigen::Index j_row, Eigen::Index k) {
-  const Eigen::Index stride = F.stride;
-  const double* __restrict entering = F.col(k);
-  const double inverse = 1.0 / entering[j_row];
-  for (Eigen::Index c = k + 1; c < cols; ++c) {
-    double* __restrict column = F.col(c);
-    const double pivot = column[j_row] * inverse;
-    if (pivot == 0.0) continue;
-    for (Eigen::Index r = 0; r < stride; ++r) column[r] -= entering[r] * pivot;
-    column[j_row] = pivot;
+/// Basis exchanges not yet applied to the tableau's later columns (at most kPanel). Exchange i
+/// (free column entering at basis row row[i], 1 / its entry there in inverse[i]) maps a column c
+/// to c - e_i p_i with p_i = c[row[i]] inverse[i], where e_i is the entering column with 1
+/// subtracted at row[i] (so that c[row[i]] becomes p_i).
+struct PendingExchanges {
+  std::vector<double> columns;   ///< e_i, kPanel x stride
+  Eigen::Index row[kPanel];      ///< basis row of exchange i
+  double inverse[kPanel];        ///< 1 / (entering column at row[i])
+  double solve[kPanel][kPanel];  ///< p = solve s for s_j = c[row[j]] (lower triangular)
+  int count = 0;                 ///< exchanges recorded
+  Eigen::Index stride = 0;       ///< doubles per column
+
+  /// Records exchange count: the entering column (stride doubles) at basis row j_row. The
+  /// exchanges' p_i = inverse_i (s_i - sum_{l<i} e_l[row_i] p_l) are linear in s, p = solve s;
+  /// row i of solve follows from the rows before it.
+  void add(const double* entering, Eigen::Index j_row) {
+    double* e = columns.data() + count * stride;
+    std::copy(entering, entering + stride, e);
+    const int i = count;
+    inverse[i] = 1.0 / e[j_row];
+    e[j_row] -= 1.0;
+    row[i] = j_row;
+    for (int j = 0; j < kPanel; ++j) {
+      double v = j == i ? 1.0 : 0.0;
+      for (int l = 0; l < i; ++l) v -= columns[l * stride + j_row] * solve[l][j];
+      solve[i][j] = j <= i ? v * inverse[i] : 0.0;
+    }
+    ++count;
   }
+};
+
+/// Applies the pending exchanges, in order, to tableau columns [begin, end): per column the
+/// p_i from a small triangular solve (p_i = inverse_i (c[row_i] - sum_{l<i} e_l[row_i] p_l)),
+/// then c -= sum_i e_i p_i in one pass: count multiply-adds per load and store instead of one.
+CARAT_MULTIVERSION_WIDE
+void apply_exchanges(Tableau& F, Eigen::Index begin, Eigen::Index end, const PendingExchanges& x) {
+  const Eigen::Index stride = F.stride;
+  const int count = x.count;
+  const double* __restrict e = x.columns.data();
+  // solve's columns (solve[., j] for s = unit vector j), each one eight-wide vector.
+  double solve_columns[kPanel][kPanel];
+  for (int j = 0; j < kPanel; ++j) {
+    for (int i = 0; i < kPanel; ++i) solve_columns[j][i] = x.solve[i][j];
+  }
+  // Four columns per pass where there are four (each exchange column load serves all four).
+  const auto pass = [&]<int M>(Eigen::Index c, std::integral_constant<int, M>) {
+    // p = solve s as eight-wide multiply-adds over solve's columns.
+    static_assert(kPanel == 8, "p is one v8d");
+    double p[M][kPanel];
+    for (int q = 0; q < M; ++q) {
+      const double* column = F.col(c + q);
+      v8d pv = v8d{} * 0.0;
+      for (int j = 0; j < count; ++j) {
+        v8d sj;
+        __builtin_memcpy(&sj, &solve_columns[j][0], sizeof(sj));
+        pv += sj * column[x.row[j]];
+      }
+      __builtin_memcpy(&p[q][0], &pv, sizeof(pv));
+    }
+    for (Eigen::Index r = 0; r < stride; r += 8) {
+      v8d v[M];
+      for (int q = 0; q < M; ++q) __builtin_memcpy(&v[q], F.col(c + q) + r, sizeof(v8d));
+      for (int i = 0; i < count; ++i) {
+        v8d ei;
+        __builtin_memcpy(&ei, e + i * stride + r, sizeof(ei));
+        for (int q = 0; q < M; ++q) v[q] -= ei * p[q][i];
+      }
+      for (int q = 0; q < M; ++q) __builtin_memcpy(F.col(c + q) + r, &v[q], sizeof(v8d));
+    }
+  };
+  Eigen::Index c = begin;
+  for (; c + 4 <= end; c += 4) pass(c, std::integral_constant<int, 4>{});
+  for (; c < end; ++c) pass(c, std::integral_constant<int, 1>{});
 }
 
-/// t = (p - weighted mean of p) / max |p - mean| over n points (t = 0 when p is constant).
-/// Four partial sums and maxima (fixed order), so that the reductions vectorize.
-CARAT_MULTIVERSION
-void centre_and_scale(const double* __restrict p, const double* __restrict w, Eigen::Index n,
-                      double total, double* __restrict t) {
-  typedef double v4d __attribute__((vector_size(32)));
-  v4d acc = {0.0, 0.0, 0.0, 0.0};
-  Eigen::Index i = 0;
-  for (; i + 3 < n; i += 4) {
-    v4d pv;
-    v4d wv;
-    __builtin_memcpy(&pv, p + i, sizeof(pv));
-    __builtin_memcpy(&wv, w + i, sizeof(wv));
-    acc += pv * wv;
+/// Row l of T = (the points' coordinate l - its weighted mean) / max |that| over the n points (0
+/// when the coordinate is constant), for l < L; eight-wide partial sums and maxima in a fixed
+/// order. Points not laid out coordinate by coordinate are gathered into T's row first. T's rows
+/// hold stride_t doubles (a multiple of 8, zero past n, and stay so).
+CARAT_MULTIVERSION_WIDE
+void centre_and_scale(const double* points, Eigen::Index L, Eigen::Index n,
+                      const PointLayout& layout, const double* __restrict w, double total,
+                      double* T, Eigen::Index stride_t) {
+  const Eigen::Index whole = n / 8 * 8;
+  const bool direct = layout.point_stride == 1 && layout.point_scale == nullptr;
+  for (Eigen::Index l = 0; l < L; ++l) {
+    double* t = T + l * stride_t;
+    const double* p = points + l * layout.coordinate_stride;
+    if (!direct) {
+      const Eigen::Index step = layout.point_stride;
+      if (layout.point_scale != nullptr) {
+        for (Eigen::Index i = 0; i < n; ++i) t[i] = p[i * step] * layout.point_scale[i];
+      } else {
+        for (Eigen::Index i = 0; i < n; ++i) t[i] = p[i * step];
+      }
+      p = t;  // centred in place below
+    }
+    v8d acc = v8d{} * 0.0;
+    for (Eigen::Index i = 0; i < whole; i += 8) {
+      v8d pv;
+      v8d wv;
+      __builtin_memcpy(&pv, p + i, sizeof(pv));
+      __builtin_memcpy(&wv, w + i, sizeof(wv));
+      acc += pv * wv;
+    }
+    double mean = ((acc[0] + acc[1]) + (acc[2] + acc[3])) + ((acc[4] + acc[5]) + (acc[6] + acc[7]));
+    for (Eigen::Index i = whole; i < n; ++i) mean += p[i] * w[i];
+    mean /= total;
+    v8d largest = v8d{} * 0.0;
+    for (Eigen::Index i = 0; i < whole; i += 8) {
+      v8d pv;
+      __builtin_memcpy(&pv, p + i, sizeof(pv));
+      const v8d d = pv - mean;
+      __builtin_memcpy(t + i, &d, sizeof(d));
+      const v8d a = d < 0.0 ? -d : d;
+      largest = a > largest ? a : largest;
+    }
+    double scale = 0.0;
+    for (int q = 0; q < 8; ++q) scale = std::max(scale, largest[q]);
+    for (Eigen::Index i = whole; i < n; ++i) {
+      t[i] = p[i] - mean;
+      scale = std::max(scale, std::abs(t[i]));
+    }
+    if (!(scale > 0.0)) continue;
+    const double inverse = 1.0 / scale;
+    // Whole vectors over the padded row: the zeros past n stay zero.
+    for (Eigen::Index i = 0; i < stride_t; i += 8) {
+      v8d d;
+      __builtin_memcpy(&d, t + i, sizeof(d));
+      d *= inverse;
+      __builtin_memcpy(t + i, &d, sizeof(d));
+    }
   }
-  double mean = (acc[0] + acc[1]) + (acc[2] + acc[3]);
-  for (; i < n; ++i) mean += p[i] * w[i];
-  mean /= total;
-  for (i = 0; i < n; ++i) t[i] = p[i] - mean;
-  double m[4] = {0.0, 0.0, 0.0, 0.0};
-  for (i = 0; i + 3 < n; i += 4) {
-    for (int q = 0; q < 4; ++q) m[q] = std::max(m[q], std::abs(t[i + q]));
-  }
-  for (; i < n; ++i) m[0] = std::max(m[0], std::abs(t[i]));
-  const double scale = std::max(std::max(m[0], m[1]), std::max(m[2], m[3]));
-  if (!(scale > 0.0)) return;
-  const double inverse = 1.0 / scale;
-  for (i = 0; i < n; ++i) t[i] *= inverse;
 }
 
 }  // namespace
 
 const std::vector<char>& eliminate(const double* points, Eigen::Index L, Eigen::Index n,
-                                   Eigen::Index stride, double* weights,
+                                   const PointLayout& layout, double* weights,
                                    std::span<const long> sizes, long min_rows) {
   // Scratch reused across calls: fresh heap pages cost a page fault each, which in a loop of
   // compressions that allocates and frees its own buffers was a third of the time.
@@ -214,11 +475,7 @@ const std::vector<char>& eliminate(const double* points, Eigen::Index L, Eigen::
   T.resize(L + 1, n);
   double total = 0.0;
   for (Eigen::Index i = 0; i < n; ++i) total += weights[i];
-  for (Eigen::Index l = 0; l < L; ++l) {
-    const double* p = points + l * stride;
-    double* t = T.row(l);
-    centre_and_scale(p, weights, n, total, t);
-  }
+  centre_and_scale(points, L, n, layout, weights, total, T.row(0), T.stride);
   double* ones = T.row(L);
   for (Eigen::Index i = 0; i < n; ++i) ones[i] = 1.0;
 
@@ -233,10 +490,13 @@ const std::vector<char>& eliminate(const double* points, Eigen::Index L, Eigen::
   // current basis as points leave and free points enter it.
   thread_local Tableau F;
   F.resize(rank, m);
-  for (Eigen::Index k = 0; k < m; ++k) {
-    double* column = F.col(k);
-    const Eigen::Index f = free_col[static_cast<std::size_t>(k)];
-    for (Eigen::Index r = 0; r < rank; ++r) column[r] = T(r, f);
+  // Row by row: T is read in order, and F's m column lines being written stay in L1.
+  for (Eigen::Index r = 0; r < rank; ++r) {
+    const double* __restrict row = T.row(r);
+    double* __restrict out = F.data.data() + r;
+    for (Eigen::Index k = 0; k < m; ++k) {
+      out[k * F.stride] = row[free_col[static_cast<std::size_t>(k)]];
+    }
   }
   thread_local std::vector<Eigen::Index> basic;
   basic.assign(pivot_col.begin(), pivot_col.end());
@@ -249,8 +509,15 @@ const std::vector<char>& eliminate(const double* points, Eigen::Index L, Eigen::
 
   long rows = 0;
   for (Eigen::Index i = 0; i < n; ++i) rows += size_of(i);
+  // Exchanges are applied to the later columns kPanel at a time; column k first gets the ones
+  // still pending.
+  thread_local PendingExchanges pending;
+  pending.columns.resize(static_cast<std::size_t>(kPanel * F.stride));
+  pending.stride = F.stride;
+  pending.count = 0;
   for (Eigen::Index k = 0; k < m; ++k) {
     const Eigen::Index f = free_col[static_cast<std::size_t>(k)];
+    if (pending.count > 0) apply_exchanges(F, k, k + 1, pending);
     // Ratio test along v (v_f = 1, v_basic(r) = -F(r, k)): the first weight to reach zero.
     double alpha = weights[f];
     const Eigen::Index j_row = ratio_test(F.col(k), bw.data(), F.stride, ratio.data(), alpha);
@@ -266,7 +533,12 @@ const std::vector<char>& eliminate(const double* points, Eigen::Index L, Eigen::
     // Basis exchange: f replaces j in row j_row.
     bw[static_cast<std::size_t>(j_row)] = weights[f];
     basic[static_cast<std::size_t>(j_row)] = f;
-    if (k + 1 < m) exchange(F, m, j_row, k);
+    if (k + 1 == m) break;
+    pending.add(F.col(k), j_row);
+    if (pending.count == kPanel) {
+      apply_exchanges(F, k + 1, m, pending);
+      pending.count = 0;
+    }
   }
   for (Eigen::Index r = 0; r < rank; ++r)
     weights[basic[static_cast<std::size_t>(r)]] = bw[static_cast<std::size_t>(r)];

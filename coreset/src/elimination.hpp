@@ -8,16 +8,23 @@
 
 namespace carat::internal {
 
-/// Eliminates points of a set of n points in dimension L, coordinate-major (coordinate l of point
-/// i at points[l * stride + i]), along null vectors of [points; 1]: one Gauss-Jordan
-/// factorization, then per step a ratio test (the smallest w_i / v_i over v_i > 0) that zeroes
-/// one weight, and a basis exchange that keeps the remaining null vectors valid. Weights stay
-/// >= 0 and keep sum(w) and sum(w_i p_i). `sizes[i]` is how many rows point i stands for
-/// (empty: 1 each); elimination stops before the rows of the survivors would drop below
-/// `min_rows`. Returns the survivor mask (scratch of this thread: valid until its next call);
-/// `weights` (n) holds the new weights.
+/// Where coordinate l of point i lies: points[l * coordinate_stride + i * point_stride], times
+/// point_scale[i] when that is given (coordinate-major: {stride}; item-major: {1, L}).
+struct PointLayout {
+  Eigen::Index coordinate_stride = 0;   ///< doubles from one coordinate to the next
+  Eigen::Index point_stride = 1;        ///< doubles from one point to the next
+  const double* point_scale = nullptr;  ///< per-point factor (null: 1)
+};
+
+/// Eliminates points of a set of n points in dimension L (laid out as `layout` says) along null
+/// vectors of [points; 1]: one Gauss-Jordan factorization, then per step a ratio test (the
+/// smallest w_i / v_i over v_i > 0) that zeroes one weight, and a basis exchange that keeps the
+/// remaining null vectors valid. Weights stay >= 0 and keep sum(w) and sum(w_i p_i). `sizes[i]`
+/// is how many rows point i stands for (empty: 1 each); elimination stops before the rows of
+/// the survivors would drop below `min_rows`. Returns the survivor mask (scratch of this thread:
+/// valid until its next call); `weights` (n) holds the new weights.
 const std::vector<char>& eliminate(const double* points, Eigen::Index L, Eigen::Index n,
-                                   Eigen::Index stride, double* weights,
+                                   const PointLayout& layout, double* weights,
                                    std::span<const long> sizes, long min_rows);
 
 }  // namespace carat::internal

@@ -1,14 +1,14 @@
 #include "lift.hpp"
 
 #include <algorithm>
+#include <type_traits>
+#include <utility>
 #include <vector>
 
 #include "simd.hpp"
 
 namespace carat::internal {
 namespace {
-
-typedef double v4d __attribute__((vector_size(32)));
 
 /// Sum of the lifts of rows [begin, end), four rows per vector lane set (one partial sum per
 /// lane, added in a fixed order at the end), then the last rows one by one.
@@ -179,6 +179,203 @@ void lift_rows_12(const double* J, const double* e, const int* ids, int count, d
   lift_rows_lanes<12>(J, e, ids, count, out);
 }
 
+/// Lift accumulators of x = [a, e] with NX = r + 1 entries, by column of x^T x, in vectors V of
+/// W lanes: block q (x[Wq, Wq + W)) has an accumulator for every column k >= Wq, acc += x_k
+/// x[Wq, Wq + W), so that x_j x_k (j <= k) is lane j - Wq of block q = j / W's column k. Each x_k
+/// is one broadcast from memory; the accumulators stay in registers (18 eight-wide ones for
+/// r = 12). Lanes past x's end hold products nobody reads.
+template <int NX, class V>
+struct LiftAccumulators {
+  static constexpr int W = sizeof(V) / sizeof(double);
+  static constexpr int kBlocks = (NX + W - 1) / W;
+  /// Index of block q's accumulator for column k (k >= W q).
+  static constexpr int slot(int q, int k) { return q * NX - W * q * (q - 1) / 2 + (k - W * q); }
+  static constexpr int kCount = slot(kBlocks - 1, NX - 1) + 1;
+  V acc[kCount];
+
+  __attribute__((always_inline)) void zero() {
+    for (auto& v : acc) v = V{} * 0.0;
+  }
+  /// Adds x_k (w x) for the row whose entries are x(k) and whose weighted blocks are xb[q].
+  template <class Entry>
+  __attribute__((always_inline)) void add(const Entry& x, const V* xb) {
+#pragma GCC unroll 16
+    for (int q = 0; q < kBlocks; ++q) {
+#pragma GCC unroll 16
+      for (int k = W * q; k < NX; ++k) acc[slot(q, k)] += x(k) * xb[q];
+    }
+  }
+  /// Writes the L = NX (NX + 1) / 2 sums in lift order.
+  __attribute__((always_inline)) void store(double* out) const {
+    double tile[NX][kBlocks * W];  // tile[k][j] = sum of x_j x_k (j <= k)
+    for (int q = 0; q < kBlocks; ++q) {
+      for (int k = W * q; k < NX; ++k)
+        __builtin_memcpy(&tile[k][W * q], &acc[slot(q, k)], sizeof(V));
+    }
+    // Unrolled element copies: a loop here becomes a call to memcpy per row, whose start-up
+    // cost was most of the time of a small cluster.
+    int idx = 0;
+#pragma GCC unroll 16
+    for (int j = 0; j < NX; ++j) {
+#pragma GCC unroll 16
+      for (int k = j; k < NX; ++k) out[idx++] = tile[k][j];
+    }
+  }
+};
+
+/// Eight-wide vectors: with four-wide ones r = 12 needs 28 accumulators, which spilled.
+template <int NX>
+using LiftVector = v8d;
+
+/// Block q of a row x = [a[0, R), e]: W doubles from a + Wq (the caller makes sure they can be
+/// read), with e in lane R - Wq when the block holds x's last entry.
+template <int R, class V, int Q>
+__attribute__((always_inline)) inline void load_block(const double* a, double e, V& out) {
+  constexpr int W = sizeof(V) / sizeof(double);
+  __builtin_memcpy(&out, a + W * Q, sizeof(V));
+  if constexpr (R >= W * Q && R < W * (Q + 1)) out[R - W * Q] = e;
+}
+
+/// Chunk sums of consecutive rows (as lift_chunk_sums) with the accumulators above.
+template <int NX>
+__attribute__((always_inline)) inline void chunk_sums_body(const double* J, const double* e,
+                                                           long rows, long chunk_rows,
+                                                           const int* position, double* out,
+                                                           double* total) {
+  constexpr int R = NX - 1;
+  constexpr int L = lifted_dim(R);
+  using V = LiftVector<NX>;
+  using Acc = LiftAccumulators<NX, V>;
+  constexpr int W = Acc::W;
+  const long chunks = (rows + chunk_rows - 1) / chunk_rows;
+  Acc acc;
+  Acc sum_of_chunks;  // the total, added chunk by chunk in the accumulators' layout
+  sum_of_chunks.zero();
+  for (long c = 0; c < chunks; ++c) {
+    acc.zero();
+    const long end = std::min(rows, (c + 1) * chunk_rows);
+    for (long i = c * chunk_rows; i < end; ++i) {
+      const double* a = J + i * R;
+      const double ei = e[i];
+      const auto x = [&](int j) { return j < R ? a[j] : ei; };
+      V xb[Acc::kBlocks] = {};
+      if (i * R + Acc::kBlocks * W <= rows * R) {
+        // Whole-vector loads (reading past the row, never past the matrix) through a copy of
+        // the pointer the compiler cannot see through, so that each x_k stays a broadcast from
+        // memory (otherwise it becomes a lane permute of a loaded vector, and permutes have
+        // one port where broadcasts have two).
+        const double* opaque = a;
+        asm("" : "+r"(opaque));
+        [&]<int... Q>(std::integer_sequence<int, Q...>) {
+          (load_block<R, V, Q>(opaque, ei, xb[Q]), ...);
+        }
+        (std::make_integer_sequence<int, Acc::kBlocks>{});
+      } else {
+        for (int q = 0; q < Acc::kBlocks; ++q) {
+          for (int k = 0; k < W && W * q + k < NX; ++k) xb[q][k] = x(W * q + k);
+        }
+      }
+      acc.add(x, xb);
+    }
+    acc.store(out + static_cast<long>(position[c]) * L);
+    for (int k = 0; k < Acc::kCount; ++k) sum_of_chunks.acc[k] += acc.acc[k];
+  }
+  double sums[L];
+  sum_of_chunks.store(sums);
+  for (int l = 0; l < L; ++l) total[l] += sums[l];
+}
+
+/// Weighted cluster sums of packed rows (as packed_cluster_sums) with the accumulators above.
+template <int NX>
+__attribute__((always_inline)) inline void packed_sums_body(const double* X, const double* w,
+                                                            const int* begin, int clusters,
+                                                            double* out) {
+  constexpr int P = packed_stride(NX - 1);
+  constexpr int L = lifted_dim(NX - 1);
+  using V = LiftVector<NX>;
+  using Acc = LiftAccumulators<NX, V>;
+  constexpr int W = Acc::W;
+  static_assert(Acc::kBlocks * W <= P, "blocks stay inside a packed row");
+  Acc acc;
+  for (int c = 0; c < clusters; ++c) {
+    acc.zero();
+    for (int i = begin[c]; i < begin[c + 1]; ++i) {
+      const double* row = X + static_cast<long>(i) * P;
+      const auto x = [&](int j) { return row[j]; };
+      const double* opaque = row;  // as in chunk_sums_body: x_k stays a memory broadcast
+      asm("" : "+r"(opaque));
+      V xb[Acc::kBlocks];
+      for (int q = 0; q < Acc::kBlocks; ++q) {
+        __builtin_memcpy(&xb[q], opaque + W * q, sizeof(V));
+        xb[q] *= w[i];
+      }
+      acc.add(x, xb);
+    }
+    acc.store(out + static_cast<long>(c) * L);
+  }
+}
+
+/// chunk_sums_body for the row width NX, as a type (for dispatch_cols).
+template <int NX>
+struct ChunkSums {
+  __attribute__((always_inline)) static void run(const double* J, const double* e, long rows,
+                                                 long chunk_rows, const int* position, double* out,
+                                                 double* total) {
+    chunk_sums_body<NX>(J, e, rows, chunk_rows, position, out, total);
+  }
+};
+
+/// packed_sums_body for the row width NX, as a type (for dispatch_cols).
+template <int NX>
+struct PackedSums {
+  __attribute__((always_inline)) static void run(const double* X, const double* w, const int* begin,
+                                                 int clusters, double* out) {
+    packed_sums_body<NX>(X, w, begin, clusters, out);
+  }
+};
+
+/// Body<nx>::run(args...) for nx in [NX, kMaxPackedCols], inlined into the caller so that its
+/// target (AVX-512 or not) applies to the body.
+template <template <int> class Body, int NX = 2, class... Args>
+__attribute__((always_inline)) inline void dispatch_cols(int nx, Args... args) {
+  if constexpr (NX <= kMaxPackedCols) {
+    if (nx == NX) {
+      Body<NX>::run(args...);
+      return;
+    }
+    dispatch_cols<Body, NX + 1>(nx, args...);
+  }
+}
+
+#if !CARAT_HAVE_AVX512_PATH  // where the wide kernels run without AVX-512 (sanitized builds)
+CARAT_MULTIVERSION
+void chunk_sums_any(int nx, const double* J, const double* e, long rows, long chunk_rows,
+                    const int* position, double* out, double* total) {
+  dispatch_cols<ChunkSums>(nx, J, e, rows, chunk_rows, position, out, total);
+}
+#endif
+
+CARAT_MULTIVERSION
+void packed_sums_any(int nx, const double* X, const double* w, const int* begin, int clusters,
+                     double* out) {
+  dispatch_cols<PackedSums>(nx, X, w, begin, clusters, out);
+}
+
+#if CARAT_HAVE_AVX512_PATH
+// Without SLP vectorization: it turns the x_k broadcasts from memory into permutes of a loaded
+// row (one port instead of two; the accumulation ran at half speed).
+CARAT_TARGET_AVX512 __attribute__((optimize("no-tree-slp-vectorize"))) void chunk_sums_512(
+    int nx, const double* J, const double* e, long rows, long chunk_rows, const int* position,
+    double* out, double* total) {
+  dispatch_cols<ChunkSums>(nx, J, e, rows, chunk_rows, position, out, total);
+}
+
+CARAT_TARGET_AVX512 __attribute__((optimize("no-tree-slp-vectorize"))) void packed_sums_512(
+    int nx, const double* X, const double* w, const int* begin, int clusters, double* out) {
+  dispatch_cols<PackedSums>(nx, X, w, begin, clusters, out);
+}
+#endif
+
 }  // namespace
 
 void lift_sum(const double* J, const double* e, int r, long rows, long begin, long end,
@@ -215,6 +412,14 @@ void lift_chunk_sums(const double* J, const double* e, int r, long rows, long ch
     lift_chunk_sums_6(J, e, rows, chunk_rows, position, out, total);
     return;
   }
+  if (r + 1 <= kMaxPackedCols && wide_kernels()) {
+#if CARAT_HAVE_AVX512_PATH
+    chunk_sums_512(r + 1, J, e, rows, chunk_rows, position, out, total);
+#else
+    chunk_sums_any(r + 1, J, e, rows, chunk_rows, position, out, total);
+#endif
+    return;
+  }
   const int L = lifted_dim(r);
   const long chunks = (rows + chunk_rows - 1) / chunk_rows;
   for (long c = 0; c < chunks; ++c) {
@@ -249,6 +454,39 @@ void lift_rows(const double* J, const double* e, int r, const int* ids, int coun
       for (std::size_t q = j; q < x.size(); ++q) {
         out[static_cast<long>(k) * lifted_dim(r) + idx++] = x[j] * x[q];
       }
+    }
+  }
+}
+
+void pack_rows(const double* J, const double* e, int r, const int* ids, int count, double* X) {
+  const int P = packed_stride(r);
+  for (int k = 0; k < count; ++k) {
+    double* x = X + static_cast<long>(k) * P;
+    const double* a = J + static_cast<long>(ids[k]) * r;
+    for (int j = 0; j < r; ++j) x[j] = a[j];
+    x[r] = e[ids[k]];
+    for (int j = r + 1; j < P; ++j) x[j] = 0.0;
+  }
+}
+
+void packed_cluster_sums(const double* X, int r, const double* w, const int* begin, int clusters,
+                         double* out) {
+#if CARAT_HAVE_AVX512_PATH
+  if (cpu_has_avx512()) {
+    packed_sums_512(r + 1, X, w, begin, clusters, out);
+    return;
+  }
+#endif
+  packed_sums_any(r + 1, X, w, begin, clusters, out);  // correct anywhere, fast with AVX-512
+}
+
+void lift_packed(const double* X, int r, int count, double* out, long stride) {
+  const int P = packed_stride(r);
+  for (int i = 0; i < count; ++i) {
+    const double* x = X + static_cast<long>(i) * P;
+    long idx = 0;
+    for (int j = 0; j <= r; ++j) {
+      for (int k = j; k <= r; ++k) out[idx++ * stride + i] = x[j] * x[k];
     }
   }
 }

@@ -22,4 +22,21 @@ void lift_chunk_sums(const double* J, const double* e, int r, long rows, long ch
 /// Writes the lift of row ids[k] to out[k * L, (k + 1) * L) (item-major), k < count.
 void lift_rows(const double* J, const double* e, int r, const int* ids, int count, double* out);
 
+/// Largest r + 1 that packed rows support.
+constexpr int kMaxPackedCols = 16;
+
+/// Doubles per packed row for r columns: r + 1 rounded up to 8 (0 when r + 1 > kMaxPackedCols).
+constexpr int packed_stride(int r) { return r + 1 > kMaxPackedCols ? 0 : (r + 1 + 7) / 8 * 8; }
+
+/// Packs rows ids[k] as x = [J row, e, 0, ...] into X[k * packed_stride(r), ...), k < count.
+void pack_rows(const double* J, const double* e, int r, const int* ids, int count, double* X);
+
+/// Weighted lifted sums of clusters of packed rows: out[c * L + l] = sum over i in
+/// [begin[c], begin[c + 1]) of w[i] lift(x_i)[l], x_i the packed row i of X.
+void packed_cluster_sums(const double* X, int r, const double* w, const int* begin, int clusters,
+                         double* out);
+
+/// Lifts of packed rows, coordinate-major: out[l * stride + i] = lift(x_i)[l], i < count.
+void lift_packed(const double* X, int r, int count, double* out, long stride);
+
 }  // namespace carat::internal

@@ -4,6 +4,7 @@
 #include <cstddef>
 
 #include "elimination.hpp"
+#include "lift.hpp"
 #include "simd.hpp"
 
 namespace carat::internal {
@@ -37,12 +38,20 @@ long Items::rows() const {
 
 void Items::reset(Eigen::Index L, int count) {
   dim = L;
+  lifted = L;
+  packed_cols = 0;
   if (sums.size() < static_cast<std::size_t>(L * count)) {
     sums.resize(static_cast<std::size_t>(L * count));
   }
   counts.resize(static_cast<std::size_t>(count));
   weight.resize(static_cast<std::size_t>(count));
   ids.resize(static_cast<std::size_t>(count));
+}
+
+void Items::reset_packed(int r, int count) {
+  reset(packed_stride(r), count);
+  lifted = lifted_dim(r);
+  packed_cols = r + 1;
 }
 
 void Items::filter(const std::vector<char>& keep) {
@@ -72,6 +81,8 @@ void Items::truncate(int count) {
 void Items::split_tail(int from, Items& tail) {
   const int n = size();
   tail.reset(dim, n - from);
+  tail.lifted = lifted;
+  tail.packed_cols = packed_cols;
   std::copy(item(from), item(n), tail.item(0));
   tail.counts.assign(counts.begin() + from, counts.end());
   tail.weight.assign(weight.begin() + from, weight.end());
@@ -95,13 +106,13 @@ void Items::append(const Items& tail) {
 
 void reduce_level(Items& items, int clusters, long min_rows) {
   const int n = items.size();
-  const Eigen::Index L = items.dim;
+  const Eigen::Index L = items.lifted;
+  const Eigen::Index P = items.dim;
   const auto K = static_cast<std::size_t>(clusters);
-  thread_local std::vector<double> sums, means, cluster_weight, new_weight;
+  thread_local std::vector<double> sums, cluster_weight, new_weight;
   thread_local std::vector<long> cluster_rows;
   thread_local std::vector<int> begin;
   sums.resize(static_cast<std::size_t>(L) * K);
-  means.resize(static_cast<std::size_t>(L) * K);
   cluster_weight.assign(K, 0.0);
   cluster_rows.assign(K, 0);
   begin.resize(K + 1);
@@ -115,18 +126,21 @@ void reduce_level(Items& items, int clusters, long min_rows) {
       cluster_rows[c] += count;
     }
   }
-  cluster_sums(items.sums.data(), items.weight.data(), L, begin.data(), clusters, sums.data());
-  // Means, coordinate-major (as the elimination reads them).
-  for (std::size_t c = 0; c < K; ++c) {
-    const double inverse = 1.0 / cluster_weight[c];
-    for (Eigen::Index l = 0; l < L; ++l) {
-      means[static_cast<std::size_t>(l) * K + c] =
-          sums[c * static_cast<std::size_t>(L) + static_cast<std::size_t>(l)] * inverse;
-    }
+  if (items.packed_cols > 0) {
+    packed_cluster_sums(items.sums.data(), items.packed_cols - 1, items.weight.data(), begin.data(),
+                        clusters, sums.data());
+  } else {
+    cluster_sums(items.sums.data(), items.weight.data(), L, begin.data(), clusters, sums.data());
   }
+  // The clusters' means are their sums over their weights: the elimination reads the sums
+  // item-major and scales them as it centres each coordinate.
+  thread_local std::vector<double> inverse;
+  inverse.resize(K);
+  for (std::size_t c = 0; c < K; ++c) inverse[c] = 1.0 / cluster_weight[c];
   new_weight = cluster_weight;
   const std::vector<char>& alive =
-      eliminate(means.data(), L, clusters, clusters, new_weight.data(), cluster_rows, min_rows);
+      eliminate(sums.data(), L, clusters, PointLayout{1, L, inverse.data()}, new_weight.data(),
+                cluster_rows, min_rows);
   // Kept clusters' items move down in place (clusters are contiguous and in order, so an item
   // never moves up) with their weights rescaled: one pass, no mask.
   int out = 0;
@@ -137,7 +151,7 @@ void reduce_level(Items& items, int clusters, long min_rows) {
       const auto o = static_cast<std::size_t>(out);
       const auto s = static_cast<std::size_t>(i);
       if (out != i) {
-        std::copy(items.item(i), items.item(i) + L, items.item(out));
+        std::copy(items.item(i), items.item(i) + P, items.item(out));
         items.counts[o] = items.counts[s];
         items.ids[o] = items.ids[s];
       }
@@ -149,7 +163,7 @@ void reduce_level(Items& items, int clusters, long min_rows) {
 
 void reduce_final(Items& items, long min_rows) {
   const int n = items.size();
-  const Eigen::Index L = items.dim;
+  const Eigen::Index L = items.lifted;
   thread_local std::vector<double> means, total;
   means.resize(static_cast<std::size_t>(L * n));
   total.resize(static_cast<std::size_t>(n));
@@ -158,14 +172,18 @@ void reduce_final(Items& items, long min_rows) {
         items.weight[static_cast<std::size_t>(i)] *
         static_cast<double>(items.counts[static_cast<std::size_t>(i)]);
   }
-  for (int i = 0; i < n; ++i) {
-    const double* p = items.item(i);
-    const double inverse = 1.0 / static_cast<double>(items.counts[static_cast<std::size_t>(i)]);
-    for (Eigen::Index l = 0; l < L; ++l)
-      means[static_cast<std::size_t>(l * n + i)] = p[l] * inverse;
+  if (items.packed_cols > 0) {
+    lift_packed(items.sums.data(), items.packed_cols - 1, n, means.data(), n);
+  } else {
+    for (int i = 0; i < n; ++i) {
+      const double* p = items.item(i);
+      const double inverse = 1.0 / static_cast<double>(items.counts[static_cast<std::size_t>(i)]);
+      for (Eigen::Index l = 0; l < L; ++l)
+        means[static_cast<std::size_t>(l * n + i)] = p[l] * inverse;
+    }
   }
   const std::vector<char>& alive =
-      eliminate(means.data(), L, n, n, total.data(), items.counts, min_rows);
+      eliminate(means.data(), L, n, PointLayout{n}, total.data(), items.counts, min_rows);
   for (int i = 0; i < n; ++i) {
     if (alive[static_cast<std::size_t>(i)]) {
       items.weight[static_cast<std::size_t>(i)] =

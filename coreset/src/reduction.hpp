@@ -3,7 +3,9 @@
 // Internal: the Fast-Caratheodory level loop over "items". An item stands for `count` rows that
 // share one weight per row; `sums` holds each item's unweighted sum of lifted rows, item-major
 // (the L coordinates of item i at sums[i * L]) so that a level's cluster sums and the filtering
-// of survivors run over contiguous memory.
+// of survivors run over contiguous memory. Items of single rows may instead hold the packed row
+// x = [a, e, 0, ...] (packed_cols = r + 1 > 0): a level lifts it on the fly, which reads and
+// moves 8 or 16 doubles per row instead of L.
 
 #include <Eigen/Core>
 #include <vector>
@@ -17,10 +19,14 @@ struct Items {
   std::vector<long> counts;    ///< rows per item
   std::vector<double> weight;  ///< weight of each row of the item
   std::vector<int> ids;        ///< caller's id of each item
-  Eigen::Index dim = 0;        ///< L, the lifted dimension
+  Eigen::Index dim = 0;        ///< doubles per item: L, or the packed row's stride
+  Eigen::Index lifted = 0;     ///< L, the lifted dimension
+  int packed_cols = 0;         ///< r + 1 when items are packed rows (count 1 each), else 0
 
-  /// Makes room for `count` items of dimension L (contents unspecified).
+  /// Makes room for `count` items of lifted sums in dimension L (contents unspecified).
   void reset(Eigen::Index L, int count);
+  /// Makes room for `count` packed rows of r columns (contents unspecified).
+  void reset_packed(int r, int count);
   /// Number of items.
   int size() const { return static_cast<int>(counts.size()); }
   /// Rows represented by all items.

@@ -1,6 +1,7 @@
 #include "carat/coreset/row_coreset.hpp"
 
 #include <Eigen/Cholesky>
+#include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
 #include <deque>
@@ -12,6 +13,7 @@
 #include "lift.hpp"
 #include "reduction.hpp"
 #include "shuffle.hpp"
+#include "simd.hpp"
 
 namespace carat {
 namespace {
@@ -32,7 +34,7 @@ void polish_weights(const double* J, const double* e, int r, const Eigen::Vector
   const Eigen::Index L = target.size() - 1;
   // Scratch of this thread, reused (no heap traffic per call; see eliminate).
   thread_local Eigen::MatrixXd P, gram;
-  thread_local Eigen::VectorXd w, scale, residual, delta, polished;
+  thread_local Eigen::VectorXd w, scale, residual, delta, polished, after;
   thread_local Eigen::LDLT<Eigen::MatrixXd> ldlt;
   thread_local std::vector<double> lifted;
   P.resize(L + 1, m);
@@ -53,18 +55,31 @@ void polish_weights(const double* J, const double* e, int r, const Eigen::Vector
   P = scale.asDiagonal() * P;
   residual.noalias() = scale.cwiseProduct(target);
   residual.noalias() -= P * w;
+  const double before = residual.norm();
+  // Keeps w + delta if every weight stays positive and the residual shrinks.
+  const auto accept = [&]() {
+    polished = w + delta;
+    if (!polished.allFinite() || polished.minCoeff() <= 0.0) return false;
+    after.noalias() = scale.cwiseProduct(target);
+    after.noalias() -= P * polished;
+    if (!(after.norm() < before)) return false;
+    for (int k = 0; k < m; ++k) rows.weight[static_cast<std::size_t>(k)] = polished[k];
+    return true;
+  };
+  // Exactly L + 1 rows (the minimum): the correction is P^-1 residual when P is regular.
+  if (m == L + 1) {
+    thread_local Eigen::PartialPivLU<Eigen::MatrixXd> lu;
+    lu.compute(P);
+    delta.noalias() = lu.solve(residual);
+    if (accept()) return;
+  }
   // Minimum-norm correction through the (L+1) x (L+1) Gram matrix (semi-definite LDL^T: the
   // directions the rows do not span get no correction, and need none).
-  gram.noalias() = P * P.transpose();
+  gram.setZero(L + 1, L + 1);
+  gram.selfadjointView<Eigen::Lower>().rankUpdate(P);  // P P^T, one triangle (LDLT reads it)
   ldlt.compute(gram);
   delta.noalias() = P.transpose() * ldlt.solve(residual);
-  polished = w + delta;
-  if (!polished.allFinite() || polished.minCoeff() <= 0.0) return;
-  const double before = residual.norm();
-  residual.noalias() = scale.cwiseProduct(target);
-  residual.noalias() -= P * polished;
-  if (!(residual.norm() < before)) return;
-  for (int k = 0; k < m; ++k) rows.weight[static_cast<std::size_t>(k)] = polished[k];
+  accept();
 }
 
 /// Reduces single-row items to `target` rows (exactly, if exact and the data allow it).
@@ -244,14 +259,25 @@ RowCoreset select_coreset_rows(const Eigen::Ref<const RowMatrix>& J_r,
   thread_local std::vector<int> row_order;
   internal::seeded_permutation(survivors, options.seed + 1, row_order);
   thread_local internal::Items rows;
-  rows.reset(L, survivors);
+  // Rows of up to kMaxPackedCols - 1 columns travel packed (lifted on the fly) where the wide
+  // kernels pay off; otherwise, and for wider rows, lifted.
+  const bool packed = internal::packed_stride(r) > 0 && internal::wide_kernels();
+  if (packed) {
+    rows.reset_packed(r, survivors);
+  } else {
+    rows.reset(L, survivors);
+  }
   std::fill(rows.counts.begin(), rows.counts.end(), 1);
   for (int k = 0; k < survivors; ++k) {
     const auto src = static_cast<std::size_t>(row_order[static_cast<std::size_t>(k)]);
     rows.weight[static_cast<std::size_t>(k)] = row_weight[src];
     rows.ids[static_cast<std::size_t>(k)] = row_ids[src];
   }
-  internal::lift_rows(J, E, r, rows.ids.data(), survivors, rows.sums.data());
+  if (packed) {
+    internal::pack_rows(J, E, r, rows.ids.data(), survivors, rows.sums.data());
+  } else {
+    internal::lift_rows(J, E, r, rows.ids.data(), survivors, rows.sums.data());
+  }
 
   // Phase 3: rows down to M.
   reduce_rows(rows, M, options.exact_size, K, L);
