@@ -34,9 +34,12 @@ function(carat_add_module)
   endif()
 endfunction()
 
-# Warnings as errors, on carat's own targets only.
+# Warnings on carat's own targets only; as errors with CARAT_WERROR (the scripts and CI set it).
 function(carat_set_warnings target)
-  target_compile_options(${target} PRIVATE -Wall -Wextra -Werror)
+  target_compile_options(${target} PRIVATE -Wall -Wextra)
+  if(CARAT_WERROR)
+    target_compile_options(${target} PRIVATE -Werror)
+  endif()
   if(CARAT_NATIVE)
     target_compile_options(${target} PRIVATE -march=native)
   endif()

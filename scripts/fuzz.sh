@@ -17,7 +17,7 @@ if ! command -v clang++ >/dev/null || ! dpkg-query -W -f='${Status}' libclang-rt
 fi
 # -O1 -g1 (line tables): the usual libFuzzer build, and a much shorter compile than -O2 -g.
 CXX=clang++ cmake -S . -B build-fuzz -DCMAKE_BUILD_TYPE=RelWithDebInfo \
-  -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1 -DNDEBUG" -DCARAT_BUILD_FUZZERS=ON \
+  -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1 -DNDEBUG" -DCARAT_BUILD_FUZZERS=ON -DCARAT_WERROR=ON \
   -DCARAT_BUILD_TESTS=OFF -DCARAT_BUILD_BENCHMARKS=OFF -DCARAT_BUILD_APPS=OFF >/dev/null
 targets=("$@")
 if ((${#targets[@]} == 0)); then

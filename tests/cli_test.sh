@@ -3,6 +3,13 @@
 # Needs CARAT (the binary); uses CARAT_DATA_DIR for real data when present.
 source "$(dirname "$0")/cli_common.sh"
 
+# --version: the version of CMakeLists.txt's project(VERSION).
+project_version=$(sed -n 's/^project(carat VERSION \([0-9.]*\).*/\1/p' "$(dirname "$0")/../CMakeLists.txt")
+check version 0 "" -- "$CARAT" --version
+if [[ -z $project_version || "$(cat "$scratch/out")" != "carat $project_version" ]]; then
+  echo "FAIL --version printed '$(cat "$scratch/out")', expected 'carat $project_version'"; fail=$((fail + 1))
+else pass=$((pass + 1)); fi
+
 # demo: the dense-graph job on a small synthetic world; report, JSON fields, files.
 check demo_runs 0 "" -- "$CARAT" demo --frames 24 --out "$scratch/demo-text"
 grep -q "GRE exact (M=29)" "$scratch/out" || { echo "FAIL demo report lacks the GRE exact row"; fail=$((fail + 1)); }

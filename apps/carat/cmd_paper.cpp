@@ -643,7 +643,8 @@ void register_paper(CLI::App& app, CommandRegistry& registry) {
                   "absent are skipped")
       ->check(path_value())
       ->capture_default_str();
-  cmd->add_flag("--quick", args->quick, "fewer trials and a smaller sequence (seconds instead of about a minute)");
+  cmd->add_flag("--quick", args->quick,
+                "fewer trials and a smaller sequence (seconds instead of about a minute)");
   cmd->add_option("--seed", args->seed, "random seed")->check(seed_value())->capture_default_str();
   cmd->add_option("--gre-excess-cauchy", args->gre_excess_cauchy,
                   "Cauchy scale on each GRE factor's error above its own minimum (0: none, as in "

@@ -7,6 +7,7 @@
 #include <new>
 #include <string>
 
+#include "carat/solver/version.hpp"
 #include "cli_support.hpp"
 #include "commands.hpp"
 
@@ -28,7 +29,7 @@ int main(int argc, char** argv) {
   carat::cli::install_interrupt_cleanup();
   CLI::App app{"carat: sparse nonlinear least squares with exact residual-block compression"};
   app.require_subcommand(1);
-  app.set_version_flag("--version", "carat 0.1.0");
+  app.set_version_flag("--version", std::string("carat ") + carat::version());
   carat::cli::CommandRegistry registry;
   carat::cli::register_demo(app, registry);
   carat::cli::register_solve_g2o(app, registry);

@@ -105,7 +105,8 @@ carat::Problem carat_problem(const camera_scene::Scene& scene,
 
 std::vector<Eigen::Isometry3d> poses_of(const carat::Problem& problem) {
   std::vector<Eigen::Isometry3d> out;
-  for (int v = 0; v < problem.num_variables(); ++v) out.push_back(problem.se3(carat::VariableId{v}));
+  for (int v = 0; v < problem.num_variables(); ++v)
+    out.push_back(problem.se3(carat::VariableId{v}));
   return out;
 }
 
@@ -123,8 +124,7 @@ nlohmann::json judge(const camera_scene::Scene& scene, const std::vector<Eigen::
           {"time_s", seconds},
           {"iterations", iterations},
           {"translation_rmse_m", std::sqrt(t2 / static_cast<double>(poses.size()))},
-          {"rotation_rmse_deg",
-           std::sqrt(a2 / static_cast<double>(poses.size())) * 180.0 / M_PI}};
+          {"rotation_rmse_deg", std::sqrt(a2 / static_cast<double>(poses.size())) * 180.0 / M_PI}};
 }
 
 nlohmann::json run_ceres(const camera_scene::Scene& scene) {
@@ -146,10 +146,9 @@ nlohmann::json run_ceres(const camera_scene::Scene& scene) {
   const Eigen::Matrix<double, 6, 6> sqrt_information =
       odometry_information(scene).llt().matrixU();  // the same whitening as RelativePoseBlock
   for (std::size_t k = 0; k + 1 < poses.size(); ++k) {
-    problem.AddResidualBlock(
-        new ceres::AutoDiffCostFunction<CeresRelativePose, 6, 7, 7>(
-            new CeresRelativePose(scene.odometry[k], sqrt_information)),
-        nullptr, poses[k].data(), poses[k + 1].data());
+    problem.AddResidualBlock(new ceres::AutoDiffCostFunction<CeresRelativePose, 6, 7, 7>(
+                                 new CeresRelativePose(scene.odometry[k], sqrt_information)),
+                             nullptr, poses[k].data(), poses[k + 1].data());
   }
   ceres::Solver::Options options;
   options.num_threads = 1;
@@ -195,7 +194,8 @@ int main(int argc, char** argv) {
       const auto t0 = Clock::now();
       carat::compress_problem(problem);
       const carat::SolverSummary s = carat::solve(options, problem);
-      out["carat_compressed"] = judge(scene, poses_of(problem), seconds_since(t0), s.num_iterations);
+      out["carat_compressed"] =
+          judge(scene, poses_of(problem), seconds_since(t0), s.num_iterations);
     }
     {
       carat::Problem problem = carat_problem(scene, scene.T_world_camera_start);

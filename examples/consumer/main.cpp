@@ -1,7 +1,5 @@
-// Solves a tiny pose graph through the installed carat package.
-#include <carat/residuals/relative_pose_block.hpp>
-#include <carat/solver/se3.hpp>
-#include <carat/solver/solve.hpp>
+// Solves a tiny pose graph through the installed carat package (its umbrella header).
+#include <carat/carat.hpp>
 #include <cmath>
 #include <cstdio>
 #include <memory>
@@ -28,6 +26,6 @@ int main() {
     std::printf("consumer: FAILED (error %.3e)\n", error);
     return 1;
   }
-  std::printf("consumer: ok\n");
+  std::printf("consumer: ok (carat %s)\n", carat::version());
   return 0;
 }
