@@ -32,7 +32,9 @@ if ((${#missing[@]})); then
   $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
 fi
 
-# Make the choice of BLAS explicit rather than leaving it to whichever package came first.
+# Which BLAS CHOLMOD gets is a system-wide choice (Debian's alternatives): left as it is unless
+# CARAT_SET_BLAS=1 asks for OpenBLAS serial, the setup carat's figures were measured with (a
+# fresh install picks it anyway: it has the highest priority of what is installed here).
 arch_dir="/usr/lib/$(dpkg-architecture -qDEB_HOST_MULTIARCH 2>/dev/null || echo x86_64-linux-gnu)"
 for lib in libblas.so.3 liblapack.so.3; do
   target="${arch_dir}/openblas-serial/${lib}"
@@ -40,7 +42,11 @@ for lib in libblas.so.3 liblapack.so.3; do
   if [[ -e "$target" ]] && update-alternatives --query "$name" >/dev/null 2>&1; then
     current=$(update-alternatives --query "$name" | awk '/^Value:/ {print $2}')
     if [[ "$current" != "$target" ]]; then
-      $SUDO update-alternatives --quiet --set "$name" "$target"
+      if [[ "${CARAT_SET_BLAS:-0}" == "1" ]]; then
+        $SUDO update-alternatives --quiet --set "$name" "$target"
+      else
+        echo "note: ${lib} is ${current}; CARAT_SET_BLAS=1 $0 selects OpenBLAS serial" >&2
+      fi
     fi
   fi
 done
