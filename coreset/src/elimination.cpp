@@ -328,13 +328,14 @@ struct PendingExchanges {
   std::vector<double> columns;   ///< e_i, kPanel x stride
   Eigen::Index row[kPanel];      ///< basis row of exchange i
   double inverse[kPanel];        ///< 1 / (entering column at row[i])
-  double solve[kPanel][kPanel];  ///< p = solve s for s_j = c[row[j]] (lower triangular)
+  double solve[kPanel][kPanel];  ///< column-major: p = sum_j solve[j] s_j, s_j = c[row[j]]
   int count = 0;                 ///< exchanges recorded
   Eigen::Index stride = 0;       ///< doubles per column
 
   /// Records exchange count: the entering column (stride doubles) at basis row j_row. The
-  /// exchanges' p_i = inverse_i (s_i - sum_{l<i} e_l[row_i] p_l) are linear in s, p = solve s;
-  /// row i of solve follows from the rows before it.
+  /// exchanges' p_i = inverse_i (s_i - sum_{l<i} e_l[row_i] p_l) are linear in s (a lower
+  /// triangular map, kept by column so that applying it is eight-wide); its row i follows from
+  /// the rows before it.
   void add(const double* entering, Eigen::Index j_row) {
     double* e = columns.data() + count * stride;
     std::copy(entering, entering + stride, e);
@@ -344,8 +345,8 @@ struct PendingExchanges {
     row[i] = j_row;
     for (int j = 0; j < kPanel; ++j) {
       double v = j == i ? 1.0 : 0.0;
-      for (int l = 0; l < i; ++l) v -= columns[l * stride + j_row] * solve[l][j];
-      solve[i][j] = j <= i ? v * inverse[i] : 0.0;
+      for (int l = 0; l < i; ++l) v -= columns[l * stride + j_row] * solve[j][l];
+      solve[j][i] = j <= i ? v * inverse[i] : 0.0;
     }
     ++count;
   }
@@ -359,11 +360,6 @@ void apply_exchanges(Tableau& F, Eigen::Index begin, Eigen::Index end, const Pen
   const Eigen::Index stride = F.stride;
   const int count = x.count;
   const double* __restrict e = x.columns.data();
-  // solve's columns (solve[., j] for s = unit vector j), each one eight-wide vector.
-  double solve_columns[kPanel][kPanel];
-  for (int j = 0; j < kPanel; ++j) {
-    for (int i = 0; i < kPanel; ++i) solve_columns[j][i] = x.solve[i][j];
-  }
   // Four columns per pass where there are four (each exchange column load serves all four).
   const auto pass = [&]<int M>(Eigen::Index c, std::integral_constant<int, M>) {
     // p = solve s as eight-wide multiply-adds over solve's columns.
@@ -374,7 +370,7 @@ void apply_exchanges(Tableau& F, Eigen::Index begin, Eigen::Index end, const Pen
       v8d pv = v8d{} * 0.0;
       for (int j = 0; j < count; ++j) {
         v8d sj;
-        __builtin_memcpy(&sj, &solve_columns[j][0], sizeof(sj));
+        __builtin_memcpy(&sj, &x.solve[j][0], sizeof(sj));
         pv += sj * column[x.row[j]];
       }
       __builtin_memcpy(&p[q][0], &pv, sizeof(pv));

@@ -223,10 +223,6 @@ struct LiftAccumulators {
   }
 };
 
-/// Eight-wide vectors: with four-wide ones r = 12 needs 28 accumulators, which spilled.
-template <int NX>
-using LiftVector = v8d;
-
 /// Block q of a row x = [a[0, R), e]: W doubles from a + Wq (the caller makes sure they can be
 /// read), with e in lane R - Wq when the block holds x's last entry.
 template <int R, class V, int Q>
@@ -244,7 +240,7 @@ __attribute__((always_inline)) inline void chunk_sums_body(const double* J, cons
                                                            double* total) {
   constexpr int R = NX - 1;
   constexpr int L = lifted_dim(R);
-  using V = LiftVector<NX>;
+  using V = v8d;  // four-wide, r = 12 needs 28 accumulators, which spilled
   using Acc = LiftAccumulators<NX, V>;
   constexpr int W = Acc::W;
   const long chunks = (rows + chunk_rows - 1) / chunk_rows;
@@ -292,7 +288,7 @@ __attribute__((always_inline)) inline void packed_sums_body(const double* X, con
                                                             double* out) {
   constexpr int P = packed_stride(NX - 1);
   constexpr int L = lifted_dim(NX - 1);
-  using V = LiftVector<NX>;
+  using V = v8d;  // four-wide, r = 12 needs 28 accumulators, which spilled
   using Acc = LiftAccumulators<NX, V>;
   constexpr int W = Acc::W;
   static_assert(Acc::kBlocks * W <= P, "blocks stay inside a packed row");
