@@ -154,7 +154,6 @@ Eigen::Index gauss_jordan(PaddedMatrix& T, double tolerance, std::vector<Eigen::
       for (Eigen::Index c = panel; c < n; ++c) free_col.push_back(c);
       break;
     }
-    std::fill(F.begin(), F.end(), 0.0);
     for (Eigen::Index r = 0; r < m; ++r) {
       const double* row = base + r * stride + panel;
       for (int j = 0; j < kPanel; ++j) pc[j * mp + r] = row[j];
@@ -249,6 +248,14 @@ Eigen::Index gauss_jordan(PaddedMatrix& T, double tolerance, std::vector<Eigen::
       for (Eigen::Index r = 0; r < m; ++r) base[r * stride + *f] = column[r];
     }
     if (count == 0) continue;
+    // Every pivot wrote its factor for every row; pivots the panel did not get have none (the
+    // kernels below run all kPanel with zero coefficients there, which must not meet stale
+    // values).
+    if (count < kPanel) {
+      for (Eigen::Index r = 0; r < m; ++r) {
+        std::fill(F.begin() + r * kPanel + count, F.begin() + (r + 1) * kPanel, 0.0);
+      }
+    }
     // Columns the panel's operations change outside the panel: free columns before it (their
     // 8-column blocks; the basic columns there are not read again) and every column after it.
     const Eigen::Index first_free = free_col.empty() ? panel : std::min(panel, free_col.front());
@@ -265,10 +272,12 @@ struct Tableau {
   Eigen::Index rows = 0;     ///< basis rows
   Eigen::Index stride = 0;   ///< rows rounded up to 8
 
+  /// Shape r x c; rows [0, r) unspecified (the caller writes them), the padding rows zero.
   void resize(Eigen::Index r, Eigen::Index c) {
     rows = r;
     stride = (r + 7) / 8 * 8;
-    data.assign(static_cast<std::size_t>(c * stride), 0.0);
+    data.resize(static_cast<std::size_t>(c * stride));
+    for (Eigen::Index k = 0; k < c; ++k) std::fill(col(k) + r, col(k) + stride, 0.0);
   }
   double* col(Eigen::Index k) { return data.data() + k * stride; }
 };
@@ -278,8 +287,8 @@ struct Tableau {
 /// (then alpha becomes it and its first row is returned), else -1. Branch-free over the rows:
 /// the signs are data, and a mispredicted branch per row cost more than the divisions.
 CARAT_MULTIVERSION_WIDE
-Eigen::Index ratio_test(const double* __restrict column, const double* __restrict bw,
-                        Eigen::Index stride, double* __restrict ratio, double& alpha) {
+Eigen::Index ratio_test_exact(const double* __restrict column, const double* __restrict bw,
+                              Eigen::Index stride, double* __restrict ratio, double& alpha) {
   constexpr double inf = std::numeric_limits<double>::infinity();
   const v8d infinity = v8d{} + inf;
   const v8d zero = v8d{} * 0.0;
@@ -302,6 +311,74 @@ Eigen::Index ratio_test(const double* __restrict column, const double* __restric
   Eigen::Index r = 0;
   while (ratio[r] != smallest) ++r;
   return r;
+}
+
+#if CARAT_HAVE_AVX512_PATH
+/// ratio_test with the same result, fewer divisions: approximate ratios w * (1 / v) (a 14-bit
+/// reciprocal and one Newton step, relative error below 4e-9) find the rows whose ratio can be
+/// the smallest (within 1e-7 of the smallest approximation), and only those are divided exactly.
+/// A reciprocal that is 0 or not finite (v huge or denormal) sends the column to ratio_test_exact.
+CARAT_TARGET_AVX512
+Eigen::Index ratio_test_512(const double* __restrict column, const double* __restrict bw,
+                            Eigen::Index stride, double* __restrict ratio, double& alpha) {
+  constexpr double inf = std::numeric_limits<double>::infinity();
+  const v8d infinity = v8d{} + inf;
+  const v8d zero = v8d{} * 0.0;
+  v8d best = infinity;
+  v8l bad = v8l{} * 0;
+  for (Eigen::Index r = 0; r < stride; r += 8) {
+    v8d c;
+    v8d w;
+    __builtin_memcpy(&c, column + r, sizeof(c));
+    __builtin_memcpy(&w, bw + r, sizeof(w));
+    const v8d v = -c;
+    const v8d x0 = __builtin_ia32_rcp14pd512_mask(v, zero, static_cast<unsigned char>(0xFF));
+    const v8d x = x0 * (2.0 - v * x0);
+    const v8l positive = v > zero;
+    bad |= positive & ~((x0 > zero) & (x0 < infinity));
+    const v8d q = positive ? w * x : infinity;
+    __builtin_memcpy(ratio + r, &q, sizeof(q));
+    best = q < best ? q : best;
+  }
+  bool any_bad = false;
+  for (int q = 0; q < 8; ++q) any_bad = any_bad || bad[q] != 0;
+  if (any_bad) return ratio_test_exact(column, bw, stride, ratio, alpha);
+  double approximate = best[0];
+  for (int q = 1; q < 8; ++q) approximate = std::min(approximate, best[q]);
+  constexpr double kMargin = 1e-7;
+  if (!(approximate < alpha * (1.0 + kMargin) + std::numeric_limits<double>::min())) return -1;
+  const double threshold = approximate * (1.0 + kMargin) + std::numeric_limits<double>::min();
+  double smallest = std::numeric_limits<double>::infinity();
+  Eigen::Index first = -1;
+  for (Eigen::Index r = 0; r < stride; r += 8) {
+    v8d q;
+    __builtin_memcpy(&q, ratio + r, sizeof(q));
+    const v8l candidate = q <= threshold;
+    bool any = false;
+    for (int lane = 0; lane < 8; ++lane) any = any || candidate[lane] != 0;
+    if (!any) continue;
+    for (int lane = 0; lane < 8; ++lane) {
+      if (candidate[lane] == 0) continue;
+      const double exact = bw[r + lane] / -column[r + lane];
+      if (exact < smallest) {
+        smallest = exact;
+        first = r + lane;
+      }
+    }
+  }
+  if (!(smallest < alpha)) return -1;
+  alpha = smallest;
+  return first;
+}
+#endif
+
+/// ratio_test_exact's result, with the fewest divisions this CPU allows.
+Eigen::Index ratio_test(const double* column, const double* bw, Eigen::Index stride, double* ratio,
+                        double& alpha) {
+#if CARAT_HAVE_AVX512_PATH
+  if (cpu_has_avx512()) return ratio_test_512(column, bw, stride, ratio, alpha);
+#endif
+  return ratio_test_exact(column, bw, stride, ratio, alpha);
 }
 
 /// bw[r] = max(0, bw[r] + alpha * column[r]): the basis weights after a step of alpha.
