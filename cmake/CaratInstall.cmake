@@ -1,7 +1,8 @@
-# Installs carat as a CMake package: find_package(carat CONFIG) then link carat::carat.
+# Installs carat as a CMake package: find_package(carat CONFIG) then link carat::carat, or
+# find_package(carat CONFIG COMPONENTS solver ...) then link the modules asked for. Each module's
+# targets are exported by carat_add_module; this file adds the umbrella target and the config.
 include(CMakePackageConfigHelpers)
 
-set(CARAT_CMAKE_DIR "${CMAKE_INSTALL_LIBDIR}/cmake/carat")
 install(TARGETS carat EXPORT caratTargets)
 install(EXPORT caratTargets NAMESPACE carat:: DESTINATION "${CARAT_CMAKE_DIR}")
 configure_package_config_file("${CMAKE_CURRENT_SOURCE_DIR}/cmake/caratConfig.cmake.in"

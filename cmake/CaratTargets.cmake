@@ -2,7 +2,9 @@
 
 # carat_add_module(NAME <name> [DEPS <targets...>] [PRIVATE_DEPS <targets...>])
 # Declares the library carat_<name> (alias carat::<name>, export name <name>) from
-# <name>/src/*.cpp with public headers in <name>/include/carat/<name>/.
+# <name>/src/*.cpp with public headers in <name>/include/carat/<name>/. PRIVATE_DEPS that only
+# the sources include (header-only libraries) are wrapped in $<BUILD_INTERFACE:...> by the
+# caller, so that the installed package does not ask consumers for them.
 function(carat_add_module)
   cmake_parse_arguments(ARG "" "NAME" "DEPS;PRIVATE_DEPS" ${ARGN})
   file(GLOB _sources CONFIGURE_DEPENDS "${CMAKE_CURRENT_SOURCE_DIR}/src/*.cpp")
@@ -26,9 +28,12 @@ function(carat_add_module)
     target_link_libraries(${_target} INTERFACE ${ARG_DEPS})
   endif()
   add_library(carat::${ARG_NAME} ALIAS ${_target})
-  install(TARGETS ${_target} EXPORT caratTargets
+  # One export set per module, so that find_package(carat COMPONENTS ...) loads only the modules
+  # asked for (and the ones they build on).
+  install(TARGETS ${_target} EXPORT carat_${ARG_NAME}Targets
           ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
           LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR})
+  install(EXPORT carat_${ARG_NAME}Targets NAMESPACE carat:: DESTINATION "${CARAT_CMAKE_DIR}")
   if(EXISTS "${CMAKE_CURRENT_SOURCE_DIR}/include")
     install(DIRECTORY "${CMAKE_CURRENT_SOURCE_DIR}/include/" DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
   endif()

@@ -21,6 +21,7 @@
 /// groups only. A functor that returns false makes its rows NaN: the solver rejects a trial step
 /// there, and names the block and the row if it happens at the start.
 
+#include <Eigen/Core>
 #include <array>
 #include <memory>
 #include <string>
