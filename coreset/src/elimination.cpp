@@ -44,22 +44,22 @@ constexpr int kPanel = 8;
 /// vector V of them at a time, with the pivots' w in registers: kPanel multiply-adds per load
 /// and store instead of one.
 template <class V, int N>
-__attribute__((always_inline)) inline void apply_panel_body(double* __restrict base,
-                                                            Eigen::Index rows, Eigen::Index stride,
-                                                            Eigen::Index p0, int count,
-                                                            const double* __restrict F,
+__attribute__((always_inline)) inline void apply_panel_body(double* const* __restrict row_of,
+                                                            Eigen::Index rows, Eigen::Index p0,
+                                                            int count, const double* __restrict F,
                                                             const double* __restrict scale,
                                                             Eigen::Index begin, Eigen::Index end) {
   constexpr int W = sizeof(V) / sizeof(double);
   Eigen::Index c = begin;
-  // N vectors of columns per pass (each factor load serves N multiply-adds), then one.
-  const auto pass = [&]<int M>(std::integral_constant<int, M>) {
+  // N vectors of columns per pass (each factor load serves N multiply-adds), then one. Inlined
+  // always: a lambda does not inherit the target of the function around it.
+  const auto pass = [&]<int M>(std::integral_constant<int, M>) __attribute__((always_inline)) {
     V w[M][kPanel];
     for (int q = 0; q < M; ++q) {
       for (int k = 0; k < kPanel; ++k) {
         if (k < count) {
           V a;
-          __builtin_memcpy(&a, base + (p0 + k) * stride + c + q * W, sizeof(V));
+          __builtin_memcpy(&a, row_of[p0 + k] + c + q * W, sizeof(V));
           const double* f = F + (p0 + k) * kPanel;
           for (int j = 0; j < k; ++j) a -= f[j] * w[q][j];
           w[q][k] = scale[k] * a;
@@ -73,7 +73,7 @@ __attribute__((always_inline)) inline void apply_panel_body(double* __restrict b
         r = p0 + count - 1;
         continue;
       }
-      double* __restrict row = base + r * stride + c;
+      double* __restrict row = row_of[r] + c;
       const double* f = F + r * kPanel;
       V v[M];
       for (int q = 0; q < M; ++q) __builtin_memcpy(&v[q], row + q * W, sizeof(V));
@@ -87,7 +87,7 @@ __attribute__((always_inline)) inline void apply_panel_body(double* __restrict b
         V t = w[q][k];
         const double* f = F + (p0 + k) * kPanel;
         for (int j = k + 1; j < count; ++j) t -= f[j] * w[q][j];
-        __builtin_memcpy(base + (p0 + k) * stride + c + q * W, &t, sizeof(V));
+        __builtin_memcpy(row_of[p0 + k] + c + q * W, &t, sizeof(V));
       }
     }
   };
@@ -97,30 +97,30 @@ __attribute__((always_inline)) inline void apply_panel_body(double* __restrict b
 
 /// apply_panel_body four columns at a time (eight pivots' vectors fit 16 registers).
 CARAT_MULTIVERSION
-void apply_panel_4(double* base, Eigen::Index rows, Eigen::Index stride, Eigen::Index p0, int count,
+void apply_panel_4(double* const* row_of, Eigen::Index rows, Eigen::Index p0, int count,
                    const double* F, const double* scale, Eigen::Index begin, Eigen::Index end) {
-  apply_panel_body<v4d, 1>(base, rows, stride, p0, count, F, scale, begin, end);
+  apply_panel_body<v4d, 1>(row_of, rows, p0, count, F, scale, begin, end);
 }
 
 #if CARAT_HAVE_AVX512_PATH
 /// apply_panel_body sixteen columns at a time (AVX-512: 32 registers hold two columns of eight).
 CARAT_TARGET_AVX512
-void apply_panel_8(double* base, Eigen::Index rows, Eigen::Index stride, Eigen::Index p0, int count,
+void apply_panel_8(double* const* row_of, Eigen::Index rows, Eigen::Index p0, int count,
                    const double* F, const double* scale, Eigen::Index begin, Eigen::Index end) {
-  apply_panel_body<v8d, 2>(base, rows, stride, p0, count, F, scale, begin, end);
+  apply_panel_body<v8d, 2>(row_of, rows, p0, count, F, scale, begin, end);
 }
 #endif
 
 /// apply_panel_body at the vector width this CPU has.
-void apply_panel(double* base, Eigen::Index rows, Eigen::Index stride, Eigen::Index p0, int count,
+void apply_panel(double* const* row_of, Eigen::Index rows, Eigen::Index p0, int count,
                  const double* F, const double* scale, Eigen::Index begin, Eigen::Index end) {
 #if CARAT_HAVE_AVX512_PATH
   if (cpu_has_avx512()) {
-    apply_panel_8(base, rows, stride, p0, count, F, scale, begin, end);
+    apply_panel_8(row_of, rows, p0, count, F, scale, begin, end);
     return;
   }
 #endif
-  apply_panel_4(base, rows, stride, p0, count, F, scale, begin, end);
+  apply_panel_4(row_of, rows, p0, count, F, scale, begin, end);
 }
 
 /// Gauss-Jordan with partial pivoting on T (in place), blocked: panels of kPanel columns are
@@ -128,17 +128,20 @@ void apply_panel(double* base, Eigen::Index rows, Eigen::Index stride, Eigen::In
 /// unit pivot row and is cleared from every other row; a column without one is free), in a
 /// column-major copy of the panel, recording each row's factors, and the rest of the matrix then
 /// gets the panel's row operations in one pass (apply_panel). Returns the rank; pivot_col[r] is
-/// the basic column of row r. On return the free columns hold the reduced row echelon form; the
-/// basic columns (unit vectors there) are left unspecified, as nothing reads them.
+/// the basic column of row r, which lies at row_of[r] (rows trade places by pointer, not by
+/// copying them). On return the free columns hold the reduced row echelon form; the basic
+/// columns (unit vectors there) are left unspecified, as nothing reads them.
 CARAT_MULTIVERSION_WIDE
 Eigen::Index gauss_jordan(PaddedMatrix& T, double tolerance, std::vector<Eigen::Index>& pivot_col,
-                          std::vector<Eigen::Index>& free_col) {
+                          std::vector<Eigen::Index>& free_col, std::vector<double*>& row_of) {
   const Eigen::Index m = T.rows;
   const Eigen::Index n = T.cols;
   const Eigen::Index stride = T.stride;
-  double* __restrict base = T.data.data();
   pivot_col.clear();
   free_col.clear();
+  // Rows are exchanged by their pointers only: row_of[r] is where row r of the elimination lies.
+  row_of.resize(static_cast<std::size_t>(m));
+  for (Eigen::Index r = 0; r < m; ++r) row_of[static_cast<std::size_t>(r)] = T.row(r);
   // Each row's elimination factor per pivot of the current panel (m x kPanel), and the panel
   // itself column-major (kPanel columns of mp rows, rows past m zero).
   const Eigen::Index mp = (m + 7) / 8 * 8;
@@ -155,7 +158,7 @@ Eigen::Index gauss_jordan(PaddedMatrix& T, double tolerance, std::vector<Eigen::
       break;
     }
     for (Eigen::Index r = 0; r < m; ++r) {
-      const double* row = base + r * stride + panel;
+      const double* row = row_of[r] + panel;
       for (int j = 0; j < kPanel; ++j) pc[j * mp + r] = row[j];
     }
     const Eigen::Index p0 = rank;
@@ -167,53 +170,40 @@ Eigen::Index gauss_jordan(PaddedMatrix& T, double tolerance, std::vector<Eigen::
         continue;
       }
       double* __restrict column = pc + (col - panel) * mp;
-      // The largest |entry| in rows [rank, m): eight independent maxima (rows before rank
-      // masked out, rows past m are zero), then the first row that holds it.
+      // The largest |entry| in rows [rank, m) and the first row that holds it, in one pass:
+      // eight independent maxima with the first row of each (rows before rank masked out, rows
+      // past m are zero), then the largest of the eight, the lowest row among equals.
       const v8d none = {-1.0, -1.0, -1.0, -1.0, -1.0, -1.0, -1.0, -1.0};
       const v8d lane = {0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0};
-      const auto magnitudes = [&](Eigen::Index r, v8d& v) {
+      v8d largest = none;
+      v8d where = lane;
+      for (Eigen::Index r = rank / 8 * 8; r < mp; r += 8) {
+        v8d v;
         __builtin_memcpy(&v, column + r, sizeof(v));
         v = v < 0.0 ? -v : v;
-        v = lane + static_cast<double>(r) < static_cast<double>(rank) ? none : v;
-      };
-      v8d largest = none;
-      for (Eigen::Index r = rank / 8 * 8; r < mp; r += 8) {
-        v8d v;
-        magnitudes(r, v);
-        largest = v > largest ? v : largest;
+        const v8d row = lane + static_cast<double>(r);
+        v = row < static_cast<double>(rank) ? none : v;
+        const v8l larger = v > largest;
+        largest = larger ? v : largest;
+        where = larger ? row : where;
       }
       double best_abs = largest[0];
-      for (int q = 1; q < 8; ++q) best_abs = std::max(best_abs, largest[q]);
-      Eigen::Index best = rank;
-      for (Eigen::Index r = rank / 8 * 8; r < mp; r += 8) {
-        v8d v;
-        magnitudes(r, v);
-        const v8l hit = v == best_abs;
-        bool found = false;
-        for (int q = 0; q < 8; ++q) found = found || hit[q] != 0;
-        if (!found) continue;
-        int q = 0;
-        while (hit[q] == 0) ++q;
-        best = r + q;
-        break;
+      double best_row = where[0];
+      for (int q = 1; q < 8; ++q) {
+        if (largest[q] > best_abs || (largest[q] == best_abs && where[q] < best_row)) {
+          best_abs = largest[q];
+          best_row = where[q];
+        }
       }
+      const auto best = static_cast<Eigen::Index>(best_row);
       if (!(best_abs > tolerance)) {
         free_col.push_back(col);
         continue;
       }
       if (best != rank) {
-        // Whole rows move (their columns outside the panel are brought up to date later), and
-        // so do their panel entries and factors of this panel.
-        double* __restrict pivot_row = base + rank * stride;
-        double* __restrict other = base + best * stride;
-        for (Eigen::Index c = 0; c < stride; c += 8) {
-          v8d x;
-          v8d y;
-          __builtin_memcpy(&x, pivot_row + c, sizeof(x));
-          __builtin_memcpy(&y, other + c, sizeof(y));
-          __builtin_memcpy(pivot_row + c, &y, sizeof(y));
-          __builtin_memcpy(other + c, &x, sizeof(x));
-        }
+        // Whole rows trade places (their columns outside the panel are brought up to date
+        // later), and so do their panel entries and factors of this panel.
+        std::swap(row_of[static_cast<std::size_t>(rank)], row_of[static_cast<std::size_t>(best)]);
         for (int j = 0; j < kPanel; ++j) {
           std::swap(F[rank * kPanel + j], F[best * kPanel + j]);
           std::swap(pc[j * mp + rank], pc[j * mp + best]);
@@ -245,7 +235,7 @@ Eigen::Index gauss_jordan(PaddedMatrix& T, double tolerance, std::vector<Eigen::
     // column alone, so basic columns left stale in T change nothing else).
     for (auto f = free_col.rbegin(); f != free_col.rend() && *f >= panel; ++f) {
       const double* column = pc + (*f - panel) * mp;
-      for (Eigen::Index r = 0; r < m; ++r) base[r * stride + *f] = column[r];
+      for (Eigen::Index r = 0; r < m; ++r) row_of[static_cast<std::size_t>(r)][*f] = column[r];
     }
     if (count == 0) continue;
     // Every pivot wrote its factor for every row; pivots the panel did not get have none (the
@@ -259,8 +249,8 @@ Eigen::Index gauss_jordan(PaddedMatrix& T, double tolerance, std::vector<Eigen::
     // Columns the panel's operations change outside the panel: free columns before it (their
     // 8-column blocks; the basic columns there are not read again) and every column after it.
     const Eigen::Index first_free = free_col.empty() ? panel : std::min(panel, free_col.front());
-    apply_panel(base, m, stride, p0, count, F.data(), scale, first_free / 8 * 8, panel);
-    apply_panel(base, m, stride, p0, count, F.data(), scale, panel + kPanel, stride);
+    apply_panel(row_of.data(), m, p0, count, F.data(), scale, first_free / 8 * 8, panel);
+    apply_panel(row_of.data(), m, p0, count, F.data(), scale, panel + kPanel, stride);
   }
   return rank;
 }
@@ -438,7 +428,9 @@ void apply_exchanges(Tableau& F, Eigen::Index begin, Eigen::Index end, const Pen
   const int count = x.count;
   const double* __restrict e = x.columns.data();
   // Four columns per pass where there are four (each exchange column load serves all four).
-  const auto pass = [&]<int M>(Eigen::Index c, std::integral_constant<int, M>) {
+  // Inlined always: a lambda does not inherit the target clone of the function around it.
+  const auto pass = [&]<int M>(Eigen::Index c, std::integral_constant<int, M>)
+      __attribute__((always_inline)) {
     // p = solve s as eight-wide multiply-adds over solve's columns.
     static_assert(kPanel == 8, "p is one v8d");
     double p[M][kPanel];
@@ -555,7 +547,8 @@ const std::vector<char>& eliminate(const double* points, Eigen::Index L, Eigen::
   // Reduced row echelon form: basic columns (one per pivot row) and free columns. Free column f
   // gives the null vector v = e_f - sum_r T(r, f) e_{basic(r)} of the points' [p; 1].
   thread_local std::vector<Eigen::Index> pivot_col, free_col;
-  const Eigen::Index rank = gauss_jordan(T, 1e-11, pivot_col, free_col);
+  thread_local std::vector<double*> row_of;
+  const Eigen::Index rank = gauss_jordan(T, 1e-11, pivot_col, free_col, row_of);
   const auto m = static_cast<Eigen::Index>(free_col.size());
   if (m == 0) return alive;
 
@@ -565,7 +558,7 @@ const std::vector<char>& eliminate(const double* points, Eigen::Index L, Eigen::
   F.resize(rank, m);
   // Row by row: T is read in order, and F's m column lines being written stay in L1.
   for (Eigen::Index r = 0; r < rank; ++r) {
-    const double* __restrict row = T.row(r);
+    const double* __restrict row = row_of[static_cast<std::size_t>(r)];
     double* __restrict out = F.data.data() + r;
     for (Eigen::Index k = 0; k < m; ++k) {
       out[k * F.stride] = row[free_col[static_cast<std::size_t>(k)]];

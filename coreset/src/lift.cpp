@@ -253,7 +253,7 @@ __attribute__((always_inline)) inline void chunk_sums_body(const double* J, cons
     for (long i = c * chunk_rows; i < end; ++i) {
       const double* a = J + i * R;
       const double ei = e[i];
-      const auto x = [&](int j) { return j < R ? a[j] : ei; };
+      const auto x = [&](int j) __attribute__((always_inline)) { return j < R ? a[j] : ei; };
       V xb[Acc::kBlocks] = {};
       if (i * R + Acc::kBlocks * W <= rows * R) {
         // Whole-vector loads (reading past the row, never past the matrix) through a copy of
@@ -297,7 +297,7 @@ __attribute__((always_inline)) inline void packed_sums_body(const double* X, con
     acc.zero();
     for (int i = begin[c]; i < begin[c + 1]; ++i) {
       const double* row = X + static_cast<long>(i) * P;
-      const auto x = [&](int j) { return row[j]; };
+      const auto x = [&](int j) __attribute__((always_inline)) { return row[j]; };
       const double* opaque = row;  // as in chunk_sums_body: x_k stays a memory broadcast
       asm("" : "+r"(opaque));
       V xb[Acc::kBlocks];
