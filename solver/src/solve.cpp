@@ -6,14 +6,18 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <cstdio>
-#include <limits>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "block_evaluator.hpp"
 #include "carat/solver/error.hpp"
+#include "factorization_reuse.hpp"
+#include "hessian_damping.hpp"
 #include "sparse_system.hpp"
+#include "step_quality.hpp"
+#include "stop_criteria.hpp"
+#include "trust_region_strategy.hpp"
 
 namespace carat {
 namespace {
@@ -41,6 +45,7 @@ void apply_step(const Problem& problem, const std::vector<int>& var_offset, cons
   }
 }
 
+/// Euclidean norm of the free variables' values (ambient coordinates).
 double free_parameter_norm(const Problem& problem, const std::vector<int>& var_offset,
                            const double* x) {
   double sum = 0.0;
@@ -53,24 +58,10 @@ double free_parameter_norm(const Problem& problem, const std::vector<int>& var_o
   return std::sqrt(sum);
 }
 
-/// An upper bound on the rounding error of a cost near `cost` (a sum of many terms): cost
-/// changes below it are not measurable.
-double cost_rounding(double cost) {
-  return 64.0 * std::numeric_limits<double>::epsilon() * std::abs(cost);
-}
-
-/// A number as %g writes it (std::to_string prints 1e-12 as "0.000000").
-std::string number(double value) {
-  char buffer[32];
-  std::snprintf(buffer, sizeof(buffer), "%.6g", value);
-  return buffer;
-}
-
-/// The termination message when max_iterations ends the solve.
-std::string iteration_limit_message(const SolverOptions& options) {
-  return "maximum number of iterations reached (" + std::to_string(options.max_iterations) + ")";
-}
-
+/// One solve: set-up and the first linearization, then the iterations of the chosen method.
+/// Levenberg-Marquardt and Gauss-Newton share the pieces of an iteration (the stop tests at its
+/// start, the linear solve, the parameter test, the trial cost, moving to the new iterate);
+/// the trust region, its damping and the reuse of factorizations belong to LM alone.
 class Solver {
  public:
   Solver(const SolverOptions& options, Problem& problem, SolverSummary& summary)
@@ -83,6 +74,17 @@ class Solver {
   }
 
  private:
+  bool initialize();
+  void run_levenberg_marquardt();
+  void run_gauss_newton();
+  bool begin_iteration(int iteration, IterationSummary* row);
+  bool factorize();
+  bool factorize_gauss_newton(IterationSummary* row);
+  bool solve_for_step(IterationSummary& row, Clock::time_point iteration_start);
+  bool stop_on_small_step(IterationSummary& row, double radius, Clock::time_point iteration_start);
+  double trial_cost();
+  bool reject_step(IterationSummary& row, internal::TrustRegionStrategy& region,
+                   internal::RadiusShrinkCause cause, Clock::time_point iteration_start);
   bool linearize();
   bool take_step(IterationSummary& row, double new_cost, int iteration,
                  Clock::time_point iteration_start);
@@ -90,6 +92,9 @@ class Solver {
                                 Clock::time_point iteration_start, bool* stop);
   void record(IterationSummary row, Clock::time_point iteration_start);
   bool finish(TerminationType type, std::string message);
+  bool finish(internal::StopReason reason) {
+    return finish(reason.type, std::move(reason.message));
+  }
 
   const SolverOptions& options_;
   Problem& problem_;
@@ -103,6 +108,7 @@ class Solver {
   double cost_ = 0.0;
   double fresh_decrease_ = 0.0;  ///< cost decrease of the last step from a fresh factorization
   Eigen::VectorXd gradient_;
+  Eigen::VectorXd damping_;  ///< diagonal added to H in the last factorization
   Eigen::VectorXd delta_;    ///< scratch: the step
   Eigen::VectorXd rhs_;      ///< scratch: -gradient
   Eigen::VectorXd h_delta_;  ///< scratch: H delta
@@ -136,6 +142,90 @@ bool Solver::linearize() {
   return true;
 }
 
+/// Starts iteration `iteration` (counted, its row begun) unless the gradient tolerance or the
+/// iteration limit ends the solve first: then false.
+bool Solver::begin_iteration(int iteration, IterationSummary* row) {
+  const double gradient_max = gradient_.cwiseAbs().maxCoeff();
+  std::optional<internal::StopReason> stop =
+      internal::check_gradient_tolerance(gradient_max, options_.gradient_tolerance);
+  if (!stop) stop = internal::check_iteration_limit(iteration - 1, options_.max_iterations);
+  if (stop) {
+    finish(std::move(*stop));
+    return false;
+  }
+  ++summary_.num_iterations;
+  row->iteration = iteration;
+  row->gradient_max_norm = gradient_max;
+  row->cost = cost_;
+  return true;
+}
+
+/// Numeric factorization of H + diag(damping_). False: not positive definite.
+bool Solver::factorize() {
+  const auto t0 = Clock::now();
+  const bool factorized = system_->factorize(damping_);
+  summary_.time.numeric_s += seconds_since(t0);
+  return factorized;
+}
+
+/// Gauss-Newton's factorization: undamped, or with the smallest damping of
+/// gauss_newton_damping_factors() that makes the system positive definite. Each failed
+/// attempt is counted and marked in the row. False: none succeeded.
+bool Solver::factorize_gauss_newton(IterationSummary* row) {
+  const Eigen::VectorXd diagonal =
+      internal::clamped_hessian_diagonal(system_->diagonal(), options_);
+  for (const double lambda : internal::gauss_newton_damping_factors()) {
+    damping_ = lambda * diagonal;
+    if (factorize()) return true;
+    row->linear_solver_failed = true;
+    ++summary_.num_linear_solver_failures;
+  }
+  return false;
+}
+
+/// Solves the factorized system for the step delta_ = -(H + damping)^-1 gradient. False (the
+/// row recorded, the solve ended as a failure): the step is not finite.
+bool Solver::solve_for_step(IterationSummary& row, Clock::time_point iteration_start) {
+  const auto t0 = Clock::now();
+  rhs_ = -gradient_;
+  system_->solve(rhs_, &delta_);
+  summary_.time.solve_s += seconds_since(t0);
+  row.step_norm = delta_.norm();
+  if (delta_.allFinite()) return true;
+  row.linear_solver_failed = true;
+  ++summary_.num_linear_solver_failures;
+  ++summary_.num_unsuccessful_steps;
+  record(row, iteration_start);
+  finish(TerminationType::kFailure, "the linear solve produced a non-finite step");
+  return false;
+}
+
+/// True (the row recorded with `radius`, the solve ended) when the step in delta_ meets the
+/// parameter tolerance; the step is then not taken.
+bool Solver::stop_on_small_step(IterationSummary& row, double radius,
+                                Clock::time_point iteration_start) {
+  const double x_norm =
+      free_parameter_norm(problem_, system_->variable_offset(), buffers_[current_].data());
+  std::optional<internal::StopReason> stop =
+      internal::check_parameter_tolerance(row.step_norm, x_norm, options_.parameter_tolerance);
+  if (!stop) return false;
+  row.trust_region_radius = radius;
+  ++summary_.num_unsuccessful_steps;
+  record(row, iteration_start);
+  return finish(std::move(*stop));
+}
+
+/// Writes current [+] delta_ into the other buffer and returns its cost.
+double Solver::trial_cost() {
+  const int trial = 1 - current_;
+  apply_step(problem_, system_->variable_offset(), buffers_[current_].data(), delta_,
+             buffers_[trial].data());
+  const auto t0 = Clock::now();
+  const double cost = evaluator_->cost(trial);
+  summary_.time.cost_s += seconds_since(t0);
+  return cost;
+}
+
 /// Moves to the trial iterate (cost new_cost) and relinearizes there, except after the last
 /// permitted iteration: nothing would use that H and b (a one-iteration solve, as align() runs
 /// per correspondence set, then costs one linearization instead of two), so its gradient is not
@@ -146,33 +236,40 @@ bool Solver::take_step(IterationSummary& row, double new_cost, int iteration,
   const double decrease = old_cost - new_cost;
   if (!row.reused_factorization) fresh_decrease_ = decrease;
   current_ = 1 - current_;
-  const bool last = iteration >= options_.max_iterations;
-  if (last) {
+  std::optional<internal::StopReason> limit =
+      internal::check_iteration_limit(iteration, options_.max_iterations);
+  if (limit) {
     cost_ = new_cost;
   } else if (!linearize()) {
     record(row, iteration_start);
     return true;
   }
   record(row, iteration_start);
-  if (std::abs(decrease) <= options_.function_tolerance * old_cost) {
-    finish(TerminationType::kConvergence,
-           "function tolerance reached: |cost change| / cost = " +
-               number(old_cost > 0.0 ? std::abs(decrease) / old_cost : 0.0));
-    return true;
+  if (auto stop =
+          internal::check_function_tolerance(decrease, old_cost, options_.function_tolerance)) {
+    return finish(std::move(*stop));
   }
-  if (last) {
-    finish(TerminationType::kNoConvergence, iteration_limit_message(options_));
-    return true;
-  }
+  if (limit) return finish(std::move(*limit));
   return false;
+}
+
+/// LM: a step not taken (its gain ratio too low, or the system not positive definite). The
+/// trust region shrinks and the row is recorded. True: the radius collapsed and the solve ends.
+bool Solver::reject_step(IterationSummary& row, internal::TrustRegionStrategy& region,
+                         internal::RadiusShrinkCause cause, Clock::time_point iteration_start) {
+  ++summary_.num_unsuccessful_steps;
+  region.on_rejected();
+  row.trust_region_radius = region.radius();
+  record(row, iteration_start);
+  std::optional<internal::StopReason> stop =
+      internal::check_trust_region_radius(region.radius(), options_.min_trust_region_radius, cause);
+  return stop && finish(std::move(*stop));
 }
 
 /// A step solved with the factorization of an earlier iterate: no numeric factorization, only
 /// a triangular solve, H delta for the model at the current iterate, and one cost evaluation.
-/// Kept only if its gain ratio against the current (undamped) model exceeds 1/2 and it lowers
-/// the cost by more than the function tolerance and by at least half as much as the step of
-/// the fresh factorization did: a run of reused steps ends once they fall to half of what a
-/// fresh one achieved. Then returns true (*stop: the solve ends); otherwise nothing is
+/// Kept if keeps_reused_step() says so: a run of reused steps ends once they fall to half of
+/// what a fresh one achieved. Then returns true (*stop: the solve ends); otherwise nothing is
 /// recorded and the caller factorizes afresh.
 bool Solver::try_reused_factorization(IterationSummary& row, int iteration,
                                       Clock::time_point iteration_start, bool* stop) {
@@ -185,26 +282,18 @@ bool Solver::try_reused_factorization(IterationSummary& row, int iteration,
     ++summary_.num_refused_reuses;
     return false;
   }
-  const double model_decrease = -gradient_.dot(delta_) - 0.5 * delta_.dot(h_delta_);
-  const int trial = 1 - current_;
-  apply_step(problem_, system_->variable_offset(), buffers_[current_].data(), delta_,
-             buffers_[trial].data());
-  const auto tc = Clock::now();
-  const double new_cost = evaluator_->cost(trial);
-  summary_.time.cost_s += seconds_since(tc);
-  const double decrease = cost_ - new_cost;
-  const double ratio = model_decrease > 0.0 ? decrease / model_decrease : -1.0;
-  // Each test is false for a NaN cost.
-  if (!(ratio > 0.5) || !(decrease >= 0.5 * fresh_decrease_) ||
-      !(decrease > options_.function_tolerance * cost_)) {
+  const double predicted = internal::model_decrease(gradient_, delta_, h_delta_);
+  const double new_cost = trial_cost();
+  const internal::StepQuality step = internal::judge_step(cost_, new_cost, predicted);
+  if (!internal::keeps_reused_step(step, fresh_decrease_, cost_, options_.function_tolerance)) {
     ++summary_.num_refused_reuses;
     return false;
   }
   ++summary_.num_successful_steps;
   ++summary_.num_reused_factorizations;
   row.step_norm = delta_.norm();
-  row.relative_decrease = ratio;
-  row.cost_change = decrease;
+  row.relative_decrease = step.measured_ratio;
+  row.cost_change = step.cost_decrease;
   row.cost = new_cost;
   row.step_is_successful = true;
   row.reused_factorization = true;
@@ -212,7 +301,108 @@ bool Solver::try_reused_factorization(IterationSummary& row, int iteration,
   return true;
 }
 
-void Solver::run() {
+/// Levenberg-Marquardt: each iteration damps H by the trust region, solves, and takes the step
+/// if the trust region accepts its gain ratio; a rejected step shrinks the region and the next
+/// iteration refactorizes at the same iterate (no relinearization).
+void Solver::run_levenberg_marquardt() {
+  internal::TrustRegionStrategy region(options_);
+  bool reuse_next = false;  // try the next step with the current factorization
+  for (int iteration = 1;; ++iteration) {
+    IterationSummary row;
+    if (!begin_iteration(iteration, &row)) return;
+    const auto iteration_start = Clock::now();
+
+    if (reuse_next) {
+      reuse_next = false;
+      row.trust_region_radius = region.radius();
+      bool stop = false;
+      if (try_reused_factorization(row, iteration, iteration_start, &stop)) {
+        if (stop) return;
+        reuse_next = true;
+        continue;
+      }
+    }
+
+    region.damping(system_->diagonal(), &damping_);
+    if (!factorize()) {
+      row.linear_solver_failed = true;
+      ++summary_.num_linear_solver_failures;
+      if (reject_step(row, region, internal::RadiusShrinkCause::kSystemNotPositiveDefinite,
+                      iteration_start)) {
+        return;
+      }
+      continue;
+    }
+    if (!solve_for_step(row, iteration_start)) return;
+    if (stop_on_small_step(row, region.radius(), iteration_start)) return;
+
+    const double new_cost = trial_cost();
+    const internal::StepQuality step = internal::judge_step(
+        cost_, new_cost, internal::damped_model_decrease(gradient_, delta_, damping_));
+    row.relative_decrease = step.measured_ratio;
+    if (!region.accepts(step)) {
+      if (reject_step(row, region, internal::RadiusShrinkCause::kStepRejected, iteration_start)) {
+        return;
+      }
+      continue;
+    }
+    ++summary_.num_successful_steps;
+    row.step_is_successful = true;
+    row.cost_change = step.cost_decrease;
+    row.cost = new_cost;
+    region.on_accepted(step.gain_ratio);
+    row.trust_region_radius = region.radius();
+    // A gain ratio well above 1 (the cost fell faster than the model said, as in a slow,
+    // linearly converging tail): the exact H buys little over this one, so the next step
+    // first tries this factorization.
+    reuse_next = internal::should_try_reuse(step, options_);
+    if (take_step(row, new_cost, iteration, iteration_start)) return;
+  }
+}
+
+/// Gauss-Newton: undamped steps (damped only as far as an indefinite system needs), each taken
+/// if it does not raise the cost; a step that does ends the solve. The table shows the initial
+/// trust region radius, which Gauss-Newton never changes.
+void Solver::run_gauss_newton() {
+  const double radius = options_.initial_trust_region_radius;
+  for (int iteration = 1;; ++iteration) {
+    IterationSummary row;
+    if (!begin_iteration(iteration, &row)) return;
+    const auto iteration_start = Clock::now();
+
+    if (!factorize_gauss_newton(&row)) {
+      ++summary_.num_unsuccessful_steps;
+      record(row, iteration_start);
+      finish(TerminationType::kFailure,
+             "Gauss-Newton: the system is not positive definite even with damping (gauge not fixed "
+             "or rank-deficient H?)");
+      return;
+    }
+    if (!solve_for_step(row, iteration_start)) return;
+    if (stop_on_small_step(row, radius, iteration_start)) return;
+
+    const double new_cost = trial_cost();
+    const internal::StepQuality step = internal::judge_step(
+        cost_, new_cost, internal::damped_model_decrease(gradient_, delta_, damping_));
+    row.relative_decrease = step.measured_ratio;
+    if (auto stop = internal::check_gauss_newton_decrease(cost_, new_cost)) {
+      ++summary_.num_unsuccessful_steps;
+      record(row, iteration_start);
+      finish(std::move(*stop));
+      return;
+    }
+    ++summary_.num_successful_steps;
+    row.step_is_successful = true;
+    row.cost_change = step.cost_decrease;
+    row.cost = new_cost;
+    row.trust_region_radius = radius;
+    if (take_step(row, new_cost, iteration, iteration_start)) return;
+  }
+}
+
+/// The symbolic analysis, the buffers and the first linearization; the summary's problem
+/// figures and the row of iteration 0. False: the solve is already over.
+bool Solver::initialize() {
   summary_.num_threads = options_.num_threads;
   summary_.method =
       options_.method == Method::kLevenbergMarquardt ? "levenberg_marquardt" : "gauss_newton";
@@ -240,12 +430,12 @@ void Solver::run() {
   evaluator_->allocate(&lin_);
 
   const auto iteration0 = Clock::now();
-  if (!linearize()) return;
+  if (!linearize()) return false;
   summary_.initial_cost = cost_;
   summary_.final_cost = cost_;
   if (!std::isfinite(cost_)) {
     finish(TerminationType::kFailure, "the initial cost is not finite");
-    return;
+    return false;
   }
   IterationSummary row0;
   row0.cost = cost_;
@@ -256,177 +446,17 @@ void Solver::run() {
 
   if (system_->size() == 0) {
     finish(TerminationType::kConvergence, "no free variables: nothing to optimize");
-    return;
+    return false;
   }
+  return true;
+}
 
-  const bool lm = options_.method == Method::kLevenbergMarquardt;
-  double radius = options_.initial_trust_region_radius;
-  double decrease_factor = 2.0;
-  Eigen::VectorXd damping(system_->size());
-  Eigen::VectorXd& delta = delta_;
-  Eigen::VectorXd& rhs = rhs_;
-  const std::vector<int>& var_offset = system_->variable_offset();
-  bool reuse_next = false;  // try the next step with the current factorization
-
-  for (int iteration = 1;; ++iteration) {
-    const double gradient_max = gradient_.cwiseAbs().maxCoeff();
-    if (gradient_max <= options_.gradient_tolerance) {
-      finish(TerminationType::kConvergence,
-             "gradient tolerance reached: max |gradient| = " + number(gradient_max));
-      break;
-    }
-    if (iteration > options_.max_iterations) {
-      finish(TerminationType::kNoConvergence, iteration_limit_message(options_));
-      break;
-    }
-    const auto iteration_start = Clock::now();
-    ++summary_.num_iterations;
-    IterationSummary row;
-    row.iteration = iteration;
-    row.gradient_max_norm = gradient_max;
-    row.cost = cost_;
-
-    if (reuse_next) {
-      reuse_next = false;
-      row.trust_region_radius = radius;
-      bool stop = false;
-      if (try_reused_factorization(row, iteration, iteration_start, &stop)) {
-        if (stop) break;
-        reuse_next = true;
-        continue;
-      }
-    }
-
-    // Damping: LM uses diag(H) clamped, scaled by 1/radius; GN none unless indefinite.
-    const Eigen::VectorXd diag = system_->diagonal();
-    const Eigen::VectorXd scaled_diag =
-        diag.cwiseMax(options_.min_lm_diagonal).cwiseMin(options_.max_lm_diagonal);
-    bool factorized = false;
-    if (lm) {
-      damping = scaled_diag / radius;
-      auto tf = Clock::now();
-      factorized = system_->factorize(damping);
-      summary_.time.numeric_s += seconds_since(tf);
-    } else {
-      damping.setZero();
-      for (double lambda = 0.0; lambda <= 1.0; lambda = (lambda == 0.0 ? 1e-12 : lambda * 100.0)) {
-        damping = lambda * scaled_diag;
-        auto tf = Clock::now();
-        factorized = system_->factorize(damping);
-        summary_.time.numeric_s += seconds_since(tf);
-        if (factorized) break;
-        row.linear_solver_failed = true;
-        ++summary_.num_linear_solver_failures;
-      }
-    }
-    if (!factorized) {
-      if (lm) {
-        row.linear_solver_failed = true;
-        ++summary_.num_linear_solver_failures;
-        ++summary_.num_unsuccessful_steps;
-        radius /= decrease_factor;
-        decrease_factor *= 2.0;
-        row.trust_region_radius = radius;
-        record(row, iteration_start);
-        if (radius < options_.min_trust_region_radius) {
-          finish(
-              TerminationType::kNoConvergence,
-              "trust region radius below min_trust_region_radius (system not positive definite)");
-          break;
-        }
-        continue;
-      }
-      ++summary_.num_unsuccessful_steps;
-      record(row, iteration_start);
-      finish(TerminationType::kFailure,
-             "Gauss-Newton: the system is not positive definite even with damping (gauge not fixed "
-             "or rank-deficient H?)");
-      break;
-    }
-    auto ts = Clock::now();
-    rhs = -gradient_;
-    system_->solve(rhs, &delta);
-    summary_.time.solve_s += seconds_since(ts);
-    row.step_norm = delta.norm();
-    if (!delta.allFinite()) {
-      row.linear_solver_failed = true;
-      ++summary_.num_linear_solver_failures;
-      ++summary_.num_unsuccessful_steps;
-      record(row, iteration_start);
-      finish(TerminationType::kFailure, "the linear solve produced a non-finite step");
-      break;
-    }
-
-    const double x_norm = free_parameter_norm(problem_, var_offset, buffers_[current_].data());
-    if (row.step_norm <= options_.parameter_tolerance * (x_norm + options_.parameter_tolerance)) {
-      row.trust_region_radius = radius;
-      ++summary_.num_unsuccessful_steps;  // the step is not taken
-      record(row, iteration_start);
-      finish(TerminationType::kConvergence,
-             "parameter tolerance reached: |step| = " + number(row.step_norm));
-      break;
-    }
-
-    const int trial = 1 - current_;
-    apply_step(problem_, var_offset, buffers_[current_].data(), delta, buffers_[trial].data());
-    auto tc = Clock::now();
-    const double new_cost = evaluator_->cost(trial);
-    summary_.time.cost_s += seconds_since(tc);
-
-    // Predicted decrease of the quadratic model: -g.d - 1/2 d.H.d = 1/2 (-g.d + d.damping.d).
-    const double model_decrease =
-        0.5 * (-gradient_.dot(delta) + delta.dot(damping.cwiseProduct(delta)));
-    const double actual_decrease = cost_ - new_cost;
-    double ratio = model_decrease > 0.0 ? actual_decrease / model_decrease : -1.0;
-    row.relative_decrease = ratio;
-    // A predicted decrease below the rounding of the cost cannot be checked against the cost:
-    // such a step is taken if the cost did not rise by more than that rounding, and counts as
-    // a gain ratio of 1 (the gradient and parameter tests then decide convergence).
-    const double rounding = cost_rounding(cost_);
-    const bool below_rounding = model_decrease > 0.0 && model_decrease <= rounding &&
-                                std::isfinite(new_cost) && actual_decrease >= -rounding;
-    if (below_rounding) ratio = 1.0;
-    const bool accept = std::isfinite(new_cost) &&
-                        (lm ? ratio > options_.min_relative_decrease : new_cost <= cost_);
-    if (accept) {
-      ++summary_.num_successful_steps;
-      row.step_is_successful = true;
-      row.cost_change = actual_decrease;
-      row.cost = new_cost;
-      if (lm) {
-        const double t = 2.0 * ratio - 1.0;
-        radius =
-            std::min(options_.max_trust_region_radius,
-                     radius / std::max(1.0 / options_.max_trust_region_growth, 1.0 - t * t * t));
-        decrease_factor = 2.0;
-      }
-      row.trust_region_radius = radius;
-      // A gain ratio well above 1 (the cost fell faster than the model said, as in a slow,
-      // linearly converging tail): the exact H buys little over this one, so the next step
-      // first tries this factorization.
-      // The ratio must be measured, not noise: its model decrease far above the rounding.
-      reuse_next = lm && options_.reuse_factorization && ratio > options_.factor_reuse_ratio &&
-                   model_decrease > 1e3 * rounding;
-      if (take_step(row, new_cost, iteration, iteration_start)) break;
-    } else {
-      ++summary_.num_unsuccessful_steps;
-      if (!lm) {
-        record(row, iteration_start);
-        finish(TerminationType::kNoConvergence, std::isfinite(new_cost)
-                                                    ? "Gauss-Newton step did not decrease the cost"
-                                                    : "Gauss-Newton step gave a non-finite cost");
-        break;
-      }
-      radius /= decrease_factor;
-      decrease_factor *= 2.0;
-      row.trust_region_radius = radius;
-      record(row, iteration_start);
-      if (radius < options_.min_trust_region_radius) {
-        finish(TerminationType::kNoConvergence,
-               "trust region radius below min_trust_region_radius");
-        break;
-      }
-    }
+void Solver::run() {
+  if (!initialize()) return;
+  if (options_.method == Method::kLevenbergMarquardt) {
+    run_levenberg_marquardt();
+  } else {
+    run_gauss_newton();
   }
   summary_.final_cost = cost_;
 }

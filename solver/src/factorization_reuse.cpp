@@ -1,0 +1,17 @@
+#include "factorization_reuse.hpp"
+
+namespace carat::internal {
+
+bool should_try_reuse(const StepQuality& accepted_step, const SolverOptions& options) {
+  return options.reuse_factorization && accepted_step.gain_ratio > options.factor_reuse_ratio &&
+         accepted_step.model_decrease > 1e3 * accepted_step.rounding;
+}
+
+bool keeps_reused_step(const StepQuality& step, double fresh_decrease, double cost,
+                       double function_tolerance) {
+  // Each test is false for a NaN cost.
+  return step.measured_ratio > 0.5 && step.cost_decrease >= 0.5 * fresh_decrease &&
+         step.cost_decrease > function_tolerance * cost;
+}
+
+}  // namespace carat::internal

@@ -1,0 +1,25 @@
+#pragma once
+
+// Internal: Levenberg-Marquardt steps solved with the numeric factorization of an earlier
+// iterate. In a slow, linearly converging tail the cost falls faster than the model predicts
+// (gain ratios well above 1), so a recent H serves about as well as the exact one, and a
+// triangular solve costs far less than a factorization.
+
+#include "carat/solver/solver_options.hpp"
+#include "step_quality.hpp"
+
+namespace carat::internal {
+
+/// True if the step after `accepted_step` first tries the same factorization: reuse is on, the
+/// gain ratio exceeds factor_reuse_ratio and the predicted decrease is above 1000 times the
+/// cost's rounding (the ratio is measured, not noise).
+bool should_try_reuse(const StepQuality& accepted_step, const SolverOptions& options);
+
+/// True if a step solved with an earlier factorization is kept: its ratio against the current
+/// undamped model exceeds 1/2, it lowers the cost by at least half of `fresh_decrease` (the
+/// decrease of the last step from a fresh factorization) and by more than function_tolerance *
+/// `cost`. A NaN or +inf trial cost fails these tests.
+bool keeps_reused_step(const StepQuality& step, double fresh_decrease, double cost,
+                       double function_tolerance);
+
+}  // namespace carat::internal
