@@ -123,6 +123,35 @@ void apply_panel(double* const* row_of, Eigen::Index rows, Eigen::Index p0, int 
   apply_panel_4(row_of, rows, p0, count, F, scale, begin, end);
 }
 
+/// Transposes the 8 x 8 block held by rows x[0..8) in registers: on return x[j] holds what was
+/// column j.
+__attribute__((always_inline)) inline void transpose8(v8d (&x)[8]) {
+  const v8l even = {0, 8, 2, 10, 4, 12, 6, 14};
+  const v8l odd = {1, 9, 3, 11, 5, 13, 7, 15};
+  const v8l low_pairs = {0, 1, 8, 9, 4, 5, 12, 13};
+  const v8l high_pairs = {2, 3, 10, 11, 6, 7, 14, 15};
+  const v8l low_half = {0, 1, 2, 3, 8, 9, 10, 11};
+  const v8l high_half = {4, 5, 6, 7, 12, 13, 14, 15};
+  v8d t[8];
+  for (int i = 0; i < 8; i += 2) {
+    t[i] = __builtin_shuffle(x[i], x[i + 1], even);
+    t[i + 1] = __builtin_shuffle(x[i], x[i + 1], odd);
+  }
+  // u[0..4) from rows 0-3: columns {0,4}, {2,6}, {1,5}, {3,7}; u[4..8) the same from rows 4-7.
+  v8d u[8];
+  for (int h = 0; h < 8; h += 4) {
+    u[h] = __builtin_shuffle(t[h], t[h + 2], low_pairs);
+    u[h + 1] = __builtin_shuffle(t[h], t[h + 2], high_pairs);
+    u[h + 2] = __builtin_shuffle(t[h + 1], t[h + 3], low_pairs);
+    u[h + 3] = __builtin_shuffle(t[h + 1], t[h + 3], high_pairs);
+  }
+  const int first[4] = {0, 2, 1, 3};  // the column u[i] starts with
+  for (int i = 0; i < 4; ++i) {
+    x[first[i]] = __builtin_shuffle(u[i], u[i + 4], low_half);
+    x[first[i] + 4] = __builtin_shuffle(u[i], u[i + 4], high_half);
+  }
+}
+
 /// Gauss-Jordan with partial pivoting on T (in place), blocked: panels of kPanel columns are
 /// eliminated column by column on their own columns only (a pivot above `tolerance` becomes a
 /// unit pivot row and is cleared from every other row; a column without one is free), in a
@@ -157,9 +186,16 @@ Eigen::Index gauss_jordan(PaddedMatrix& T, double tolerance, std::vector<Eigen::
       for (Eigen::Index c = panel; c < n; ++c) free_col.push_back(c);
       break;
     }
-    for (Eigen::Index r = 0; r < m; ++r) {
-      const double* row = row_of[r] + panel;
-      for (int j = 0; j < kPanel; ++j) pc[j * mp + r] = row[j];
+    // The panel, column-major: 8 x 8 blocks transposed in registers (rows past m zero).
+    for (Eigen::Index r0 = 0; r0 < m; r0 += 8) {
+      v8d x[8];
+      for (int i = 0; i < 8; ++i) {
+        x[i] = v8d{} * 0.0;
+        if (r0 + i < m)
+          __builtin_memcpy(&x[i], row_of[static_cast<std::size_t>(r0 + i)] + panel, sizeof(v8d));
+      }
+      transpose8(x);
+      for (int j = 0; j < kPanel; ++j) __builtin_memcpy(pc + j * mp + r0, &x[j], sizeof(v8d));
     }
     const Eigen::Index p0 = rank;
     int count = 0;
@@ -271,6 +307,38 @@ struct Tableau {
   }
   double* col(Eigen::Index k) { return data.data() + k * stride; }
 };
+
+/// F = the free columns of the rows row_of[0, rank) (the rows of T in elimination order): 8 x 8
+/// blocks transposed in registers where 8 free columns are consecutive in T, one entry at a time
+/// elsewhere. F's rows past rank stay zero.
+CARAT_MULTIVERSION_WIDE
+void copy_tableau(double* const* row_of, Eigen::Index rank,
+                  const std::vector<Eigen::Index>& free_col, Tableau& F) {
+  const auto m = static_cast<Eigen::Index>(free_col.size());
+  const Eigen::Index* f = free_col.data();
+  for (Eigen::Index r0 = 0; r0 < rank; r0 += 8) {
+    const int rows = static_cast<int>(std::min<Eigen::Index>(8, rank - r0));
+    Eigen::Index k = 0;
+    for (; k + 8 <= m; k += 8) {
+      if (f[k + 7] != f[k] + 7) {
+        for (int j = 0; j < 8; ++j) {
+          for (int i = 0; i < rows; ++i) F.col(k + j)[r0 + i] = row_of[r0 + i][f[k + j]];
+        }
+        continue;
+      }
+      v8d x[8];
+      for (int i = 0; i < 8; ++i) {
+        x[i] = v8d{} * 0.0;
+        if (i < rows) __builtin_memcpy(&x[i], row_of[r0 + i] + f[k], sizeof(v8d));
+      }
+      transpose8(x);
+      for (int j = 0; j < 8; ++j) __builtin_memcpy(F.col(k + j) + r0, &x[j], sizeof(v8d));
+    }
+    for (; k < m; ++k) {
+      for (int i = 0; i < rows; ++i) F.col(k)[r0 + i] = row_of[r0 + i][f[k]];
+    }
+  }
+}
 
 /// Ratio test along the null vector of free column `column` (coefficient -column[r] on basis
 /// row r): the smallest bw[r] / -column[r] over rows with -column[r] > 0, if it is below alpha
@@ -556,14 +624,7 @@ const std::vector<char>& eliminate(const double* points, Eigen::Index L, Eigen::
   // current basis as points leave and free points enter it.
   thread_local Tableau F;
   F.resize(rank, m);
-  // Row by row: T is read in order, and F's m column lines being written stay in L1.
-  for (Eigen::Index r = 0; r < rank; ++r) {
-    const double* __restrict row = row_of[static_cast<std::size_t>(r)];
-    double* __restrict out = F.data.data() + r;
-    for (Eigen::Index k = 0; k < m; ++k) {
-      out[k * F.stride] = row[free_col[static_cast<std::size_t>(k)]];
-    }
-  }
+  copy_tableau(row_of.data(), rank, free_col, F);
   thread_local std::vector<Eigen::Index> basic;
   basic.assign(pivot_col.begin(), pivot_col.end());
   // The basis points' weights by basis row (padding rows stay 0), written back at the end.
