@@ -4,7 +4,6 @@
 #include <tbb/task_arena.h>
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -13,16 +12,11 @@
 
 #include "block_evaluator.hpp"
 #include "carat/solver/error.hpp"
+#include "carat/solver/stopwatch.hpp"
 #include "sparse_system.hpp"
 
 namespace carat {
 namespace {
-
-using Clock = std::chrono::steady_clock;
-
-double seconds_since(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
 
 /// Applies the tangent step to every free variable: out = x [+] delta.
 void apply_step(const Problem& problem, const std::vector<int>& var_offset, const double* x,
@@ -85,16 +79,16 @@ class Solver {
  private:
   bool linearize();
   bool take_step(IterationSummary& row, double new_cost, int iteration,
-                 Clock::time_point iteration_start);
+                 const Stopwatch& iteration_time);
   bool try_reused_factorization(IterationSummary& row, int iteration,
-                                Clock::time_point iteration_start, bool* stop);
-  void record(IterationSummary row, Clock::time_point iteration_start);
+                                const Stopwatch& iteration_time, bool* stop);
+  void record(IterationSummary row, const Stopwatch& iteration_time);
   bool finish(TerminationType type, std::string message);
 
   const SolverOptions& options_;
   Problem& problem_;
   SolverSummary& summary_;
-  Clock::time_point start_ = Clock::now();
+  Stopwatch solve_time_;  ///< since the solver was made
   std::unique_ptr<internal::SparseSystem> system_;
   std::unique_ptr<internal::BlockEvaluator> evaluator_;
   internal::BlockLinearizations lin_;
@@ -114,23 +108,22 @@ bool Solver::finish(TerminationType type, std::string message) {
   return true;
 }
 
-void Solver::record(IterationSummary row, Clock::time_point iteration_start) {
-  row.iteration_time_s = seconds_since(iteration_start);
-  row.cumulative_time_s = seconds_since(start_);
+void Solver::record(IterationSummary row, const Stopwatch& iteration_time) {
+  row.iteration_time_s = iteration_time.elapsed_s();
+  row.cumulative_time_s = solve_time_.elapsed_s();
   if (options_.record_iterations) summary_.iterations.push_back(row);
 }
 
 bool Solver::linearize() {
-  auto t0 = Clock::now();
+  Stopwatch stage;
   std::string error;
   if (!evaluator_->linearize(current_, &lin_, &error)) {
-    summary_.time.linearize_s += seconds_since(t0);
+    summary_.time.linearize_s += stage.elapsed_s();
     return finish(TerminationType::kFailure, error), false;
   }
-  summary_.time.linearize_s += seconds_since(t0);
-  t0 = Clock::now();
+  summary_.time.linearize_s += stage.restart();
   system_->assemble(lin_, &gradient_);
-  summary_.time.assembly_s += seconds_since(t0);
+  summary_.time.assembly_s += stage.elapsed_s();
   cost_ = 0.0;
   for (double c : lin_.cost) cost_ += c;
   return true;
@@ -141,7 +134,7 @@ bool Solver::linearize() {
 /// per correspondence set, then costs one linearization instead of two), so its gradient is not
 /// tested either. Records the row and tests the function tolerance. True: the solve ends.
 bool Solver::take_step(IterationSummary& row, double new_cost, int iteration,
-                       Clock::time_point iteration_start) {
+                       const Stopwatch& iteration_time) {
   const double old_cost = cost_;
   const double decrease = old_cost - new_cost;
   if (!row.reused_factorization) fresh_decrease_ = decrease;
@@ -150,10 +143,10 @@ bool Solver::take_step(IterationSummary& row, double new_cost, int iteration,
   if (last) {
     cost_ = new_cost;
   } else if (!linearize()) {
-    record(row, iteration_start);
+    record(row, iteration_time);
     return true;
   }
-  record(row, iteration_start);
+  record(row, iteration_time);
   if (std::abs(decrease) <= options_.function_tolerance * old_cost) {
     finish(TerminationType::kConvergence,
            "function tolerance reached: |cost change| / cost = " +
@@ -175,12 +168,12 @@ bool Solver::take_step(IterationSummary& row, double new_cost, int iteration,
 /// fresh one achieved. Then returns true (*stop: the solve ends); otherwise nothing is
 /// recorded and the caller factorizes afresh.
 bool Solver::try_reused_factorization(IterationSummary& row, int iteration,
-                                      Clock::time_point iteration_start, bool* stop) {
-  const auto ts = Clock::now();
+                                      const Stopwatch& iteration_time, bool* stop) {
+  const Stopwatch solve_time;
   rhs_ = -gradient_;
   system_->solve(rhs_, &delta_);
   if (delta_.allFinite()) system_->multiply(delta_, &h_delta_);
-  summary_.time.solve_s += seconds_since(ts);
+  summary_.time.solve_s += solve_time.elapsed_s();
   if (!delta_.allFinite()) {
     ++summary_.num_refused_reuses;
     return false;
@@ -189,9 +182,9 @@ bool Solver::try_reused_factorization(IterationSummary& row, int iteration,
   const int trial = 1 - current_;
   apply_step(problem_, system_->variable_offset(), buffers_[current_].data(), delta_,
              buffers_[trial].data());
-  const auto tc = Clock::now();
+  const Stopwatch cost_time;
   const double new_cost = evaluator_->cost(trial);
-  summary_.time.cost_s += seconds_since(tc);
+  summary_.time.cost_s += cost_time.elapsed_s();
   const double decrease = cost_ - new_cost;
   const double ratio = model_decrease > 0.0 ? decrease / model_decrease : -1.0;
   // Each test is false for a NaN cost.
@@ -208,7 +201,7 @@ bool Solver::try_reused_factorization(IterationSummary& row, int iteration,
   row.cost = new_cost;
   row.step_is_successful = true;
   row.reused_factorization = true;
-  *stop = take_step(row, new_cost, iteration, iteration_start);
+  *stop = take_step(row, new_cost, iteration, iteration_time);
   return true;
 }
 
@@ -224,9 +217,9 @@ void Solver::run() {
     if (!problem_.is_constant(VariableId{v})) ++summary_.num_free_variables;
   }
 
-  auto t0 = Clock::now();
+  const Stopwatch symbolic_time;
   system_ = std::make_unique<internal::SparseSystem>(problem_, options_.ordering);
-  summary_.time.symbolic_s += seconds_since(t0);
+  summary_.time.symbolic_s += symbolic_time.elapsed_s();
   summary_.num_tangent_parameters = system_->size();
   summary_.hessian_nonzeros = system_->hessian_nonzeros();
   summary_.factor_nonzeros = system_->factor_nonzeros();
@@ -239,7 +232,7 @@ void Solver::run() {
   for (int k = 0; k < 2; ++k) evaluator_->bind(k, buffers_[k].data());
   evaluator_->allocate(&lin_);
 
-  const auto iteration0 = Clock::now();
+  const Stopwatch iteration0_time;
   if (!linearize()) return;
   summary_.initial_cost = cost_;
   summary_.final_cost = cost_;
@@ -252,7 +245,7 @@ void Solver::run() {
   row0.gradient_max_norm = gradient_.size() ? gradient_.cwiseAbs().maxCoeff() : 0.0;
   row0.trust_region_radius = options_.initial_trust_region_radius;
   row0.step_is_successful = true;
-  record(row0, iteration0);
+  record(row0, iteration0_time);
 
   if (system_->size() == 0) {
     finish(TerminationType::kConvergence, "no free variables: nothing to optimize");
@@ -279,7 +272,7 @@ void Solver::run() {
       finish(TerminationType::kNoConvergence, iteration_limit_message(options_));
       break;
     }
-    const auto iteration_start = Clock::now();
+    const Stopwatch iteration_time;
     ++summary_.num_iterations;
     IterationSummary row;
     row.iteration = iteration;
@@ -290,7 +283,7 @@ void Solver::run() {
       reuse_next = false;
       row.trust_region_radius = radius;
       bool stop = false;
-      if (try_reused_factorization(row, iteration, iteration_start, &stop)) {
+      if (try_reused_factorization(row, iteration, iteration_time, &stop)) {
         if (stop) break;
         reuse_next = true;
         continue;
@@ -304,16 +297,16 @@ void Solver::run() {
     bool factorized = false;
     if (lm) {
       damping = scaled_diag / radius;
-      auto tf = Clock::now();
+      const Stopwatch factor_time;
       factorized = system_->factorize(damping);
-      summary_.time.numeric_s += seconds_since(tf);
+      summary_.time.numeric_s += factor_time.elapsed_s();
     } else {
       damping.setZero();
       for (double lambda = 0.0; lambda <= 1.0; lambda = (lambda == 0.0 ? 1e-12 : lambda * 100.0)) {
         damping = lambda * scaled_diag;
-        auto tf = Clock::now();
+        const Stopwatch factor_time;
         factorized = system_->factorize(damping);
-        summary_.time.numeric_s += seconds_since(tf);
+        summary_.time.numeric_s += factor_time.elapsed_s();
         if (factorized) break;
         row.linear_solver_failed = true;
         ++summary_.num_linear_solver_failures;
@@ -327,7 +320,7 @@ void Solver::run() {
         radius /= decrease_factor;
         decrease_factor *= 2.0;
         row.trust_region_radius = radius;
-        record(row, iteration_start);
+        record(row, iteration_time);
         if (radius < options_.min_trust_region_radius) {
           finish(
               TerminationType::kNoConvergence,
@@ -337,22 +330,22 @@ void Solver::run() {
         continue;
       }
       ++summary_.num_unsuccessful_steps;
-      record(row, iteration_start);
+      record(row, iteration_time);
       finish(TerminationType::kFailure,
              "Gauss-Newton: the system is not positive definite even with damping (gauge not fixed "
              "or rank-deficient H?)");
       break;
     }
-    auto ts = Clock::now();
+    const Stopwatch solve_time;
     rhs = -gradient_;
     system_->solve(rhs, &delta);
-    summary_.time.solve_s += seconds_since(ts);
+    summary_.time.solve_s += solve_time.elapsed_s();
     row.step_norm = delta.norm();
     if (!delta.allFinite()) {
       row.linear_solver_failed = true;
       ++summary_.num_linear_solver_failures;
       ++summary_.num_unsuccessful_steps;
-      record(row, iteration_start);
+      record(row, iteration_time);
       finish(TerminationType::kFailure, "the linear solve produced a non-finite step");
       break;
     }
@@ -361,7 +354,7 @@ void Solver::run() {
     if (row.step_norm <= options_.parameter_tolerance * (x_norm + options_.parameter_tolerance)) {
       row.trust_region_radius = radius;
       ++summary_.num_unsuccessful_steps;  // the step is not taken
-      record(row, iteration_start);
+      record(row, iteration_time);
       finish(TerminationType::kConvergence,
              "parameter tolerance reached: |step| = " + number(row.step_norm));
       break;
@@ -369,9 +362,9 @@ void Solver::run() {
 
     const int trial = 1 - current_;
     apply_step(problem_, var_offset, buffers_[current_].data(), delta, buffers_[trial].data());
-    auto tc = Clock::now();
+    const Stopwatch cost_time;
     const double new_cost = evaluator_->cost(trial);
-    summary_.time.cost_s += seconds_since(tc);
+    summary_.time.cost_s += cost_time.elapsed_s();
 
     // Predicted decrease of the quadratic model: -g.d - 1/2 d.H.d = 1/2 (-g.d + d.damping.d).
     const double model_decrease =
@@ -407,11 +400,11 @@ void Solver::run() {
       // The ratio must be measured, not noise: its model decrease far above the rounding.
       reuse_next = lm && options_.reuse_factorization && ratio > options_.factor_reuse_ratio &&
                    model_decrease > 1e3 * rounding;
-      if (take_step(row, new_cost, iteration, iteration_start)) break;
+      if (take_step(row, new_cost, iteration, iteration_time)) break;
     } else {
       ++summary_.num_unsuccessful_steps;
       if (!lm) {
-        record(row, iteration_start);
+        record(row, iteration_time);
         finish(TerminationType::kNoConvergence, std::isfinite(new_cost)
                                                     ? "Gauss-Newton step did not decrease the cost"
                                                     : "Gauss-Newton step gave a non-finite cost");
@@ -420,7 +413,7 @@ void Solver::run() {
       radius /= decrease_factor;
       decrease_factor *= 2.0;
       row.trust_region_radius = radius;
-      record(row, iteration_start);
+      record(row, iteration_time);
       if (radius < options_.min_trust_region_radius) {
         finish(TerminationType::kNoConvergence,
                "trust region radius below min_trust_region_radius");
@@ -434,7 +427,7 @@ void Solver::run() {
 }  // namespace
 
 SolverSummary solve(const SolverOptions& options, Problem& problem) {
-  const auto start = Clock::now();
+  const Stopwatch total_time;
   SolverSummary summary;
   summary.method =
       options.method == Method::kLevenbergMarquardt ? "levenberg_marquardt" : "gauss_newton";
@@ -452,7 +445,7 @@ SolverSummary solve(const SolverOptions& options, Problem& problem) {
   tbb::task_arena arena(effective.num_threads);
   arena.execute([&] { solver.run(); });
   solver.write_back();
-  summary.time.total_s = seconds_since(start);
+  summary.time.total_s = total_time.elapsed_s();
   return summary;
 }
 
