@@ -38,7 +38,6 @@
 
 #include <algorithm>
 #include <array>
-#include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
@@ -55,19 +54,14 @@
 #include "carat/registration/trajectory_error.hpp"
 #include "carat/residuals/gicp_block.hpp"
 #include "carat/solver/solve.hpp"
+#include "carat/solver/stopwatch.hpp"
 
 namespace {
-
-using Clock = std::chrono::steady_clock;
 
 constexpr std::array<int, 4> kSizes{100, 300, 1000, 3000};
 
 constexpr double kStartMetres = 0.1;   // start: every pose but the first moved this far ...
 constexpr double kStartDegrees = 0.5;  // ... and turned this much
-
-double seconds_since(Clock::time_point t0) {
-  return std::chrono::duration<double>(Clock::now() - t0).count();
-}
 
 double env_positive(const char* name, double fallback) {
   const char* text = std::getenv(name);
@@ -151,7 +145,7 @@ Drive make_drive(int frames) {
   d.truth = d.world->trajectory(options);
   carat::PreprocessOptions preprocess;
   preprocess.voxel_size = voxel_metres();
-  const auto t0 = Clock::now();
+  const carat::Stopwatch stopwatch;
   d.scans.resize(static_cast<std::size_t>(frames));
   tbb::task_arena arena(num_threads());
   arena.execute([&] {
@@ -161,7 +155,7 @@ Drive make_drive(int frames) {
       d.scans[k] = carat::preprocess_frame(raw, preprocess, "frame " + std::to_string(k));
     });
   });
-  d.scan_s = seconds_since(t0);
+  d.scan_s = stopwatch.elapsed_s();
   return d;
 }
 
@@ -201,9 +195,9 @@ Scene& scene(int frames) {
   for (const auto& f : scans) s->points += f->size();
   carat::DenseGraphOptions graph;
   graph.num_threads = num_threads();
-  const auto t0 = Clock::now();
+  const carat::Stopwatch stopwatch;
   s->pairs = carat::build_dense_graph(scans, s->initial, graph);
-  s->graph_s = seconds_since(t0);
+  s->graph_s = stopwatch.elapsed_s();
   s->initial_ate_rmse = carat::compute_ate(s->initial, truth).rmse;
   slot = std::move(s);
   return *slot;
@@ -302,10 +296,10 @@ void BM_BuildExact(benchmark::State& state) {
   reset_peak_rss();
   const double baseline = proc_status_bytes("VmRSS");
   for (auto _ : state) {
-    const auto t0 = Clock::now();
+    const carat::Stopwatch stopwatch;
     s.exact = std::make_unique<carat::RegistrationProblem>(carat::build_registration_problem(
         frames_of(s), s.pairs, s.initial, registration_options(carat::ResidualSampling::kExact)));
-    state.SetIterationTime(seconds_since(t0));
+    state.SetIterationTime(stopwatch.elapsed_s());
   }
   s.correspondences = s.exact->stats.num_correspondences;
   scene_counters(state, s);
@@ -317,10 +311,10 @@ void BM_IterationExact(benchmark::State& state) {
   Scene& s = scene(static_cast<int>(state.range(0)));
   double build_s = 0.0;
   if (!s.exact) {  // run on its own (a filter): build it here
-    const auto t0 = Clock::now();
+    const carat::Stopwatch stopwatch;
     s.exact = std::make_unique<carat::RegistrationProblem>(carat::build_registration_problem(
         frames_of(s), s.pairs, s.initial, registration_options(carat::ResidualSampling::kExact)));
-    build_s = seconds_since(t0);
+    build_s = stopwatch.elapsed_s();
     s.correspondences = s.exact->stats.num_correspondences;
   }
   reset_peak_rss();
@@ -352,10 +346,10 @@ void BM_IterationFull(benchmark::State& state) {
   reset_peak_rss();
   const double baseline = proc_status_bytes("VmRSS");
   for (auto _ : state) {
-    const auto t0 = Clock::now();
+    const carat::Stopwatch stopwatch;
     auto full = carat::build_registration_problem(
         frames_of(s), s.pairs, s.initial, registration_options(carat::ResidualSampling::kFull));
-    state.counters["build_s"] = seconds_since(t0);
+    state.counters["build_s"] = stopwatch.elapsed_s();
     solve_and_report(state, full.problem);
     stats_counters(state, full.stats);
   }

@@ -228,6 +228,16 @@ TEST(PointCloudIoTest, OnlyRegularFilesAndTheyAreReadInChunks) {
                "big.bin: holds 200000 points, more than the 199999 carat reads from one file");
 }
 
+TEST(KittiFormatTest, NamesRoundTrip) {
+  for (KittiFormat format : {KittiFormat::kXyzi, KittiFormat::kXyz}) {
+    EXPECT_EQ(parse_kitti_format(to_string(format)), format) << to_string(format);
+  }
+  EXPECT_STREQ(to_string(KittiFormat::kXyzi), "xyzi");
+  EXPECT_STREQ(to_string(KittiFormat::kXyz), "xyz");
+  EXPECT_EQ(test::error_of([] { parse_kitti_format("xyzrgb"); }),
+            "unknown KITTI .bin format 'xyzrgb' (valid: xyzi, xyz)");
+}
+
 TEST(PointCloudIoTest, SmallGicpPairReads) {
   CARAT_REQUIRE_DATA("smallgicp_pair/source.ply");
   const PointCloud source = read_ply(test::data_dir() / "smallgicp_pair/source.ply");

@@ -220,6 +220,27 @@ TEST(PoseGraphBaselineTest, InformationMatchesTheGicpHessianToFirstOrder) {
   EXPECT_NEAR(e.dot(info * e) / xi.dot(H * xi), 1.0, 1e-5);
 }
 
+TEST(PoseGraphBaselineTest, InformationNamesRoundTrip) {
+  for (PoseGraphInformation information :
+       {PoseGraphInformation::kIdentity, PoseGraphInformation::kHessian}) {
+    EXPECT_EQ(parse_pose_graph_information(to_string(information)), information)
+        << to_string(information);
+  }
+  EXPECT_STREQ(to_string(PoseGraphInformation::kHessian), "hessian");
+  EXPECT_EQ(test::error_of([] { parse_pose_graph_information("covariance"); }),
+            "unknown pose-graph information 'covariance' (valid: identity, hessian)");
+}
+
+TEST(GlobalRegistrationTest, SamplingNamesRoundTrip) {
+  for (ResidualSampling sampling : {ResidualSampling::kFull, ResidualSampling::kExact,
+                                    ResidualSampling::kRandom, ResidualSampling::kLossless}) {
+    EXPECT_EQ(parse_residual_sampling(to_string(sampling)), sampling) << to_string(sampling);
+  }
+  EXPECT_STREQ(to_string(ResidualSampling::kLossless), "lossless");
+  EXPECT_EQ(test::error_of([] { parse_residual_sampling("exactly"); }),
+            "unknown sampling 'exactly' (valid: full, exact, random, lossless)");
+}
+
 TEST(GlobalRegistrationTest, ExactGraphModelEqualsTheFullOne) {
   const auto& pairs = small_pairs();
   const RegistrationProblem full = small_problem(ResidualSampling::kFull);

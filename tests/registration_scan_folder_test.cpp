@@ -88,6 +88,15 @@ TEST(ScanFolderTest, NestedLayoutAndItsErrors) {
             "unknown .bin layout 'xyzw' (valid: auto, xyz, xyzi)");
 }
 
+TEST(ScanFolderTest, BinLayoutNamesRoundTrip) {
+  for (BinLayout layout : {BinLayout::kAuto, BinLayout::kXyz, BinLayout::kXyzi}) {
+    EXPECT_EQ(parse_bin_layout(to_string(layout)), layout) << to_string(layout);
+  }
+  EXPECT_STREQ(to_string(BinLayout::kAuto), "auto");
+  EXPECT_EQ(error_of([] { parse_bin_layout("XYZ"); }),
+            "unknown .bin layout 'XYZ' (valid: auto, xyz, xyzi)");
+}
+
 TEST(ScanFolderTest, GraphPosesPairWithScansByVertexId) {
   std::vector<ScanFile> scans;
   for (const char* name : {"000000", "000001", "000002"}) scans.push_back({name, name});

@@ -411,6 +411,16 @@ TEST(AlignTest, PointToPlaneAndPointToPointAlsoRecoverIt) {
   }
 }
 
+TEST(AlignTest, MethodNamesRoundTrip) {
+  for (RegistrationMethod method : {RegistrationMethod::kGicp, RegistrationMethod::kPointToPlane,
+                                    RegistrationMethod::kPointToPoint}) {
+    EXPECT_EQ(parse_registration_method(to_string(method)), method) << to_string(method);
+  }
+  EXPECT_STREQ(to_string(RegistrationMethod::kPointToPlane), "point-to-plane");
+  EXPECT_EQ(test::error_of([] { parse_registration_method("icp"); }),
+            "unknown registration method 'icp' (valid: gicp, point-to-plane, point-to-point)");
+}
+
 TEST(AlignTest, ASinglePlaneIsReportedAsDegenerate) {
   // Two noisy samplings of the plane z = 0: only z, roll and pitch are fixed by the geometry.
   std::mt19937_64 rng(3);

@@ -7,7 +7,6 @@
 #include <unistd.h>
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <fstream>
@@ -22,6 +21,7 @@
 #include "carat/registration/synthetic_world.hpp"
 #include "carat/registration/voxel_grid.hpp"
 #include "carat/solver/error.hpp"
+#include "carat/solver/stopwatch.hpp"
 
 namespace carat {
 namespace {
@@ -87,9 +87,9 @@ TEST(SyntheticWorld, PointsAreFiniteInRangeAndInTheExpectedBand) {
   double seconds = 0.0;
   int scans = 0;
   for (std::size_t k = 0; k < poses.size(); k += 5) {
-    const auto start = std::chrono::steady_clock::now();
+    const Stopwatch stopwatch;
     const PointCloud cloud = world.scan(poses[k], synthetic_frame_noise_seed(o.seed, k));
-    seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    seconds += stopwatch.elapsed_s();
     ++scans;
     EXPECT_GE(cloud.size(), 15000u) << "frame " << k;
     EXPECT_LE(cloud.size(), 40000u) << "frame " << k;

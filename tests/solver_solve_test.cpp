@@ -15,8 +15,11 @@
 #include "../solver/src/block_evaluator.hpp"
 #include "../solver/src/sparse_system.hpp"
 #include "carat/solver/error.hpp"
+#include "carat/solver/loss_function.hpp"
 #include "carat/solver/problem.hpp"
+#include "carat/solver/solver_options.hpp"
 #include "solver_test_blocks.hpp"
+#include "test_support.hpp"
 
 namespace carat {
 namespace {
@@ -303,6 +306,27 @@ TEST(LossTest, ExcessLossIsPlainUpToTheOffsetAndTheInnerLossBeyond) {
               ::testing::ThrowsMessage<Error>(::testing::HasSubstr("inner loss is null")));
 }
 
+TEST(LossTest, KindNamesRoundTripAndMakeTheirLoss) {
+  for (LossKind kind : {LossKind::kNone, LossKind::kHuber, LossKind::kCauchy}) {
+    EXPECT_EQ(parse_loss_kind(to_string(kind)), kind) << to_string(kind);
+  }
+  EXPECT_STREQ(to_string(LossKind::kNone), "none");
+  EXPECT_EQ(make_loss(LossKind::kNone, 2.0), nullptr);
+  const auto huber = make_loss(LossKind::kHuber, 2.0);
+  ASSERT_NE(huber, nullptr);
+  EXPECT_STREQ(huber->name(), to_string(LossKind::kHuber));
+  EXPECT_EQ(huber->evaluate(9.0).rho, HuberLoss(2.0).evaluate(9.0).rho);  // beyond delta^2 = 4
+  const auto cauchy = make_loss(LossKind::kCauchy, 2.0);
+  ASSERT_NE(cauchy, nullptr);
+  EXPECT_STREQ(cauchy->name(), to_string(LossKind::kCauchy));
+  EXPECT_EQ(cauchy->evaluate(9.0).rho, CauchyLoss(2.0).evaluate(9.0).rho);
+  EXPECT_THROW(make_loss(LossKind::kCauchy, 0.0), Error);  // as the loss's own constructor
+  EXPECT_EQ(test::error_of([] { parse_loss_kind("tukey"); }),
+            "unknown loss 'tukey' (valid: none, huber, cauchy)");
+  EXPECT_EQ(test::error_of([] { parse_loss_kind("huber\n"); }),
+            "unknown loss 'huber?' (valid: none, huber, cauchy)");
+}
+
 TEST(SolveTest, BitIdenticalAcrossThreadCounts) {
   RandomLinear lin = make_random_linear(300, 11);
   // Make it nonlinear: add a Rosenbrock variable too.
@@ -541,6 +565,25 @@ TEST(SolverOptionsTest, ValidateNamesTheBadSetting) {
   EXPECT_EQ(summary.termination, TerminationType::kFailure);
   EXPECT_NE(summary.message.find("invalid options: initial_trust_region_radius"),
             std::string::npos);
+}
+
+TEST(SolverOptionsTest, MethodAndOrderingNamesRoundTrip) {
+  for (Method method : {Method::kLevenbergMarquardt, Method::kGaussNewton}) {
+    EXPECT_EQ(parse_method(to_string(method)), method) << to_string(method);
+  }
+  EXPECT_STREQ(to_string(Method::kLevenbergMarquardt), "lm");
+  EXPECT_STREQ(to_string(Method::kGaussNewton), "gn");
+  for (Ordering ordering : {Ordering::kAuto, Ordering::kAmd, Ordering::kMetis}) {
+    EXPECT_EQ(parse_ordering(to_string(ordering)), ordering) << to_string(ordering);
+  }
+  EXPECT_STREQ(to_string(Ordering::kMetis), "metis");
+  EXPECT_EQ(test::error_of([] { parse_method("newton"); }),
+            "unknown method 'newton' (valid: lm, gn)");
+  EXPECT_EQ(test::error_of([] { parse_method("LM"); }), "unknown method 'LM' (valid: lm, gn)");
+  EXPECT_EQ(test::error_of([] { parse_ordering("colamd"); }),
+            "unknown ordering 'colamd' (valid: auto, amd, metis)");
+  EXPECT_EQ(test::error_of([] { parse_ordering(""); }),
+            "unknown ordering '' (valid: auto, amd, metis)");
 }
 
 TEST(ProblemTest, RejectsMismatchedBlocksWithClearMessages) {

@@ -3,7 +3,6 @@
 //             [--bin-format xyz|xyzi] [--threads T] [--json]
 // GICP scan matching of two scans (KITTI .bin, .pcd or .ply): prints T_target_source (4 x 4),
 // iterations, error, convergence and a time breakdown.
-#include <chrono>
 #include <cstdio>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -16,6 +15,7 @@
 #include "carat/registration/point_cloud_io.hpp"
 #include "carat/registration/voxel_grid.hpp"
 #include "carat/solver/error.hpp"
+#include "carat/solver/stopwatch.hpp"
 #include "cli_support.hpp"
 #include "commands.hpp"
 
@@ -34,16 +34,11 @@ struct AlignArgs {
 };
 
 int run_align(const AlignArgs& args) {
-  using Clock = std::chrono::steady_clock;
-  const auto seconds = [](Clock::time_point t0) {
-    return std::chrono::duration<double>(Clock::now() - t0).count();
-  };
-  const KittiFormat format = args.bin_format == "xyz" ? KittiFormat::kXyz : KittiFormat::kXyzi;
-  auto t0 = Clock::now();
+  const KittiFormat format = parse_kitti_format(args.bin_format);
+  Stopwatch stage;
   const PointCloud target_raw = read_point_cloud(args.target, format);
   const PointCloud source_raw = read_point_cloud(args.source, format);
-  const double read_s = seconds(t0);
-  t0 = Clock::now();
+  const double read_s = stage.restart();
   CovarianceOptions covariance_options;
   covariance_options.num_threads = args.threads;
   const auto downsample = [&](const PointCloud& raw, const std::string& name) {
@@ -66,17 +61,15 @@ int run_align(const AlignArgs& args) {
   const KdTree source_tree(source);
   estimate_covariances(target, target_tree, covariance_options);
   estimate_covariances(source, source_tree, covariance_options);
-  const double preprocess_s = seconds(t0);
+  const double preprocess_s = stage.elapsed_s();
   AlignSettings settings;
   settings.max_correspondence_distance = args.max_distance;
   settings.num_threads = args.threads;
-  settings.method = args.method == "point-to-plane"   ? RegistrationMethod::kPointToPlane
-                    : args.method == "point-to-point" ? RegistrationMethod::kPointToPoint
-                                                      : RegistrationMethod::kGicp;
-  t0 = Clock::now();
+  settings.method = parse_registration_method(args.method);
+  stage.restart();
   const AlignResult result =
       align(target, target_tree, source, Eigen::Isometry3d::Identity(), settings);
-  const double align_s = seconds(t0);
+  const double align_s = stage.elapsed_s();
   if (result.constrained_dof < 6) {
     throw Error(args.source + " onto " + args.target + ": the scans constrain only " +
                 std::to_string(result.constrained_dof) +

@@ -8,7 +8,6 @@
 #include <tbb/task_arena.h>
 
 #include <atomic>
-#include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <memory>
@@ -23,6 +22,7 @@
 #include "carat/solver/atomic_file.hpp"
 #include "carat/solver/error.hpp"
 #include "carat/solver/output_folder.hpp"
+#include "carat/solver/stopwatch.hpp"
 #include "cli_support.hpp"
 #include "commands.hpp"
 #include "mapping_methods.hpp"
@@ -31,12 +31,6 @@
 
 namespace carat::cli {
 namespace {
-
-using Clock = std::chrono::steady_clock;
-
-double seconds_since(Clock::time_point t0) {
-  return std::chrono::duration<double>(Clock::now() - t0).count();
-}
 
 /// carat's GRE setting for the demo: a second correspondence search at the first solve's poses,
 /// and the excess Cauchy kernel (chosen on seeds 1-4 of the demo world, checked on seeds 5-8).
@@ -122,7 +116,7 @@ int run_demo(const DemoArgs& args) {
 
   // The world and the drive: scans are simulated as they are preprocessed, so that the raw
   // scans are never all in memory.
-  auto t0 = Clock::now();
+  Stopwatch stage_time;
   SyntheticWorldOptions world_options;
   world_options.seed = args.seed;
   const SyntheticWorld world(world_options);
@@ -131,10 +125,9 @@ int run_demo(const DemoArgs& args) {
   drive.laps = 2;
   SyntheticSequence sequence;
   sequence.T_world_frame = world.trajectory(drive);
-  stages["simulate_s"] = seconds_since(t0);
+  stages["simulate_s"] = stage_time.restart();
 
   // Simulation and preprocessing: downsampling, covariances, k-d trees.
-  t0 = Clock::now();
   MappingInput input;
   input.threads = threads;
   input.seed = args.seed;
@@ -160,10 +153,9 @@ int run_demo(const DemoArgs& args) {
   }
   std::size_t points = 0;
   for (const auto& frame : input.frames) points += frame->size();
-  stages["preprocess_s"] = seconds_since(t0);
+  stages["preprocess_s"] = stage_time.restart();
 
   // Initial guess: a drifting wheel-odometry prior, refined by GICP odometry (default).
-  t0 = Clock::now();
   DriftOptions drift;
   drift.seed = args.seed;
   drift.translation_sigma = 0.02;
@@ -178,10 +170,9 @@ int run_demo(const DemoArgs& args) {
   } else {
     input.T_world_initial = guess;
   }
-  stages["initial_guess_s"] = seconds_since(t0);
+  stages["initial_guess_s"] = stage_time.restart();
 
   // The dense graph at the initial guess.
-  t0 = Clock::now();
   DenseGraphOptions graph_options;
   graph_options.overlap_threshold = args.overlap;
   graph_options.num_threads = threads;
@@ -190,7 +181,7 @@ int run_demo(const DemoArgs& args) {
     input.pairs =
         build_dense_graph(input.frames, input.T_world_initial, graph_options, bar.callback());
   }
-  stages["dense_graph_s"] = seconds_since(t0);
+  stages["dense_graph_s"] = stage_time.elapsed_s();
   check_full_factor_memory(input);
 
   // The methods.

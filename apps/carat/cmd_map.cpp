@@ -9,7 +9,6 @@
 #include <tbb/info.h>
 
 #include <algorithm>
-#include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <memory>
@@ -19,14 +18,17 @@
 
 #include "carat/registration/dense_graph.hpp"
 #include "carat/registration/frame.hpp"
+#include "carat/registration/global_registration.hpp"
 #include "carat/registration/kitti_io.hpp"
 #include "carat/registration/point_cloud_io.hpp"
+#include "carat/registration/pose_graph_baseline.hpp"
 #include "carat/registration/pose_perturbation.hpp"
 #include "carat/registration/scan_folder.hpp"
 #include "carat/registration/trajectory_error.hpp"
 #include "carat/registration/trajectory_io.hpp"
 #include "carat/solver/atomic_file.hpp"
 #include "carat/solver/error.hpp"
+#include "carat/solver/stopwatch.hpp"
 #include "cli_support.hpp"
 #include "commands.hpp"
 #include "mapping_methods.hpp"
@@ -78,13 +80,14 @@ void check_full_factor_memory(const std::vector<std::shared_ptr<const Frame>>& f
 }
 
 /// Refuses options that do not apply to the method chosen (they would be silently ignored).
-void check_applicable(const CLI::App& command, const MapArgs& args) {
+void check_applicable(const CLI::App& command, const MapArgs& args, ResidualSampling sampling) {
   const bool gre = args.method == "gre";
   for (const char* option : {"--sampling", "--residuals", "--rounds", "--gre-excess-cauchy"}) {
     refuse_unused(command, option, gre, "to --method pgo");
   }
   refuse_unused(command, "--information", !gre, "to --method gre (it sets the PGO factors)");
-  refuse_unused(command, "--residuals", args.sampling == "exact" || args.sampling == "random",
+  refuse_unused(command, "--residuals",
+                sampling == ResidualSampling::kExact || sampling == ResidualSampling::kRandom,
                 "to --sampling " + args.sampling);
 }
 
@@ -101,8 +104,9 @@ std::vector<Eigen::Isometry3d> relative_to(const Eigen::Isometry3d& T_world_anch
 }
 
 int run_map(const CLI::App& command, const MapArgs& args) {
-  using Clock = std::chrono::steady_clock;
-  check_applicable(command, args);
+  const ResidualSampling sampling = parse_residual_sampling(args.sampling);
+  const PoseGraphInformation information = parse_pose_graph_information(args.information);
+  check_applicable(command, args, sampling);
   const int threads = thread_count(args.threads);
   const TrajectoryFormat format = parse_trajectory_format(args.poses_format);
   const std::vector<ScanFile> files =
@@ -132,7 +136,7 @@ int run_map(const CLI::App& command, const MapArgs& args) {
   const std::vector<Eigen::Isometry3d> reference_poses =
       relative_to(T_world_anchor, reference.poses);
 
-  auto t0 = Clock::now();
+  const Stopwatch preprocess_time;
   MappingInput input;
   input.threads = threads;
   input.seed = args.seed;
@@ -150,7 +154,7 @@ int run_map(const CLI::App& command, const MapArgs& args) {
         files.size(), [&](std::size_t k) { return read_scan(files[k], read_options); },
         [&](std::size_t k) { return files[k].path.string(); }, preprocess, threads, bar.callback());
   }
-  const double preprocess_s = std::chrono::duration<double>(Clock::now() - t0).count();
+  const double preprocess_s = preprocess_time.elapsed_s();
   for (const auto& frame : input.frames) {
     if (frame->constrained_dof() < 6) {
       throw Error(frame->name() + ": the scan fixes only " +
@@ -166,18 +170,16 @@ int run_map(const CLI::App& command, const MapArgs& args) {
   graph_options.overlap_threshold = args.overlap;
   graph_options.num_threads = threads;
   input.pairs = build_dense_graph(input.frames, input.T_world_initial, graph_options);
-  if (args.method == "gre" && args.sampling == "full") {
+  if (args.method == "gre" && sampling == ResidualSampling::kFull) {
     check_full_factor_memory(input.frames, input.pairs);
   }
 
   MethodResult result;
   if (args.method == "pgo") {
     const auto registrations = register_graph_pairs(input);
-    result = run_pose_graph(input, registrations,
-                            args.information == "identity" ? PoseGraphInformation::kIdentity
-                                                           : PoseGraphInformation::kHessian);
+    result = run_pose_graph(input, registrations, information);
   } else {
-    result = run_registration(input, parse_residual_sampling(args.sampling));
+    result = run_registration(input, sampling);
   }
   const bool can_align = reference_poses.size() >= 3;
   AteOptions ate_options;

@@ -8,7 +8,6 @@
 #include <tbb/task_arena.h>
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -39,18 +38,20 @@
 #include "carat/solver/error.hpp"
 #include "carat/solver/output_folder.hpp"
 #include "carat/solver/se3.hpp"
+#include "carat/solver/statistics.hpp"
+#include "carat/solver/stopwatch.hpp"
 #include "cli_support.hpp"
 #include "commands.hpp"
+#include "coreset_timing.hpp"
 #include "mapping_methods.hpp"
 #include "progress.hpp"
+#include "report_table.hpp"
 #include "svg.hpp"
 
 namespace carat::cli {
 namespace {
 
 namespace fs = std::filesystem;
-using Clock = std::chrono::steady_clock;
-using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 
 struct PaperArgs {
   std::string out = "carat-paper";
@@ -61,17 +62,6 @@ struct PaperArgs {
   std::uint64_t seed = 1;
   double gre_excess_cauchy = 0.0;
 };
-
-double ms_since(Clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-}
-
-double median(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  std::sort(v.begin(), v.end());
-  const std::size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
 
 std::string fmt(const char* format, double value) {
   char text[64];
@@ -93,36 +83,28 @@ void table_one(const PaperArgs& args, Report* report) {
   const int trials = args.quick ? 10 : 100;
   const long n = 30000;
   const std::vector<int> targets{29, 64, 128, 256, 512, 1024};
-  std::mt19937_64 rng(args.seed);
-  std::normal_distribution<double> normal;
+  RandomRowSource source(args.seed, 1.0);
+  std::vector<RowCoresetOptions> options(targets.size());
+  for (std::size_t m = 0; m < targets.size(); ++m) options[m].target_rows = targets[m];
   std::vector<std::vector<double>> times(targets.size());
   std::vector<double> errors(targets.size(), 0.0), eigen_times;
-  double sink = 0.0;
+  RowMajorMatrix J;
+  Eigen::VectorXd e;
   for (int t = 0; t < trials; ++t) {
-    RowMatrix J(n, 6);
-    Eigen::VectorXd e(n);
-    for (long i = 0; i < J.size(); ++i) J.data()[i] = normal(rng);
-    for (long i = 0; i < e.size(); ++i) e[i] = normal(rng);
-    const Eigen::MatrixXd Jc = J;
-    auto t0 = Clock::now();
-    const Eigen::MatrixXd H = Jc.transpose() * Jc;
-    const Eigen::VectorXd b = Jc.transpose() * e;
-    sink += H(0, 0) + b[0] + e.squaredNorm();
-    eigen_times.push_back(ms_since(t0));
+    source.draw(n, 6, &J, &e);
+    for (RowCoresetOptions& o : options) o.seed = args.seed + static_cast<std::uint64_t>(t);
+    const CoresetTrial trial = time_coreset_trial(J, e, options, t);
+    eigen_times.push_back(trial.reference_ms);
     const QuadraticModel reference = quadratic_model(J, e);
     for (std::size_t m = 0; m < targets.size(); ++m) {
-      RowCoresetOptions options;
-      options.target_rows = targets[m];
-      options.seed = args.seed + static_cast<std::uint64_t>(t);
-      t0 = Clock::now();
-      const RowCoreset coreset = select_coreset_rows(J, e, options);
-      times[m].push_back(ms_since(t0));
+      const RowCoreset& coreset = trial.coresets[m];
+      times[m].push_back(trial.coreset_ms[m]);
       errors[m] = std::max(
           errors[m],
           relative_error(reference, quadratic_model(J, e, coreset.rows, coreset.weights)).max());
     }
   }
-  const double eigen_ms = median(eigen_times) + (sink == 0.123 ? 1.0 : 0.0);
+  const double eigen_ms = median(eigen_times);
   std::string& md = report->markdown;
   md += "## Table I: coreset time vs M (N = 30 000, random J and e, " + std::to_string(trials) +
         " trials)\n\n";
@@ -130,21 +112,20 @@ void table_one(const PaperArgs& args, Report* report) {
         fmt("%.3f", eigen_ms) +
         " ms median). The paper's Table I times come from the authors' machine and code and are "
         "not stored in carat; compare ratios, not absolute times.\n\n";
-  md += "| M | coreset median [ms] | / Eigen H, b, c | max relative error (H, b, c) |\n";
-  md += "|---|---|---|---|\n";
-  nlohmann::json rows = nlohmann::json::array();
+  ReportTable table(
+      {"M", "coreset median [ms]", "/ Eigen H, b, c", "max relative error (H, b, c)"});
   for (std::size_t m = 0; m < targets.size(); ++m) {
     const double ms = median(times[m]);
-    md += "| " + std::to_string(targets[m]) + " | " + fmt("%.3f", ms) + " | " +
-          fmt("%.2f", ms / eigen_ms) + " | " + fmt("%.1e", errors[m]) + " |\n";
-    rows.push_back({{"M", targets[m]},
-                    {"median_ms", ms},
-                    {"ratio_to_eigen", ms / eigen_ms},
-                    {"max_relative_error", errors[m]}});
+    table.add_row({std::to_string(targets[m]), fmt("%.3f", ms), fmt("%.2f", ms / eigen_ms),
+                   fmt("%.1e", errors[m])},
+                  {{"M", targets[m]},
+                   {"median_ms", ms},
+                   {"ratio_to_eigen", ms / eigen_ms},
+                   {"max_relative_error", errors[m]}});
   }
-  md += "\n";
+  md += table.markdown() + "\n";
   report->json["table1"] = {
-      {"N", n}, {"trials", trials}, {"eigen_median_ms", eigen_ms}, {"rows", rows}};
+      {"N", n}, {"trials", trials}, {"eigen_median_ms", eigen_ms}, {"rows", table.json()}};
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -235,8 +216,7 @@ void table_two(const PaperArgs& args, const RealPair* pair, Report* report) {
       std::to_string(shuffles) +
       " shuffles. carat keeps the -d term that the paper's eq. 11 omits: without it KL(H, H) "
       "would be 3 and the paper's own exact rows (0.000) could not come out.\n\n";
-  md += "| sampling | size | NKLD (carat) | NKLD (paper) |\n|---|---|---|---|\n";
-  nlohmann::json rows = nlohmann::json::array();
+  ReportTable table({"sampling", "size", "NKLD (carat)", "NKLD (paper)"});
   for (std::size_t k = 0; k < random_points.size(); ++k) {
     double sum = 0.0;
     int singular = 0;
@@ -254,13 +234,13 @@ void table_two(const PaperArgs& args, const RealPair* pair, Report* report) {
       }
     }
     const double nkld = sum / shuffles;
-    md += "| random | " + std::to_string(random_points[k]) + " points | " + fmt("%.3f", nkld) +
-          " | " + fmt("%.3f", paper_random[k]) + " |\n";
-    rows.push_back({{"sampling", "random"},
-                    {"points", random_points[k]},
-                    {"nkld", nkld},
-                    {"singular", singular},
-                    {"paper", paper_random[k]}});
+    table.add_row({"random", std::to_string(random_points[k]) + " points", fmt("%.3f", nkld),
+                   fmt("%.3f", paper_random[k])},
+                  {{"sampling", "random"},
+                   {"points", random_points[k]},
+                   {"nkld", nkld},
+                   {"singular", singular},
+                   {"paper", paper_random[k]}});
   }
   for (int m : exact_rows) {
     double worst = 0.0, sum = 0.0;
@@ -273,16 +253,16 @@ void table_two(const PaperArgs& args, const RealPair* pair, Report* report) {
       worst = std::max(worst, nkld);
       sum += nkld;
     }
-    md += "| exact | " + std::to_string(m) + " residuals | " + fmt("%.1e", sum / shuffles) +
-          " (max " + fmt("%.1e", worst) + ") | 0.000 |\n";
-    rows.push_back({{"sampling", "exact"},
-                    {"residuals", m},
-                    {"nkld", sum / shuffles},
-                    {"nkld_max", worst},
-                    {"paper", 0.0}});
+    table.add_row({"exact", std::to_string(m) + " residuals",
+                   fmt("%.1e", sum / shuffles) + " (max " + fmt("%.1e", worst) + ")", "0.000"},
+                  {{"sampling", "exact"},
+                   {"residuals", m},
+                   {"nkld", sum / shuffles},
+                   {"nkld_max", worst},
+                   {"paper", 0.0}});
   }
-  md += "\n";
-  report->json["table2"] = {{"shuffles", shuffles}, {"rows", rows}};
+  md += table.markdown() + "\n";
+  report->json["table2"] = {{"shuffles", shuffles}, {"rows", table.json()}};
 }
 
 // Fig. 4: error of the displacement H^-1 b of subsets vs the original points, under rotation
@@ -352,22 +332,21 @@ void figure_four(const PaperArgs& args, const RealPair* pair, const fs::path& di
       " trials). At the pose they were drawn at, exact subsets give the full step exactly; "
       "away from it their error grows with the noise, while random subsets start with a "
       "sampling error that depends on their size.\n\n";
-  md += "| noise [deg] |";
-  for (const auto& m : methods) md += " " + m.label + " [m] |";
-  md += "\n|---|---|---|---|\n";
-  nlohmann::json rows = nlohmann::json::array();
-  std::vector<SvgSeries> series;
-  static const char* const kColours[] = {"#2ca02c", "#d62728", "#ff7f0e"};
+  std::vector<std::string> headers{"noise [deg]"};
+  for (const auto& m : methods) headers.push_back(m.label + " [m]");
+  ReportTable table(headers);
   for (std::size_t k = 0; k < noise_deg.size(); ++k) {
-    md += "| " + fmt("%.1f", noise_deg[k]) + " |";
+    std::vector<std::string> cells{fmt("%.1f", noise_deg[k])};
     nlohmann::json row{{"noise_deg", noise_deg[k]}};
     for (std::size_t m = 0; m < methods.size(); ++m) {
-      md += " " + fmt("%.2e", methods[m].error[k]) + " |";
+      cells.push_back(fmt("%.2e", methods[m].error[k]));
       row[methods[m].label] = methods[m].error[k];
     }
-    md += "\n";
-    rows.push_back(row);
+    table.add_row(cells, row);
   }
+  md += table.markdown();
+  std::vector<SvgSeries> series;
+  static const char* const kColours[] = {"#2ca02c", "#d62728", "#ff7f0e"};
   for (std::size_t m = 0; m < methods.size(); ++m)
     series.push_back({noise_deg, methods[m].error, kColours[m], methods[m].label});
   report->files.push_back(dir / "fig4_displacement_error.svg");
@@ -375,7 +354,7 @@ void figure_four(const PaperArgs& args, const RealPair* pair, const fs::path& di
             line_plot_svg("Fig. 4: displacement error of subsets vs all points",
                           "rotation noise [deg]", "translation error of H^-1 b [m]", series, true));
   md += "\n![Fig. 4](fig4_displacement_error.svg)\n\n";
-  report->json["figure4"] = {{"trials", trials}, {"rows", rows}};
+  report->json["figure4"] = {{"trials", trials}, {"rows", table.json()}};
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -454,37 +433,34 @@ void synthetic_tables(const PaperArgs& args, int threads, const fs::path& dir, R
         " dense factors (overlap >= 0.2); the sparse graph "
         "keeps consecutive pairs and loop closures (5+ frames apart, overlap >= 0.5): " +
         std::to_string(sparse.size()) + " factors.\n\n";
-  md += "### Table III: ATE\n\n| method | ATE RMSE [m] | mean ± std [m] |\n|---|---|---|\n";
-  nlohmann::json t3 = nlohmann::json::array();
+  ReportTable t3({"method", "ATE RMSE [m]", "mean ± std [m]"});
   for (const auto& r : table3) {
-    md += "| " + r.label + " | " + fmt("%.4f", r.ate->rmse) + " | " + fmt("%.4f", r.ate->mean) +
-          " ± " + fmt("%.4f", r.ate->std) + " |\n";
     nlohmann::json j = to_json(r);
     j["label"] = r.label;
-    t3.push_back(j);
+    t3.add_row({r.label, fmt("%.4f", r.ate->rmse),
+                fmt("%.4f", r.ate->mean) + " ± " + fmt("%.4f", r.ate->std)},
+               j);
   }
+  md += "### Table III: ATE\n\n" + t3.markdown();
   const MethodResult& full = table4[0];
-  md += "\n### Tables IV and V: GRE full vs exact — time and memory\n\n";
-  md +=
-      "| method | ATE RMSE [m] | ATE vs full | time [s] | time vs full | residual memory | "
-      "memory vs full | correspondences built |\n|---|---|---|---|---|---|---|---|\n";
-  nlohmann::json t4 = nlohmann::json::array();
+  ReportTable t4({"method", "ATE RMSE [m]", "ATE vs full", "time [s]", "time vs full",
+                  "residual memory", "memory vs full", "correspondences built"});
   for (const auto& r : table4) {
     const double ate_change = 100.0 * (r.ate->rmse / full.ate->rmse - 1.0);
     const double time_change = 100.0 * (r.time_s / full.time_s - 1.0);
     const double memory_change =
         100.0 *
         (static_cast<double>(r.memory_bytes) / static_cast<double>(full.memory_bytes) - 1.0);
-    md += "| " + r.label + " | " + fmt("%.4f", r.ate->rmse) + " | " + fmt("%+.2f %%", ate_change) +
-          " | " + fmt("%.3f", r.time_s) + " | " + fmt("%+.1f %%", time_change) + " | " +
-          format_bytes(r.memory_bytes) + " | " + fmt("%+.2f %%", memory_change) + " | " +
-          format_bytes(r.correspondence_bytes) + " |\n";
     nlohmann::json j = to_json(r);
     j["ate_change_percent"] = ate_change;
     j["time_change_percent"] = time_change;
     j["memory_change_percent"] = memory_change;
-    t4.push_back(j);
+    t4.add_row({r.label, fmt("%.4f", r.ate->rmse), fmt("%+.2f %%", ate_change),
+                fmt("%.3f", r.time_s), fmt("%+.1f %%", time_change), format_bytes(r.memory_bytes),
+                fmt("%+.2f %%", memory_change), format_bytes(r.correspondence_bytes)},
+               j);
   }
+  md += "\n### Tables IV and V: GRE full vs exact — time and memory\n\n" + t4.markdown();
   md +=
       "\nPaper (4,540 poses, 585,417 factors, exact M = 29 vs full): time −87 %, memory −99 %, "
       "ATE +0.04 %. Time here is the optimization time: compression plus the LM solve (the "
@@ -522,8 +498,8 @@ void synthetic_tables(const PaperArgs& args, int threads, const fs::path& dir, R
                                {"factors", input.pairs.size()},
                                {"sparse_factors", sparse.size()},
                                {"initial_ate_rmse", initial.rmse},
-                               {"table3", t3},
-                               {"table4", t4}};
+                               {"table3", t3.json()},
+                               {"table4", t4.json()}};
 }
 
 // The real KITTI 07 dense graph from a perturbed start.
@@ -570,18 +546,17 @@ void kitti07(const PaperArgs& args, int threads, Report* report) {
         fmt("%.3f", start.rotation_rmse_deg) + "°; " + std::to_string(input.pairs.size()) +
         " factors. GRE re-searches correspondences each "
         "round (up to 10). Total time includes the correspondence searches (GRE) or the pairwise "
-        "GICP (PGO).\n\n| method | ATE RMSE [m] | rotation RMSE [deg] | total time [s] |\n"
-        "|---|---|---|---|\n";
-  nlohmann::json rows = nlohmann::json::array();
+        "GICP (PGO).\n\n";
+  ReportTable table({"method", "ATE RMSE [m]", "rotation RMSE [deg]", "total time [s]"});
   for (auto& r : results) {
     r.ate = compute_ate(r.T_world_frame, reference.poses);
-    md += "| " + r.label + " | " + fmt("%.4f", r.ate->rmse) + " | " +
-          fmt("%.3f", r.ate->rotation_rmse_deg) + " | " + fmt("%.3f", r.total_s) + " |\n";
-    rows.push_back(to_json(r));
+    table.add_row({r.label, fmt("%.4f", r.ate->rmse), fmt("%.3f", r.ate->rotation_rmse_deg),
+                   fmt("%.3f", r.total_s)},
+                  to_json(r));
   }
-  md += "\n";
+  md += table.markdown() + "\n";
   report->json["kitti07"] = {
-      {"start_ate_rmse", start.rmse}, {"factors", input.pairs.size()}, {"rows", rows}};
+      {"start_ate_rmse", start.rmse}, {"factors", input.pairs.size()}, {"rows", table.json()}};
 }
 
 int run_paper(const CLI::App& command, const PaperArgs& args) {
@@ -595,7 +570,7 @@ int run_paper(const CLI::App& command, const PaperArgs& args) {
   OutputFolder folder(args.out, "carat paper");
   const int threads = thread_count(args.threads);
   const fs::path dir = folder.path();  // becomes --out when everything is written
-  const auto t0 = Clock::now();
+  const Stopwatch total;
   Report report;
   report.markdown = "# carat vs Koide et al. 2023 (" + std::string(args.quick ? "quick" : "full") +
                     " run)\n\nRegenerated by `carat paper" + (args.quick ? " --quick" : "") +
@@ -606,7 +581,7 @@ int run_paper(const CLI::App& command, const PaperArgs& args) {
   figure_four(args, pair.get(), dir, &report);
   synthetic_tables(args, threads, dir, &report);
   kitti07(args, threads, &report);
-  const double total_s = ms_since(t0) / 1000.0;
+  const double total_s = total.elapsed_s();
   report.markdown += "Total run time: " + fmt("%.1f", total_s) + " s.\n";
   report.json["total_s"] = total_s;
   report.json["quick"] = args.quick;

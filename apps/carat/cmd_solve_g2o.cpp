@@ -10,7 +10,9 @@
 #include "carat/residuals/pose_graph.hpp"
 #include "carat/solver/atomic_file.hpp"
 #include "carat/solver/error.hpp"
+#include "carat/solver/loss_function.hpp"
 #include "carat/solver/solve.hpp"
+#include "carat/solver/solver_options.hpp"
 #include "cli_support.hpp"
 #include "commands.hpp"
 
@@ -33,17 +35,19 @@ struct SolveG2oArgs {
 };
 
 int run_solve_g2o(const CLI::App& command, const SolveG2oArgs& args) {
-  refuse_unused(command, "--loss-scale", args.loss != "none", "to --loss none (set --loss)");
-  refuse_unused(command, "--trust-region-growth", args.method == "lm", "to --method gn");
-  refuse_unused(command, "--no-factor-reuse", args.method == "lm", "to --method gn");
+  const Method method = parse_method(args.method);
+  const LossKind loss = parse_loss_kind(args.loss);
+  refuse_unused(command, "--loss-scale", loss != LossKind::kNone, "to --loss none (set --loss)");
+  const bool lm = method == Method::kLevenbergMarquardt;
+  refuse_unused(command, "--trust-region-growth", lm, "to --method gn");
+  refuse_unused(command, "--no-factor-reuse", lm, "to --method gn");
   if (!args.output.empty()) check_output_file("--out", args.output, {{"FILE", args.input}});
   G2oReadOptions read_options;
   if (args.repair_information) read_options.information = InformationRepair::kNearest;
   G2oReadReport read_report;
   PoseGraph graph = read_g2o(args.input, read_options, &read_report);
   PoseGraphProblemOptions problem_options;
-  if (args.loss == "huber") problem_options.loss = std::make_shared<HuberLoss>(args.loss_scale);
-  if (args.loss == "cauchy") problem_options.loss = std::make_shared<CauchyLoss>(args.loss_scale);
+  problem_options.loss = make_loss(loss, args.loss_scale);
   PoseGraphProblem built;
   try {
     built = build_pose_graph_problem(graph, problem_options);
@@ -54,10 +58,8 @@ int run_solve_g2o(const CLI::App& command, const SolveG2oArgs& args) {
   SolverOptions options;
   options.max_iterations = args.max_iterations;
   options.num_threads = args.threads;
-  options.method = args.method == "gn" ? Method::kGaussNewton : Method::kLevenbergMarquardt;
-  options.ordering = args.ordering == "amd"     ? Ordering::kAmd
-                     : args.ordering == "metis" ? Ordering::kMetis
-                                                : Ordering::kAuto;
+  options.method = method;
+  options.ordering = parse_ordering(args.ordering);
   options.reuse_factorization = !args.no_factor_reuse;
   options.max_trust_region_growth = args.trust_region_growth;
   const SolverSummary summary = solve(options, built.problem);

@@ -1,7 +1,6 @@
 #include "mapping_methods.hpp"
 
 #include <algorithm>
-#include <chrono>
 #include <cstdio>
 #include <string>
 
@@ -10,8 +9,6 @@
 
 namespace carat::cli {
 namespace {
-
-using Clock = std::chrono::steady_clock;
 
 SolverOptions mapping_solver(int threads) {
   SolverOptions options;

@@ -5,10 +5,11 @@
 
 #include <unistd.h>
 
-#include <chrono>
 #include <cstdio>
 #include <mutex>
 #include <string>
+
+#include "carat/solver/stopwatch.hpp"
 
 namespace carat::cli {
 
@@ -17,9 +18,7 @@ class ProgressBar {
  public:
   /// A bar labelled `label`; silent unless stderr is a terminal and `enabled`.
   explicit ProgressBar(std::string label, bool enabled = true)
-      : label_(std::move(label)),
-        enabled_(enabled && isatty(STDERR_FILENO) == 1),
-        start_(std::chrono::steady_clock::now()) {}
+      : label_(std::move(label)), enabled_(enabled && isatty(STDERR_FILENO) == 1) {}
   ~ProgressBar() { finish(); }
   ProgressBar(const ProgressBar&) = delete;
   ProgressBar& operator=(const ProgressBar&) = delete;
@@ -28,10 +27,8 @@ class ProgressBar {
   void update(std::size_t done, std::size_t total) {
     if (!enabled_) return;
     std::lock_guard lock(mutex_);
-    const auto now = std::chrono::steady_clock::now();
-    if (now - start_ < std::chrono::seconds(1) || now - last_ < std::chrono::milliseconds(100))
-      return;
-    last_ = now;
+    if (since_start_.elapsed_s() < 1.0 || since_draw_.elapsed_s() < 0.1) return;
+    since_draw_.restart();
     const int width = 30;
     const int filled = total == 0 ? width : static_cast<int>(width * done / total);
     std::fprintf(stderr, "\r%-28s [%s%s] %zu/%zu", label_.c_str(), std::string(filled, '#').c_str(),
@@ -54,8 +51,8 @@ class ProgressBar {
   std::string label_;
   bool enabled_;
   bool drawn_ = false;
-  std::chrono::steady_clock::time_point start_;
-  std::chrono::steady_clock::time_point last_{};
+  Stopwatch since_start_;  // the first draw waits a second
+  Stopwatch since_draw_;   // then at most one draw per 0.1 s
   std::mutex mutex_;
 };
 

@@ -17,7 +17,6 @@
 #include <ceres/manifold.h>
 #include <ceres/product_manifold.h>
 
-#include <chrono>
 #include <cstdio>
 #include <cstring>
 #include <nlohmann/json.hpp>
@@ -30,14 +29,9 @@
 #include "carat/solver/autodiff_block.hpp"
 #include "carat/solver/evaluate.hpp"
 #include "carat/solver/solve.hpp"
+#include "carat/solver/stopwatch.hpp"
 
 namespace {
-
-using Clock = std::chrono::steady_clock;
-
-double seconds_since(Clock::time_point t0) {
-  return std::chrono::duration<double>(Clock::now() - t0).count();
-}
 
 /// The reprojection error for Ceres: the same functor as carat's, one match per cost function.
 struct CeresReprojection {
@@ -154,9 +148,9 @@ nlohmann::json run_ceres(const camera_scene::Scene& scene) {
   options.num_threads = 1;
   options.max_num_iterations = 100;
   ceres::Solver::Summary summary;
-  const auto t0 = Clock::now();
+  const carat::Stopwatch stopwatch;
   ceres::Solve(options, &problem, &summary);
-  const double seconds = seconds_since(t0);
+  const double seconds = stopwatch.elapsed_s();
   std::vector<Eigen::Isometry3d> out;
   for (const auto& pose : poses) out.push_back(carat::se3::from_storage(pose.data()));
   nlohmann::json j = judge(scene, out, seconds, static_cast<int>(summary.iterations.size()) - 1);
@@ -185,26 +179,26 @@ int main(int argc, char** argv) {
     out["ceres"] = run_ceres(scene);
     {
       carat::Problem problem = carat_problem(scene, scene.T_world_camera_start);
-      const auto t0 = Clock::now();
+      const carat::Stopwatch stopwatch;
       const carat::SolverSummary s = carat::solve(options, problem);
-      out["carat_full"] = judge(scene, poses_of(problem), seconds_since(t0), s.num_iterations);
+      out["carat_full"] = judge(scene, poses_of(problem), stopwatch.elapsed_s(), s.num_iterations);
     }
     {
       carat::Problem problem = carat_problem(scene, scene.T_world_camera_start);
-      const auto t0 = Clock::now();
+      const carat::Stopwatch stopwatch;
       carat::compress_problem(problem);
       const carat::SolverSummary s = carat::solve(options, problem);
       out["carat_compressed"] =
-          judge(scene, poses_of(problem), seconds_since(t0), s.num_iterations);
+          judge(scene, poses_of(problem), stopwatch.elapsed_s(), s.num_iterations);
     }
     {
       carat::Problem problem = carat_problem(scene, scene.T_world_camera_start);
       carat::RecompressedSolveOptions recompressed;
       recompressed.inner = options;
-      const auto t0 = Clock::now();
+      const carat::Stopwatch stopwatch;
       const carat::RecompressedSolveSummary s = carat::solve_recompressed(problem, recompressed);
       out["carat_recompressed"] =
-          judge(scene, poses_of(problem), seconds_since(t0), s.inner_iterations);
+          judge(scene, poses_of(problem), stopwatch.elapsed_s(), s.inner_iterations);
       out["carat_recompressed"]["recompressions"] = s.recompressions;
     }
     const double ceres_time = out["ceres"]["time_s"];

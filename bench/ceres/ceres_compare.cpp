@@ -11,7 +11,6 @@
 #include <ceres/manifold.h>
 #include <ceres/product_manifold.h>
 
-#include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <nlohmann/json.hpp>

@@ -5,7 +5,6 @@
 #include <tbb/task_arena.h>
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <exception>
@@ -15,15 +14,10 @@
 #include "carat/solver/error.hpp"
 #include "carat/solver/evaluate.hpp"
 #include "carat/solver/solve.hpp"
+#include "carat/solver/stopwatch.hpp"
 
 namespace carat {
 namespace {
-
-using Clock = std::chrono::steady_clock;
-
-double seconds_since(Clock::time_point t0) {
-  return std::chrono::duration<double>(Clock::now() - t0).count();
-}
 
 std::string number(double value) {
   char buffer[32];
@@ -35,7 +29,7 @@ std::string number(double value) {
 
 ProblemCompressionReport compress_problem(Problem& problem,
                                           const ProblemCompressionOptions& options) {
-  const auto t0 = Clock::now();
+  const Stopwatch total_time;
   ProblemCompressionReport report;
   const auto blocks = problem.blocks();
   std::vector<std::shared_ptr<CompressedBlock>> compressed(blocks.size());
@@ -79,7 +73,7 @@ ProblemCompressionReport compress_problem(Problem& problem,
     report.rows_after += static_cast<std::size_t>(now->num_rows());
     report.bytes_after += now->memory_bytes();
   }
-  report.seconds = seconds_since(t0);
+  report.seconds = total_time.elapsed_s();
   return report;
 }
 
@@ -94,7 +88,7 @@ std::string RecompressedSolveSummary::brief_report() const {
 
 RecompressedSolveSummary solve_recompressed(Problem& problem,
                                             const RecompressedSolveOptions& options) {
-  const auto start = Clock::now();
+  const Stopwatch total_time;
   RecompressedSolveSummary summary;
   std::string why;
   if (!options.inner.validate(&why)) throw Error("solve_recompressed: inner options: " + why);
@@ -109,14 +103,14 @@ RecompressedSolveSummary solve_recompressed(Problem& problem,
   summary.full_rows = problem.num_residual_rows();
   const auto finish = [&](TerminationType type, std::string message) {
     // The reported cost is the full problem's, evaluated once more at the returned point.
-    const auto t0 = Clock::now();
+    const Stopwatch evaluation_time;
     const ProblemEvaluation final = evaluate_problem(problem, threads);
-    summary.full_evaluation_s += seconds_since(t0);
+    summary.full_evaluation_s += evaluation_time.elapsed_s();
     summary.final_cost = final.cost;
     summary.final_gradient_max_norm = final.gradient_max_norm;
     summary.termination = type;
     summary.message = std::move(message);
-    summary.total_s = seconds_since(start);
+    summary.total_s = total_time.elapsed_s();
     return summary;
   };
   // A compression at a point is also the full problem's cost and gradient there: the coreset
@@ -126,14 +120,14 @@ RecompressedSolveSummary solve_recompressed(Problem& problem,
                                  ProblemEvaluation* model) {
     *work = problem;
     work->set_all_values(values);
-    const auto t0 = Clock::now();
+    Stopwatch stage;
     const ProblemCompressionReport report = compress_problem(*work, options.compression);
-    summary.compression_s += seconds_since(t0);
+    summary.compression_s += stage.elapsed_s();
     summary.compressed_rows = report.rows_after;
     ++summary.recompressions;
-    const auto t1 = Clock::now();
+    stage.restart();
     *model = evaluate_problem(*work, threads);
-    summary.full_evaluation_s += seconds_since(t1);
+    summary.full_evaluation_s += stage.elapsed_s();
   };
   std::vector<double> accepted(problem.all_values().begin(), problem.all_values().end());
   Problem work;
@@ -148,9 +142,9 @@ RecompressedSolveSummary solve_recompressed(Problem& problem,
   inner.num_threads = threads;
   for (;;) {
     Problem solved_work = work;
-    auto t0 = Clock::now();
+    const Stopwatch solve_time;
     const SolverSummary solved = solve(inner, solved_work);
-    summary.inner_solve_s += seconds_since(t0);
+    summary.inner_solve_s += solve_time.elapsed_s();
     summary.inner_iterations += solved.num_iterations;
     if (solved.termination == TerminationType::kFailure) {
       return finish(TerminationType::kFailure, "the compressed solve failed: " + solved.message);

@@ -7,7 +7,6 @@
 //   recompressed  compressed again at each result until the full problem's tests hold.
 // Prints a table, or one JSON object with --json (per method: full_cost, time_s, pose errors);
 // exits 1 if the recompressed solve misses the full optimum by more than 1e-9 (relative cost).
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -20,6 +19,7 @@
 #include "carat/solver/autodiff_block.hpp"
 #include "carat/solver/evaluate.hpp"
 #include "carat/solver/solve.hpp"
+#include "carat/solver/stopwatch.hpp"
 
 namespace {
 
@@ -78,25 +78,23 @@ int main(int argc, char** argv) {
   options.function_tolerance = 1e-12;
   options.gradient_tolerance = 1e-10;
   options.max_iterations = 100;
-  using Clock = std::chrono::steady_clock;
   std::vector<carat::VariableId> ids;
   std::vector<Result> results;
   {
     carat::Problem problem = make_problem(scene, &ids);
-    const auto t0 = Clock::now();
+    const carat::Stopwatch stopwatch;
     const carat::SolverSummary s = carat::solve(options, problem);
-    Result r{"full", carat::evaluate_problem(problem).cost,
-             std::chrono::duration<double>(Clock::now() - t0).count(), s.num_iterations,
+    Result r{"full", carat::evaluate_problem(problem).cost, stopwatch.elapsed_s(), s.num_iterations,
              problem.num_residual_rows()};
     pose_errors(problem, ids, scene, &r);
     results.push_back(r);
   }
   {
     carat::Problem problem = make_problem(scene, &ids);
-    const auto t0 = Clock::now();
+    const carat::Stopwatch stopwatch;
     carat::compress_problem(problem);
     const carat::SolverSummary s = carat::solve(options, problem);
-    const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+    const double seconds = stopwatch.elapsed_s();
     carat::Problem judged = make_problem(scene, &ids);
     judged.set_all_values(problem.all_values());
     Result r{"compressed", carat::evaluate_problem(judged).cost, seconds, s.num_iterations,
@@ -108,10 +106,10 @@ int main(int argc, char** argv) {
     carat::Problem problem = make_problem(scene, &ids);
     carat::RecompressedSolveOptions recompressed;
     recompressed.inner = options;
-    const auto t0 = Clock::now();
+    const carat::Stopwatch stopwatch;
     const carat::RecompressedSolveSummary s = carat::solve_recompressed(problem, recompressed);
-    Result r{"recompressed", s.final_cost, std::chrono::duration<double>(Clock::now() - t0).count(),
-             s.inner_iterations, s.compressed_rows};
+    Result r{"recompressed", s.final_cost, stopwatch.elapsed_s(), s.inner_iterations,
+             s.compressed_rows};
     pose_errors(problem, ids, scene, &r);
     results.push_back(r);
   }

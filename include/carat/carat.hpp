@@ -62,6 +62,8 @@
 #include <carat/solver/solve.hpp>
 #include <carat/solver/solver_options.hpp>
 #include <carat/solver/solver_summary.hpp>
+#include <carat/solver/statistics.hpp>
+#include <carat/solver/stopwatch.hpp>
 #include <carat/solver/temporary_paths.hpp>
 #include <carat/solver/variable_id.hpp>
 #include <carat/solver/version.hpp>

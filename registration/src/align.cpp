@@ -6,7 +6,6 @@
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <memory>
@@ -20,11 +19,10 @@
 #include "carat/solver/error.hpp"
 #include "carat/solver/problem.hpp"
 #include "carat/solver/solve.hpp"
+#include "carat/solver/stopwatch.hpp"
 
 namespace carat {
 namespace {
-
-using Clock = std::chrono::steady_clock;
 
 /// The residual block of `method` over the correspondences, built at T.
 std::shared_ptr<const ResidualBlock> make_block(RegistrationMethod method,
@@ -64,11 +62,11 @@ AlignResult align(const PointCloud& target, const KdTree& target_tree, const Poi
     options.record_iterations = false;
     std::shared_ptr<const ResidualBlock> last_block;
     for (int iteration = 0; iteration < settings.max_iterations; ++iteration) {
-      auto t0 = Clock::now();
+      Stopwatch stage;
       const std::vector<GicpCorrespondence> pairs =
           find_correspondences(target, target_tree, source, result.T_target_source,
                                settings.max_correspondence_distance);
-      result.search_s += std::chrono::duration<double>(Clock::now() - t0).count();
+      result.search_s += stage.restart();
       if (static_cast<int>(pairs.size()) < settings.min_correspondences) {
         char distance[32];
         std::snprintf(distance, sizeof(distance), "%g", settings.max_correspondence_distance);
@@ -76,7 +74,6 @@ AlignResult align(const PointCloud& target, const KdTree& target_tree, const Poi
                     " m (need " + std::to_string(settings.min_correspondences) +
                     "); the clouds do not overlap at this estimate");
       }
-      t0 = Clock::now();
       const auto block = make_block(settings.method, pairs, result.T_target_source);
       last_block = block;
       Problem problem;
@@ -88,13 +85,13 @@ AlignResult align(const PointCloud& target, const KdTree& target_tree, const Poi
       const Eigen::Isometry3d previous = result.T_target_source;
       if (summary.termination == TerminationType::kFailure) {
         // No usable step: the estimate stays where it is and is not called converged.
-        result.optimize_s += std::chrono::duration<double>(Clock::now() - t0).count();
+        result.optimize_s += stage.elapsed_s();
         result.iterations = iteration + 1;
         result.num_correspondences = static_cast<int>(pairs.size());
         break;
       }
       result.T_target_source = problem.se3(source_pose);
-      result.optimize_s += std::chrono::duration<double>(Clock::now() - t0).count();
+      result.optimize_s += stage.elapsed_s();
       result.iterations = iteration + 1;
       result.num_correspondences = static_cast<int>(pairs.size());
       const se3::Vector6d step = se3::log(previous.inverse() * result.T_target_source);
@@ -144,6 +141,26 @@ AlignResult align(const PointCloud& target, const KdTree& target_tree, const Poi
     }
   });
   return result;
+}
+
+const char* to_string(RegistrationMethod method) {
+  switch (method) {
+    case RegistrationMethod::kGicp:
+      return "gicp";
+    case RegistrationMethod::kPointToPlane:
+      return "point-to-plane";
+    case RegistrationMethod::kPointToPoint:
+      return "point-to-point";
+  }
+  return "unknown";
+}
+
+RegistrationMethod parse_registration_method(std::string_view name) {
+  if (name == "gicp") return RegistrationMethod::kGicp;
+  if (name == "point-to-plane") return RegistrationMethod::kPointToPlane;
+  if (name == "point-to-point") return RegistrationMethod::kPointToPoint;
+  throw Error("unknown registration method " + quote_bytes(name) +
+              " (valid: gicp, point-to-plane, point-to-point)");
 }
 
 }  // namespace carat

@@ -8,7 +8,6 @@
 #include <algorithm>
 #include <array>
 #include <atomic>
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <string>
@@ -22,16 +21,11 @@
 #include "carat/solver/error.hpp"
 #include "carat/solver/se3.hpp"
 #include "carat/solver/solve.hpp"
+#include "carat/solver/stopwatch.hpp"
 #include "parallel.hpp"
 
 namespace carat {
 namespace {
-
-using Clock = std::chrono::steady_clock;
-
-double seconds_since(Clock::time_point t0) {
-  return std::chrono::duration<double>(Clock::now() - t0).count();
-}
 
 std::string pair_name(const FramePair& pair) {
   return "pair (" + std::to_string(pair.target) + ", " + std::to_string(pair.source) + ")";
@@ -172,8 +166,7 @@ ResidualSampling parse_residual_sampling(std::string_view name) {
   if (name == "exact") return ResidualSampling::kExact;
   if (name == "random") return ResidualSampling::kRandom;
   if (name == "lossless") return ResidualSampling::kLossless;
-  throw Error("unknown sampling '" + std::string(name) +
-              "' (valid: full, exact, random, lossless)");
+  throw Error("unknown sampling " + quote_bytes(name) + " (valid: full, exact, random, lossless)");
 }
 
 RegistrationProblem build_registration_problem(
@@ -218,14 +211,14 @@ RegistrationProblem build_registration_problem(
   const int threads = std::clamp(options.num_threads, 1, tbb::info::default_concurrency());
   tbb::task_arena arena(threads);
   std::atomic<std::size_t> done{0};
-  const auto stage_start = Clock::now();
+  const Stopwatch stage_time;
   arena.execute([&] {
     internal::parallel_for_each_index(pairs.size(), [&](std::size_t k) {
       const FramePair& pair = pairs[k];
       const auto i = static_cast<std::size_t>(pair.target);
       const auto j = static_cast<std::size_t>(pair.source);
       BuiltFactor& factor = built[k];
-      auto t0 = Clock::now();
+      Stopwatch step;
       const Eigen::Isometry3d T_ij = T_world_frame[i].inverse() * T_world_frame[j];
       const std::vector<GicpCorrespondence> correspondences =
           find_correspondences(frames[i]->cloud(), frames[i]->tree(), frames[j]->cloud(), T_ij,
@@ -244,8 +237,7 @@ RegistrationProblem build_registration_problem(
       auto full = std::make_shared<const GicpBlock>(correspondences, T_ij);
       factor.correspondences = correspondences.size();
       factor.correspondence_bytes = full->memory_bytes();
-      factor.correspondence_s = seconds_since(t0);
-      t0 = Clock::now();
+      factor.correspondence_s = step.restart();
       switch (options.sampling) {
         case ResidualSampling::kFull:
           factor.block = full;
@@ -274,12 +266,11 @@ RegistrationProblem build_registration_problem(
           factor.block = make_lossless_block(*full, T_ij);
           break;
       }
-      factor.compression_s = seconds_since(t0);
+      factor.compression_s = step.restart();
       if (options.factor_excess_cauchy_scale > 0.0) {
-        t0 = Clock::now();
         const double* values[2] = {storage[i].data(), storage[j].data()};
         factor.minimum = block_minimum(*factor.block, values);
-        factor.minimum_s = seconds_since(t0);
+        factor.minimum_s = step.elapsed_s();
       }
       if (progress) progress(done.fetch_add(1) + 1, pairs.size());
     });
@@ -314,7 +305,7 @@ RegistrationProblem build_registration_problem(
     out.factor_residual_bytes.push_back(built[k].block->memory_bytes());
   }
   // The stage ran in parallel: split its wall time in proportion to the per-factor CPU times.
-  const double wall = seconds_since(stage_start);
+  const double wall = stage_time.elapsed_s();
   const double cpu = out.stats.correspondence_s + out.stats.compression_s + out.stats.minimum_s;
   if (cpu > 0.0) {
     out.stats.correspondence_s *= wall / cpu;

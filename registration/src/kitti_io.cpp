@@ -100,4 +100,20 @@ void write_kitti_bin(const std::filesystem::path& path, const PointCloud& cloud,
   });
 }
 
+const char* to_string(KittiFormat format) {
+  switch (format) {
+    case KittiFormat::kXyzi:
+      return "xyzi";
+    case KittiFormat::kXyz:
+      return "xyz";
+  }
+  return "unknown";
+}
+
+KittiFormat parse_kitti_format(std::string_view name) {
+  if (name == "xyzi") return KittiFormat::kXyzi;
+  if (name == "xyz") return KittiFormat::kXyz;
+  throw Error("unknown KITTI .bin format " + quote_bytes(name) + " (valid: xyzi, xyz)");
+}
+
 }  // namespace carat

@@ -6,10 +6,10 @@
 
 #include <algorithm>
 #include <atomic>
-#include <chrono>
 #include <string>
 
 #include "carat/solver/error.hpp"
+#include "carat/solver/stopwatch.hpp"
 #include "parallel.hpp"
 
 namespace carat {
@@ -46,7 +46,7 @@ std::vector<PairRegistration> register_pairs(
           T_world_frame[static_cast<std::size_t>(pair.target)].inverse() *
           T_world_frame[static_cast<std::size_t>(pair.source)];
       AlignResult result;
-      const auto t0 = std::chrono::steady_clock::now();
+      const Stopwatch align_time;
       try {
         result = align(target.cloud(), target.tree(), source.cloud(), T_init, single);
       } catch (const Error& e) {
@@ -61,7 +61,7 @@ std::vector<PairRegistration> register_pairs(
       r.num_correspondences = result.num_correspondences;
       r.iterations = result.iterations;
       r.converged = result.converged;
-      r.align_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      r.align_s = align_time.elapsed_s();
       if (progress) progress(done.fetch_add(1) + 1, pairs.size());
     });
   });

@@ -9,6 +9,23 @@
 
 namespace carat {
 
+const char* to_string(PoseGraphInformation information) {
+  switch (information) {
+    case PoseGraphInformation::kIdentity:
+      return "identity";
+    case PoseGraphInformation::kHessian:
+      return "hessian";
+  }
+  return "unknown";
+}
+
+PoseGraphInformation parse_pose_graph_information(std::string_view name) {
+  if (name == "identity") return PoseGraphInformation::kIdentity;
+  if (name == "hessian") return PoseGraphInformation::kHessian;
+  throw Error("unknown pose-graph information " + quote_bytes(name) +
+              " (valid: identity, hessian)");
+}
+
 se3::Matrix6d relative_pose_information(const Eigen::Isometry3d& T_target_source,
                                         const se3::Matrix6d& H) {
   // A right perturbation exp([w, v]) of T_ij moves the factor's error e = [e_t, e_r] by

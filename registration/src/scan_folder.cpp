@@ -11,6 +11,18 @@
 namespace carat {
 namespace fs = std::filesystem;
 
+const char* to_string(BinLayout layout) {
+  switch (layout) {
+    case BinLayout::kAuto:
+      return "auto";
+    case BinLayout::kXyz:
+      return "xyz";
+    case BinLayout::kXyzi:
+      return "xyzi";
+  }
+  return "unknown";
+}
+
 BinLayout parse_bin_layout(std::string_view name) {
   if (name == "auto") return BinLayout::kAuto;
   if (name == "xyz") return BinLayout::kXyz;

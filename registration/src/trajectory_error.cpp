@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "carat/solver/error.hpp"
+#include "carat/solver/statistics.hpp"
 
 namespace carat {
 namespace {
@@ -204,15 +205,7 @@ AteStatistics compute_ate(std::span<const Eigen::Isometry3d> estimate,
   const auto [min, max] = std::minmax_element(errors.begin(), errors.end());
   stats.min = *min;
   stats.max = *max;
-  const std::size_t middle = n / 2;
-  std::nth_element(errors.begin(), errors.begin() + static_cast<std::ptrdiff_t>(middle),
-                   errors.end());
-  stats.median = errors[middle];
-  if (n % 2 == 0) {
-    const double below =
-        *std::max_element(errors.begin(), errors.begin() + static_cast<std::ptrdiff_t>(middle));
-    stats.median = 0.5 * (stats.median + below);
-  }
+  stats.median = median(errors);
   return stats;
 }
 

@@ -150,6 +150,18 @@ const char* format_name(TrajectoryFormat format) {
 
 }  // namespace
 
+const char* to_string(TrajectoryFormat format) {
+  switch (format) {
+    case TrajectoryFormat::kKitti:
+      return "kitti";
+    case TrajectoryFormat::kTum:
+      return "tum";
+    case TrajectoryFormat::kGraph:
+      return "graph";
+  }
+  return "unknown";
+}
+
 TrajectoryFormat parse_trajectory_format(std::string_view name) {
   if (name == "kitti") return TrajectoryFormat::kKitti;
   if (name == "tum") return TrajectoryFormat::kTum;

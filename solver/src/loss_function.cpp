@@ -64,4 +64,35 @@ LossValue ExcessLoss::evaluate(double s) const {
   return {offset_ + v.rho, v.rho1, v.rho2};
 }
 
+const char* to_string(LossKind kind) {
+  switch (kind) {
+    case LossKind::kNone:
+      return "none";
+    case LossKind::kHuber:
+      return "huber";
+    case LossKind::kCauchy:
+      return "cauchy";
+  }
+  return "unknown";
+}
+
+LossKind parse_loss_kind(std::string_view name) {
+  if (name == "none") return LossKind::kNone;
+  if (name == "huber") return LossKind::kHuber;
+  if (name == "cauchy") return LossKind::kCauchy;
+  throw Error("unknown loss " + quote_bytes(name) + " (valid: none, huber, cauchy)");
+}
+
+std::shared_ptr<const LossFunction> make_loss(LossKind kind, double scale) {
+  switch (kind) {
+    case LossKind::kNone:
+      return nullptr;
+    case LossKind::kHuber:
+      return std::make_shared<HuberLoss>(scale);
+    case LossKind::kCauchy:
+      return std::make_shared<CauchyLoss>(scale);
+  }
+  throw Error("make_loss: unknown loss kind");
+}
+
 }  // namespace carat

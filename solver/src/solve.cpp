@@ -4,7 +4,6 @@
 #include <tbb/task_arena.h>
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <optional>
 #include <string>
@@ -12,6 +11,7 @@
 
 #include "block_evaluator.hpp"
 #include "carat/solver/error.hpp"
+#include "carat/solver/stopwatch.hpp"
 #include "factorization_reuse.hpp"
 #include "hessian_damping.hpp"
 #include "sparse_system.hpp"
@@ -21,12 +21,6 @@
 
 namespace carat {
 namespace {
-
-using Clock = std::chrono::steady_clock;
-
-double seconds_since(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
 
 /// Applies the tangent step to every free variable: out = x [+] delta.
 void apply_step(const Problem& problem, const std::vector<int>& var_offset, const double* x,
@@ -80,17 +74,17 @@ class Solver {
   bool begin_iteration(int iteration, IterationSummary* row);
   bool factorize();
   bool factorize_gauss_newton(IterationSummary* row);
-  bool solve_for_step(IterationSummary& row, Clock::time_point iteration_start);
-  bool stop_on_small_step(IterationSummary& row, double radius, Clock::time_point iteration_start);
+  bool solve_for_step(IterationSummary& row, const Stopwatch& iteration_time);
+  bool stop_on_small_step(IterationSummary& row, double radius, const Stopwatch& iteration_time);
   double trial_cost();
   bool reject_step(IterationSummary& row, internal::TrustRegionStrategy& region,
-                   internal::RadiusShrinkCause cause, Clock::time_point iteration_start);
+                   internal::RadiusShrinkCause cause, const Stopwatch& iteration_time);
   bool linearize();
   bool take_step(IterationSummary& row, double new_cost, int iteration,
-                 Clock::time_point iteration_start);
+                 const Stopwatch& iteration_time);
   bool try_reused_factorization(IterationSummary& row, int iteration,
-                                Clock::time_point iteration_start, bool* stop);
-  void record(IterationSummary row, Clock::time_point iteration_start);
+                                const Stopwatch& iteration_time, bool* stop);
+  void record(IterationSummary row, const Stopwatch& iteration_time);
   bool finish(TerminationType type, std::string message);
   bool finish(internal::StopReason reason) {
     return finish(reason.type, std::move(reason.message));
@@ -99,7 +93,7 @@ class Solver {
   const SolverOptions& options_;
   Problem& problem_;
   SolverSummary& summary_;
-  Clock::time_point start_ = Clock::now();
+  Stopwatch solve_time_;  ///< since the solver was made
   std::unique_ptr<internal::SparseSystem> system_;
   std::unique_ptr<internal::BlockEvaluator> evaluator_;
   internal::BlockLinearizations lin_;
@@ -120,23 +114,23 @@ bool Solver::finish(TerminationType type, std::string message) {
   return true;
 }
 
-void Solver::record(IterationSummary row, Clock::time_point iteration_start) {
-  row.iteration_time_s = seconds_since(iteration_start);
-  row.cumulative_time_s = seconds_since(start_);
+void Solver::record(IterationSummary row, const Stopwatch& iteration_time) {
+  row.iteration_time_s = iteration_time.elapsed_s();
+  row.cumulative_time_s = solve_time_.elapsed_s();
   if (options_.record_iterations) summary_.iterations.push_back(row);
 }
 
 bool Solver::linearize() {
-  auto t0 = Clock::now();
+  Stopwatch t0;
   std::string error;
   if (!evaluator_->linearize(current_, &lin_, &error)) {
-    summary_.time.linearize_s += seconds_since(t0);
+    summary_.time.linearize_s += t0.elapsed_s();
     return finish(TerminationType::kFailure, error), false;
   }
-  summary_.time.linearize_s += seconds_since(t0);
-  t0 = Clock::now();
+  summary_.time.linearize_s += t0.elapsed_s();
+  t0.restart();
   system_->assemble(lin_, &gradient_);
-  summary_.time.assembly_s += seconds_since(t0);
+  summary_.time.assembly_s += t0.elapsed_s();
   cost_ = 0.0;
   for (double c : lin_.cost) cost_ += c;
   return true;
@@ -162,9 +156,9 @@ bool Solver::begin_iteration(int iteration, IterationSummary* row) {
 
 /// Numeric factorization of H + diag(damping_). False: not positive definite.
 bool Solver::factorize() {
-  const auto t0 = Clock::now();
+  const Stopwatch t0;
   const bool factorized = system_->factorize(damping_);
-  summary_.time.numeric_s += seconds_since(t0);
+  summary_.time.numeric_s += t0.elapsed_s();
   return factorized;
 }
 
@@ -185,17 +179,17 @@ bool Solver::factorize_gauss_newton(IterationSummary* row) {
 
 /// Solves the factorized system for the step delta_ = -(H + damping)^-1 gradient. False (the
 /// row recorded, the solve ended as a failure): the step is not finite.
-bool Solver::solve_for_step(IterationSummary& row, Clock::time_point iteration_start) {
-  const auto t0 = Clock::now();
+bool Solver::solve_for_step(IterationSummary& row, const Stopwatch& iteration_time) {
+  const Stopwatch t0;
   rhs_ = -gradient_;
   system_->solve(rhs_, &delta_);
-  summary_.time.solve_s += seconds_since(t0);
+  summary_.time.solve_s += t0.elapsed_s();
   row.step_norm = delta_.norm();
   if (delta_.allFinite()) return true;
   row.linear_solver_failed = true;
   ++summary_.num_linear_solver_failures;
   ++summary_.num_unsuccessful_steps;
-  record(row, iteration_start);
+  record(row, iteration_time);
   finish(TerminationType::kFailure, "the linear solve produced a non-finite step");
   return false;
 }
@@ -203,7 +197,7 @@ bool Solver::solve_for_step(IterationSummary& row, Clock::time_point iteration_s
 /// True (the row recorded with `radius`, the solve ended) when the step in delta_ meets the
 /// parameter tolerance; the step is then not taken.
 bool Solver::stop_on_small_step(IterationSummary& row, double radius,
-                                Clock::time_point iteration_start) {
+                                const Stopwatch& iteration_time) {
   const double x_norm =
       free_parameter_norm(problem_, system_->variable_offset(), buffers_[current_].data());
   std::optional<internal::StopReason> stop =
@@ -211,7 +205,7 @@ bool Solver::stop_on_small_step(IterationSummary& row, double radius,
   if (!stop) return false;
   row.trust_region_radius = radius;
   ++summary_.num_unsuccessful_steps;
-  record(row, iteration_start);
+  record(row, iteration_time);
   return finish(std::move(*stop));
 }
 
@@ -220,9 +214,9 @@ double Solver::trial_cost() {
   const int trial = 1 - current_;
   apply_step(problem_, system_->variable_offset(), buffers_[current_].data(), delta_,
              buffers_[trial].data());
-  const auto t0 = Clock::now();
+  const Stopwatch t0;
   const double cost = evaluator_->cost(trial);
-  summary_.time.cost_s += seconds_since(t0);
+  summary_.time.cost_s += t0.elapsed_s();
   return cost;
 }
 
@@ -231,7 +225,7 @@ double Solver::trial_cost() {
 /// per correspondence set, then costs one linearization instead of two), so its gradient is not
 /// tested either. Records the row and tests the function tolerance. True: the solve ends.
 bool Solver::take_step(IterationSummary& row, double new_cost, int iteration,
-                       Clock::time_point iteration_start) {
+                       const Stopwatch& iteration_time) {
   const double old_cost = cost_;
   const double decrease = old_cost - new_cost;
   if (!row.reused_factorization) fresh_decrease_ = decrease;
@@ -241,10 +235,10 @@ bool Solver::take_step(IterationSummary& row, double new_cost, int iteration,
   if (limit) {
     cost_ = new_cost;
   } else if (!linearize()) {
-    record(row, iteration_start);
+    record(row, iteration_time);
     return true;
   }
-  record(row, iteration_start);
+  record(row, iteration_time);
   if (auto stop =
           internal::check_function_tolerance(decrease, old_cost, options_.function_tolerance)) {
     return finish(std::move(*stop));
@@ -256,11 +250,11 @@ bool Solver::take_step(IterationSummary& row, double new_cost, int iteration,
 /// LM: a step not taken (its gain ratio too low, or the system not positive definite). The
 /// trust region shrinks and the row is recorded. True: the radius collapsed and the solve ends.
 bool Solver::reject_step(IterationSummary& row, internal::TrustRegionStrategy& region,
-                         internal::RadiusShrinkCause cause, Clock::time_point iteration_start) {
+                         internal::RadiusShrinkCause cause, const Stopwatch& iteration_time) {
   ++summary_.num_unsuccessful_steps;
   region.on_rejected();
   row.trust_region_radius = region.radius();
-  record(row, iteration_start);
+  record(row, iteration_time);
   std::optional<internal::StopReason> stop =
       internal::check_trust_region_radius(region.radius(), options_.min_trust_region_radius, cause);
   return stop && finish(std::move(*stop));
@@ -272,12 +266,12 @@ bool Solver::reject_step(IterationSummary& row, internal::TrustRegionStrategy& r
 /// what a fresh one achieved. Then returns true (*stop: the solve ends); otherwise nothing is
 /// recorded and the caller factorizes afresh.
 bool Solver::try_reused_factorization(IterationSummary& row, int iteration,
-                                      Clock::time_point iteration_start, bool* stop) {
-  const auto ts = Clock::now();
+                                      const Stopwatch& iteration_time, bool* stop) {
+  const Stopwatch ts;
   rhs_ = -gradient_;
   system_->solve(rhs_, &delta_);
   if (delta_.allFinite()) system_->multiply(delta_, &h_delta_);
-  summary_.time.solve_s += seconds_since(ts);
+  summary_.time.solve_s += ts.elapsed_s();
   if (!delta_.allFinite()) {
     ++summary_.num_refused_reuses;
     return false;
@@ -297,7 +291,7 @@ bool Solver::try_reused_factorization(IterationSummary& row, int iteration,
   row.cost = new_cost;
   row.step_is_successful = true;
   row.reused_factorization = true;
-  *stop = take_step(row, new_cost, iteration, iteration_start);
+  *stop = take_step(row, new_cost, iteration, iteration_time);
   return true;
 }
 
@@ -310,13 +304,13 @@ void Solver::run_levenberg_marquardt() {
   for (int iteration = 1;; ++iteration) {
     IterationSummary row;
     if (!begin_iteration(iteration, &row)) return;
-    const auto iteration_start = Clock::now();
+    const Stopwatch iteration_time;
 
     if (reuse_next) {
       reuse_next = false;
       row.trust_region_radius = region.radius();
       bool stop = false;
-      if (try_reused_factorization(row, iteration, iteration_start, &stop)) {
+      if (try_reused_factorization(row, iteration, iteration_time, &stop)) {
         if (stop) return;
         reuse_next = true;
         continue;
@@ -328,20 +322,20 @@ void Solver::run_levenberg_marquardt() {
       row.linear_solver_failed = true;
       ++summary_.num_linear_solver_failures;
       if (reject_step(row, region, internal::RadiusShrinkCause::kSystemNotPositiveDefinite,
-                      iteration_start)) {
+                      iteration_time)) {
         return;
       }
       continue;
     }
-    if (!solve_for_step(row, iteration_start)) return;
-    if (stop_on_small_step(row, region.radius(), iteration_start)) return;
+    if (!solve_for_step(row, iteration_time)) return;
+    if (stop_on_small_step(row, region.radius(), iteration_time)) return;
 
     const double new_cost = trial_cost();
     const internal::StepQuality step = internal::judge_step(
         cost_, new_cost, internal::damped_model_decrease(gradient_, delta_, damping_));
     row.relative_decrease = step.measured_ratio;
     if (!region.accepts(step)) {
-      if (reject_step(row, region, internal::RadiusShrinkCause::kStepRejected, iteration_start)) {
+      if (reject_step(row, region, internal::RadiusShrinkCause::kStepRejected, iteration_time)) {
         return;
       }
       continue;
@@ -356,7 +350,7 @@ void Solver::run_levenberg_marquardt() {
     // linearly converging tail): the exact H buys little over this one, so the next step
     // first tries this factorization.
     reuse_next = internal::should_try_reuse(step, options_);
-    if (take_step(row, new_cost, iteration, iteration_start)) return;
+    if (take_step(row, new_cost, iteration, iteration_time)) return;
   }
 }
 
@@ -368,18 +362,18 @@ void Solver::run_gauss_newton() {
   for (int iteration = 1;; ++iteration) {
     IterationSummary row;
     if (!begin_iteration(iteration, &row)) return;
-    const auto iteration_start = Clock::now();
+    const Stopwatch iteration_time;
 
     if (!factorize_gauss_newton(&row)) {
       ++summary_.num_unsuccessful_steps;
-      record(row, iteration_start);
+      record(row, iteration_time);
       finish(TerminationType::kFailure,
              "Gauss-Newton: the system is not positive definite even with damping (gauge not fixed "
              "or rank-deficient H?)");
       return;
     }
-    if (!solve_for_step(row, iteration_start)) return;
-    if (stop_on_small_step(row, radius, iteration_start)) return;
+    if (!solve_for_step(row, iteration_time)) return;
+    if (stop_on_small_step(row, radius, iteration_time)) return;
 
     const double new_cost = trial_cost();
     const internal::StepQuality step = internal::judge_step(
@@ -387,7 +381,7 @@ void Solver::run_gauss_newton() {
     row.relative_decrease = step.measured_ratio;
     if (auto stop = internal::check_gauss_newton_decrease(cost_, new_cost)) {
       ++summary_.num_unsuccessful_steps;
-      record(row, iteration_start);
+      record(row, iteration_time);
       finish(std::move(*stop));
       return;
     }
@@ -396,7 +390,7 @@ void Solver::run_gauss_newton() {
     row.cost_change = step.cost_decrease;
     row.cost = new_cost;
     row.trust_region_radius = radius;
-    if (take_step(row, new_cost, iteration, iteration_start)) return;
+    if (take_step(row, new_cost, iteration, iteration_time)) return;
   }
 }
 
@@ -414,9 +408,9 @@ bool Solver::initialize() {
     if (!problem_.is_constant(VariableId{v})) ++summary_.num_free_variables;
   }
 
-  auto t0 = Clock::now();
+  Stopwatch t0;
   system_ = std::make_unique<internal::SparseSystem>(problem_, options_.ordering);
-  summary_.time.symbolic_s += seconds_since(t0);
+  summary_.time.symbolic_s += t0.elapsed_s();
   summary_.num_tangent_parameters = system_->size();
   summary_.hessian_nonzeros = system_->hessian_nonzeros();
   summary_.factor_nonzeros = system_->factor_nonzeros();
@@ -429,7 +423,7 @@ bool Solver::initialize() {
   for (int k = 0; k < 2; ++k) evaluator_->bind(k, buffers_[k].data());
   evaluator_->allocate(&lin_);
 
-  const auto iteration0 = Clock::now();
+  const Stopwatch iteration0;
   if (!linearize()) return false;
   summary_.initial_cost = cost_;
   summary_.final_cost = cost_;
@@ -464,7 +458,7 @@ void Solver::run() {
 }  // namespace
 
 SolverSummary solve(const SolverOptions& options, Problem& problem) {
-  const auto start = Clock::now();
+  const Stopwatch start;
   SolverSummary summary;
   summary.method =
       options.method == Method::kLevenbergMarquardt ? "levenberg_marquardt" : "gauss_newton";
@@ -482,7 +476,7 @@ SolverSummary solve(const SolverOptions& options, Problem& problem) {
   tbb::task_arena arena(effective.num_threads);
   arena.execute([&] { solver.run(); });
   solver.write_back();
-  summary.time.total_s = seconds_since(start);
+  summary.time.total_s = start.elapsed_s();
   return summary;
 }
 

@@ -1,6 +1,9 @@
 #include "carat/solver/solver_options.hpp"
 
 #include <cmath>
+#include <string>
+
+#include "carat/solver/error.hpp"
 
 namespace carat {
 namespace {
@@ -11,6 +14,41 @@ bool fail(std::string* error, const std::string& message) {
 }
 
 }  // namespace
+
+const char* to_string(Method method) {
+  switch (method) {
+    case Method::kLevenbergMarquardt:
+      return "lm";
+    case Method::kGaussNewton:
+      return "gn";
+  }
+  return "unknown";
+}
+
+Method parse_method(std::string_view name) {
+  if (name == "lm") return Method::kLevenbergMarquardt;
+  if (name == "gn") return Method::kGaussNewton;
+  throw Error("unknown method " + quote_bytes(name) + " (valid: lm, gn)");
+}
+
+const char* to_string(Ordering ordering) {
+  switch (ordering) {
+    case Ordering::kAuto:
+      return "auto";
+    case Ordering::kAmd:
+      return "amd";
+    case Ordering::kMetis:
+      return "metis";
+  }
+  return "unknown";
+}
+
+Ordering parse_ordering(std::string_view name) {
+  if (name == "auto") return Ordering::kAuto;
+  if (name == "amd") return Ordering::kAmd;
+  if (name == "metis") return Ordering::kMetis;
+  throw Error("unknown ordering " + quote_bytes(name) + " (valid: auto, amd, metis)");
+}
 
 bool SolverOptions::validate(std::string* error) const {
   if (max_iterations < 0)

@@ -5,6 +5,7 @@
 /// with carat's solver on the matching residual block.
 
 #include <Eigen/Geometry>
+#include <string_view>
 
 #include "carat/registration/kdtree.hpp"
 #include "carat/registration/point_cloud.hpp"
@@ -18,6 +19,12 @@ enum class RegistrationMethod {
   kPointToPlane,  ///< distance along the target normal (smallest eigenvector of its covariance)
   kPointToPoint,  ///< Euclidean distance
 };
+
+/// Name of a registration method: "gicp", "point-to-plane" or "point-to-point".
+const char* to_string(RegistrationMethod method);
+/// Parses "gicp", "point-to-plane" or "point-to-point"; throws carat::Error listing them
+/// otherwise.
+RegistrationMethod parse_registration_method(std::string_view name);
 
 /// Settings of align().
 struct AlignSettings {

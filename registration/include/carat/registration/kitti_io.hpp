@@ -17,6 +17,11 @@ enum class KittiFormat {
   kXyz,   ///< x y z: 12 bytes per point (intensity dropped, as in ../shared/data)
 };
 
+/// Name of a record layout: "xyzi" or "xyz".
+const char* to_string(KittiFormat format);
+/// Parses "xyzi" or "xyz"; throws carat::Error listing them otherwise.
+KittiFormat parse_kitti_format(std::string_view name);
+
 /// How point-cloud readers treat non-finite points, and how large a cloud they accept.
 struct ReadOptions {
   bool drop_non_finite = false;  ///< drop NaN/Inf points instead of failing

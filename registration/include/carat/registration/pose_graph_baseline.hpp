@@ -5,6 +5,7 @@
 
 #include <Eigen/Geometry>
 #include <span>
+#include <string_view>
 #include <vector>
 
 #include "carat/registration/pair_registration.hpp"
@@ -18,6 +19,11 @@ enum class PoseGraphInformation {
   kIdentity,  ///< every factor weighs the same
   kHessian,   ///< the GICP Hessian of the pair at its alignment
 };
+
+/// Name of an information setting: "identity" or "hessian".
+const char* to_string(PoseGraphInformation information);
+/// Parses "identity" or "hessian"; throws carat::Error listing them otherwise.
+PoseGraphInformation parse_pose_graph_information(std::string_view name);
 
 /// Settings of optimize_pose_graph_baseline().
 struct PoseGraphBaselineOptions {

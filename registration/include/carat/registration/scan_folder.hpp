@@ -7,6 +7,7 @@
 
 #include <filesystem>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "carat/registration/kitti_io.hpp"
@@ -29,6 +30,8 @@ enum class BinLayout {
   kXyzi,  ///< 16 bytes per point everywhere
 };
 
+/// Name of a layout: "auto", "xyz" or "xyzi".
+const char* to_string(BinLayout layout);
 /// Parses "auto", "xyz" or "xyzi"; throws carat::Error listing them otherwise.
 BinLayout parse_bin_layout(std::string_view name);
 

@@ -25,6 +25,8 @@ enum class TrajectoryFormat {
   kGraph,  ///< gtsam_points graph.txt: "vN tx ty tz qx qy qz qw" per line; stamp = N
 };
 
+/// Name of a format: "kitti", "tum" or "graph".
+const char* to_string(TrajectoryFormat format);
 /// Parses a format name: "kitti", "tum" or "graph" (throws carat::Error listing them otherwise).
 TrajectoryFormat parse_trajectory_format(std::string_view name);
 

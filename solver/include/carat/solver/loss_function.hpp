@@ -4,6 +4,7 @@
 /// convention: the block's cost is 1/2 rho(s)).
 
 #include <memory>
+#include <string_view>
 
 namespace carat {
 
@@ -66,5 +67,20 @@ class ExcessLoss final : public LossFunction {
   double offset_;
   std::shared_ptr<const LossFunction> inner_;
 };
+
+/// The losses a setting (a command-line option, a configuration file) can name.
+enum class LossKind {
+  kNone,    ///< plain least squares: no LossFunction
+  kHuber,   ///< HuberLoss
+  kCauchy,  ///< CauchyLoss
+};
+
+/// Name of a loss kind: "none", "huber" or "cauchy" (for kHuber and kCauchy, the loss's name()).
+const char* to_string(LossKind kind);
+/// Parses "none", "huber" or "cauchy"; throws carat::Error listing them otherwise.
+LossKind parse_loss_kind(std::string_view name);
+/// The loss of `kind` with `scale` in residual units (HuberLoss's delta, CauchyLoss's scale):
+/// null for kNone (scale unused). Throws carat::Error for a scale the loss refuses.
+std::shared_ptr<const LossFunction> make_loss(LossKind kind, double scale);
 
 }  // namespace carat

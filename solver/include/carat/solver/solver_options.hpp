@@ -3,6 +3,7 @@
 /// Settings of the nonlinear least-squares solver (defaults follow Ceres where it has one).
 
 #include <string>
+#include <string_view>
 
 namespace carat {
 
@@ -12,6 +13,11 @@ enum class Method {
   kGaussNewton,         ///< undamped steps; damping only to recover from an indefinite system
 };
 
+/// Name of a method: "lm" (Levenberg-Marquardt) or "gn" (Gauss-Newton).
+const char* to_string(Method method);
+/// Parses "lm" or "gn"; throws carat::Error listing them otherwise.
+Method parse_method(std::string_view name);
+
 /// Fill-reducing ordering of the variables (computed once, on the variable-level graph, then
 /// expanded to scalars and postordered).
 enum class Ordering {
@@ -19,6 +25,11 @@ enum class Ordering {
   kAmd,    ///< approximate minimum degree
   kMetis,  ///< METIS nested dissection (good for large, mesh-like graphs)
 };
+
+/// Name of an ordering: "auto", "amd" or "metis".
+const char* to_string(Ordering ordering);
+/// Parses "auto", "amd" or "metis"; throws carat::Error listing them otherwise.
+Ordering parse_ordering(std::string_view name);
 
 /// What solve() does and when it stops.
 struct SolverOptions {
