@@ -57,7 +57,8 @@ void set_counters(benchmark::State& state) {
   std::size_t rows = 0;
   for (const auto& b : graph().blocks) rows += static_cast<std::size_t>(b->num_rows());
   state.counters["factors"] = static_cast<double>(graph().blocks.size());
-  state.counters["rows_per_factor"] = static_cast<double>(rows) / graph().blocks.size();
+  state.counters["rows_per_factor"] =
+      static_cast<double>(rows) / static_cast<double>(graph().blocks.size());
 }
 
 /// Linearizes blocks[i] at pair i's poses, pair after pair (blocks parallel to the pairs).

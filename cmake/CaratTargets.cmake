@@ -1,8 +1,8 @@
-# Helpers shared by carat's module targets.
+#Helpers shared by carat's module targets.
 
-# carat_add_module(NAME <name> [DEPS <targets...>] [PRIVATE_DEPS <targets...>])
-# Declares the library carat_<name> (alias carat::<name>, export name <name>) from
-# <name>/src/*.cpp with public headers in <name>/include/carat/<name>/. PRIVATE_DEPS that only
+#carat_add_module(NAME <name>[DEPS <targets...>][PRIVATE_DEPS <targets...>])
+#Declares the library carat_ < name>(alias carat:: <name>, export name <name>)from
+# <name> / src/*.cpp with public headers in <name>/include/carat/<name>/. PRIVATE_DEPS that only
 # the sources include (header-only libraries) are wrapped in $<BUILD_INTERFACE:...> by the
 # caller, so that the installed package does not ask consumers for them.
 function(carat_add_module)
@@ -42,6 +42,11 @@ endfunction()
 # Warnings on carat's own targets only; as errors with CARAT_WERROR (the scripts and CI set it).
 function(carat_set_warnings target)
   target_compile_options(${target} PRIVATE -Wall -Wextra)
+  # The code is clean under these with GCC; Clang's -Wconversion also checks signedness, which it
+  # is not written for (the fuzzers build with Clang).
+  if(CMAKE_CXX_COMPILER_ID STREQUAL "GNU")
+    target_compile_options(${target} PRIVATE -Wshadow -Wconversion -Wpedantic)
+  endif()
   if(CARAT_WERROR)
     target_compile_options(${target} PRIVATE -Werror)
   endif()

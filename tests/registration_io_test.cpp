@@ -14,7 +14,10 @@ namespace {
 
 PointCloud sample_cloud() {
   PointCloud cloud;
-  for (int i = 0; i < 100; ++i) cloud.points.emplace_back(0.5f * i, -0.25f * i, 3.0f + 0.125f * i);
+  for (int i = 0; i < 100; ++i) {
+    const auto f = static_cast<float>(i);
+    cloud.points.emplace_back(0.5f * f, -0.25f * f, 3.0f + 0.125f * f);
+  }
   return cloud;
 }
 
@@ -212,7 +215,9 @@ TEST(PointCloudIoTest, OnlyRegularFilesAndTheyAreReadInChunks) {
   expect_error([&] { read_pcd(dir); }, "is a directory, not a file");
   // More points than one chunk holds, in every format: the same cloud back.
   PointCloud cloud;
-  for (int i = 0; i < 200000; ++i) cloud.points.emplace_back(0.001f * i, -0.5f * (i % 7), 1.0f);
+  for (int i = 0; i < 200000; ++i)
+    cloud.points.emplace_back(0.001f * static_cast<float>(i), -0.5f * static_cast<float>(i % 7),
+                              1.0f);
   write_pcd(dir / "big.pcd", cloud);
   write_ply(dir / "big.ply", cloud);
   write_kitti_bin(dir / "big.bin", cloud, KittiFormat::kXyzi);

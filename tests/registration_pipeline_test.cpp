@@ -130,7 +130,8 @@ GlobalRegistrationResult small_solve(ResidualSampling sampling) {
 TEST(OverlapTest, FractionOfOccupiedVoxels) {
   PointCloud cloud;
   for (int x = 0; x < 10; ++x)
-    for (int y = 0; y < 10; ++y) cloud.points.emplace_back(x + 0.5f, y + 0.5f, 0.5f);
+    for (int y = 0; y < 10; ++y)
+      cloud.points.emplace_back(static_cast<float>(x) + 0.5f, static_cast<float>(y) + 0.5f, 0.5f);
   const VoxelOccupancy occupancy(cloud, 1.0);
   EXPECT_EQ(occupancy.size(), 100u);
   EXPECT_DOUBLE_EQ(overlap_fraction(occupancy, cloud, Eigen::Isometry3d::Identity()), 1.0);
@@ -185,7 +186,7 @@ TEST(DenseGraphTest, RejectsBadInput) {
 
 TEST(FrameTest, TooFewPointsIsAnError) {
   PointCloud cloud;
-  for (int k = 0; k < 28; ++k) cloud.points.emplace_back(k * 2.0f, 0.0f, 0.0f);
+  for (int k = 0; k < 28; ++k) cloud.points.emplace_back(static_cast<float>(k) * 2.0f, 0.0f, 0.0f);
   EXPECT_THAT([&] { preprocess_frame(cloud, PreprocessOptions{}, "scan.bin"); },
               ::testing::ThrowsMessage<Error>(HasSubstr("scan.bin: only 28 points")));
 }

@@ -154,7 +154,8 @@ TEST(FrameConstraintTest, PlanesAreDegenerateScenesAreNotAndOutliersDoNotMatter)
   EXPECT_EQ(frame_of(scene)->constrained_dof(), 6);
   // Two walls and a floor fix everything; a few points 10 km away change nothing.
   std::vector<Eigen::Vector3f> with_outliers = scene;
-  for (int k = 0; k < 5; ++k) with_outliers.emplace_back(10000.0f, 100.0f * k, 0.0f);
+  for (int k = 0; k < 5; ++k)
+    with_outliers.emplace_back(10000.0f, 100.0f * static_cast<float>(k), 0.0f);
   EXPECT_EQ(frame_of(with_outliers)->constrained_dof(), 6);
   // A corridor (two parallel walls and a floor) is free along its axis.
   std::vector<Eigen::Vector3f> corridor;

@@ -172,9 +172,9 @@ TEST(GicpBlockTest, WeightedExtractFoldsTheWeightsIntoItsRows) {
   // Whole correspondences in order are cheaper kept whole with one weight beside each row.
   EXPECT_EQ(block.extract_weighted_rows(std::vector<int>{3, 4, 5}, std::vector<double>{2, 2, 2}),
             nullptr);
-  const auto message = [&](const std::vector<int>& r, const std::vector<double>& w) {
+  const auto message = [&](const std::vector<int>& selected, const std::vector<double>& w) {
     try {
-      block.extract_weighted_rows(r, w);
+      block.extract_weighted_rows(selected, w);
     } catch (const Error& e) {
       return std::string(e.what());
     }

@@ -145,7 +145,8 @@ TEST(SyntheticWorld, ConsecutiveScansOverlap) {
       ASSERT_TRUE(tree.nearest(p, &index, &d2));
       if (d2 < 0.3f * 0.3f) ++close;
     }
-    EXPECT_GT(static_cast<double>(close) / scan1.size(), 0.5) << "frames " << k << ", " << k + 1;
+    EXPECT_GT(static_cast<double>(close) / static_cast<double>(scan1.size()), 0.5)
+        << "frames " << k << ", " << k + 1;
   }
 }
 

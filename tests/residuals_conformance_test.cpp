@@ -255,8 +255,8 @@ TEST_P(BlockContractTest, PassesTheConformanceCheck) {
 
 INSTANTIATE_TEST_SUITE_P(EveryShippedBlock, BlockContractTest,
                          ::testing::Range<std::size_t>(0, cases().size()),
-                         [](const ::testing::TestParamInfo<std::size_t>& info) {
-                           return cases()[info.param].first;
+                         [](const ::testing::TestParamInfo<std::size_t>& param_info) {
+                           return cases()[param_info.param].first;
                          });
 
 /// A plugin that writes all its rows whatever `rows` asks for, and one whose tangent_dims()

@@ -64,9 +64,11 @@ void check_options(const CoresetCheckArgs& args) {
   const double K = args.clusters == 0 ? default_coreset_clusters(args.dim) : args.clusters;
   const double L = lifted;
   const double M = args.target == 0 ? L + 1 : args.target;
+  const auto rows = static_cast<double>(args.rows);
   const double levels =
-      args.rows > M ? std::max(1.0, std::log(args.rows / M) / std::log(K / (L + 1.0))) : 0.0;
-  const double operations = args.trials * (levels * K * L * L + 4.0 * args.rows * L);
+      rows > M ? std::max(1.0, std::log(rows / M) / std::log(K / (L + 1.0))) : 0.0;
+  const double operations =
+      static_cast<double>(args.trials) * (levels * K * L * L + 4.0 * rows * L);
   constexpr double kOperationsPerSecond = 2e9;  // a conservative single core
   if (operations / kOperationsPerSecond > 600.0) {
     char minutes[32];

@@ -97,7 +97,8 @@ void check_memory(const DemoArgs& args) {
 /// default links many more pairs): each factor holds at most 96 bytes per source point.
 void check_full_factor_memory(const MappingInput& input) {
   double bytes = 0.0;
-  for (const FramePair& pair : input.pairs) bytes += 96.0 * input.frames[pair.source]->size();
+  for (const FramePair& pair : input.pairs)
+    bytes += 96.0 * static_cast<double>(input.frames[pair.source]->size());
   const double available = static_cast<double>(available_memory_bytes());
   if (bytes > 0.8 * available) {
     throw UsageError("the dense graph has " + std::to_string(input.pairs.size()) +

@@ -455,10 +455,11 @@ void synthetic_tables(const PaperArgs& args, int threads, const fs::path& dir, R
     j["ate_change_percent"] = ate_change;
     j["time_change_percent"] = time_change;
     j["memory_change_percent"] = memory_change;
-    t4.add_row({r.label, fmt("%.4f", r.ate->rmse), fmt("%+.2f %%", ate_change),
-                fmt("%.3f", r.time_s), fmt("%+.1f %%", time_change), format_bytes(r.memory_bytes),
-                fmt("%+.2f %%", memory_change), format_bytes(r.correspondence_bytes)},
-               j);
+    t4.add_row(
+        {r.label, fmt("%.4f", r.ate->rmse), fmt("%+.2f %%", ate_change), fmt("%.3f", r.time_s),
+         fmt("%+.1f %%", time_change), format_bytes(static_cast<double>(r.memory_bytes)),
+         fmt("%+.2f %%", memory_change), format_bytes(static_cast<double>(r.correspondence_bytes))},
+        j);
   }
   md += "\n### Tables IV and V: GRE full vs exact — time and memory\n\n" + t4.markdown();
   md +=

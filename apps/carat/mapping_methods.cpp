@@ -169,7 +169,8 @@ std::string results_table(const std::vector<MethodResult>& results) {
     std::snprintf(total, sizeof(total), "%.3f", r.total_s);
     std::snprintf(line, sizeof(line), "%-22s", r.label.c_str());
     out += line + pad(ate, 21) + pad(rmse, 10) + pad(std::to_string(r.iterations), 7) +
-           pad(time, 13) + pad(total, 11) + pad(format_bytes(r.memory_bytes), 12) + "\n";
+           pad(time, 13) + pad(total, 11) +
+           pad(format_bytes(static_cast<double>(r.memory_bytes)), 12) + "\n";
   }
   return out;
 }

@@ -291,7 +291,7 @@ std::string stacked_bars_svg(const std::string& title, const std::string& y_labe
   s << "<text x=\"20\" y=\"" << (top + bottom) / 2 << "\" text-anchor=\"middle\" font-size=\"13\" "
     << "transform=\"rotate(-90 20 " << (top + bottom) / 2 << ")\">" << escape(y_label)
     << "</text>\n";
-  const double slot = (right - left) / std::max<std::size_t>(bars.size(), 1);
+  const double slot = (right - left) / static_cast<double>(std::max<std::size_t>(bars.size(), 1));
   for (std::size_t b = 0; b < bars.size(); ++b) {
     double base = 0.0;
     const double x = left + slot * (static_cast<double>(b) + 0.2);

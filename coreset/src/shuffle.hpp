@@ -47,9 +47,10 @@ inline void seeded_permutation(int n, std::uint64_t seed, std::vector<int>& orde
   order.resize(static_cast<std::size_t>(n));
   std::iota(order.begin(), order.end(), 0);
   SmallRng rng(seed);
+  __extension__ typedef unsigned __int128 Wide;  // GCC and Clang's 128-bit integer
   for (int i = n - 1; i > 0; --i) {
-    const auto bound = static_cast<unsigned __int128>(static_cast<std::uint64_t>(i) + 1);
-    const auto j = static_cast<int>((static_cast<unsigned __int128>(rng.next()) * bound) >> 64);
+    const auto bound = static_cast<Wide>(static_cast<std::uint64_t>(i) + 1);
+    const auto j = static_cast<int>((static_cast<Wide>(rng.next()) * bound) >> 64);
     std::swap(order[static_cast<std::size_t>(i)], order[static_cast<std::size_t>(j)]);
   }
 }
