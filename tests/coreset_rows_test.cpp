@@ -6,6 +6,8 @@
 #include <limits>
 #include <numeric>
 #include <random>
+#include <sstream>
+#include <string>
 #include <tuple>
 
 #include "carat/coreset/caratheodory.hpp"
@@ -29,9 +31,17 @@ using test::Rows;
 
 // (N, M (0 = minimum), K, D, scale, seed)
 using Case = std::tuple<long, int, int, int, double, std::uint64_t>;
-class CoresetProperty : public ::testing::TestWithParam<Case> {};
+class CoresetPropertyTest : public ::testing::TestWithParam<Case> {};
 
-TEST_P(CoresetProperty, ExactAndOfTheRequestedSize) {
+/// A case's name: its rows, target, clusters, dimension and seed (the seed makes it unique).
+std::string case_name(const ::testing::TestParamInfo<Case>& param_info) {
+  const auto [n, target, clusters, dim, scale, seed] = param_info.param;
+  std::ostringstream name;  // (a stream: GCC 12 misreads chained string + as overlapping copies)
+  name << "N" << n << "_M" << target << "_K" << clusters << "_D" << dim << "_seed" << seed;
+  return name.str();
+}
+
+TEST_P(CoresetPropertyTest, ExactAndOfTheRequestedSize) {
   const auto [n, target, clusters, dim, scale, seed] = GetParam();
   const Rows rows = random_rows(n, dim, scale, seed);
   RowCoresetOptions options;
@@ -53,7 +63,7 @@ TEST_P(CoresetProperty, ExactAndOfTheRequestedSize) {
 }
 
 INSTANTIATE_TEST_SUITE_P(
-    Sizes, CoresetProperty,
+    Sizes, CoresetPropertyTest,
     ::testing::Values(Case{29, 0, 64, 6, 1.0, 1}, Case{30, 0, 64, 6, 1.0, 2},
                       Case{100, 0, 64, 6, 1.0, 3}, Case{1000, 0, 64, 6, 1.0, 4},
                       Case{30000, 0, 64, 6, 1.0, 5}, Case{30000, 64, 64, 6, 1.0, 6},
@@ -64,12 +74,13 @@ INSTANTIATE_TEST_SUITE_P(
                       Case{1000000, 0, 64, 6, 1.0, 15}, Case{30000, 0, 128, 12, 1e-6, 16},
                       Case{30000, 0, 93, 12, 1e6, 17}, Case{3000, 29, 30, 6, 1.0, 18},
                       Case{300000, 512, 64, 6, 1e-3, 19}, Case{10000, 0, 64, 3, 1e6, 20},
-                      Case{91, 0, 128, 12, 1.0, 21}, Case{200, 0, 128, 12, 1.0, 22}));
+                      Case{91, 0, 128, 12, 1.0, 21}, Case{200, 0, 128, 12, 1.0, 22}),
+    case_name);
 
 // Every reduced dimension from 1 to 16 with the default clusters: rows up to 15 columns travel
 // packed (and are lifted on the fly, 8 or 16 doubles a row), 16 columns lifted; both exact.
 INSTANTIATE_TEST_SUITE_P(
-    EveryDimension, CoresetProperty,
+    EveryDimension, CoresetPropertyTest,
     ::testing::Values(Case{4000, 0, 0, 1, 1.0, 101}, Case{4000, 0, 0, 2, 1.0, 102},
                       Case{4000, 0, 0, 3, 1.0, 103}, Case{4000, 0, 0, 4, 1.0, 104},
                       Case{4000, 0, 0, 5, 1.0, 105}, Case{4000, 0, 0, 6, 1.0, 106},
@@ -77,7 +88,8 @@ INSTANTIATE_TEST_SUITE_P(
                       Case{4000, 0, 0, 9, 1.0, 109}, Case{4000, 0, 0, 10, 1.0, 110},
                       Case{4000, 0, 0, 11, 1.0, 111}, Case{4000, 0, 0, 12, 1.0, 112},
                       Case{4000, 0, 0, 13, 1.0, 113}, Case{4000, 0, 0, 14, 1.0, 114},
-                      Case{4000, 0, 0, 15, 1.0, 115}, Case{4000, 0, 0, 16, 1.0, 116}));
+                      Case{4000, 0, 0, 15, 1.0, 115}, Case{4000, 0, 0, 16, 1.0, 116}),
+    case_name);
 
 TEST(CoresetTest, ColumnsOfVeryDifferentScales) {
   // Each coordinate is scaled on its own, so columns 12 orders of magnitude apart stay exact.

@@ -1,8 +1,9 @@
-// PCD and PLY reading and writing: round trips in every format, malformed files with their
-// messages, and the small_gicp PLY pair.
+// Cloud and scan I/O: PCD, PLY and KITTI .bin reading and writing, round trips in every
+// format, malformed files with their messages, and the small_gicp PLY pair.
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <vector>
 
 #include "carat/registration/kitti_io.hpp"
 #include "carat/registration/point_cloud_io.hpp"
@@ -251,6 +252,45 @@ TEST(PointCloudIoTest, SmallGicpPairReads) {
   for (const auto& p : source.points) zeros += p.isZero() ? 1 : 0;
   EXPECT_GT(zeros, 5000u);
   EXPECT_LT(zeros, 5300u);
+}
+
+TEST(KittiTest, ReadsAndRejectsMalformedFiles) {
+  const auto dir = test::scratch_dir("kitti");
+  const std::vector<float> xyzi = {1, 2, 3, 0.5f, 4, 5, 6, 0.25f};
+  {
+    std::ofstream out(dir / "ok.bin", std::ios::binary);
+    out.write(reinterpret_cast<const char*>(xyzi.data()),
+              static_cast<std::streamsize>(xyzi.size() * sizeof(float)));
+  }
+  const PointCloud cloud = read_kitti_bin(dir / "ok.bin", KittiFormat::kXyzi);
+  ASSERT_EQ(cloud.size(), 2u);
+  EXPECT_EQ(cloud.points[1], Eigen::Vector3f(4, 5, 6));
+  // 32 bytes are also a whole number of... no: 32 is not a multiple of 12.
+  try {
+    read_kitti_bin(dir / "ok.bin", KittiFormat::kXyz);
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("32 bytes is not a whole number of 12-byte records"),
+              std::string::npos);
+  }
+  { std::ofstream out(dir / "empty.bin", std::ios::binary); }
+  EXPECT_THROW(read_kitti_bin(dir / "empty.bin", KittiFormat::kXyz), Error);
+  EXPECT_THROW(read_kitti_bin(dir / "missing.bin", KittiFormat::kXyz), Error);
+  const std::vector<float> bad = {1, 2, 3, std::nanf(""), 5, 6};
+  {
+    std::ofstream out(dir / "nan.bin", std::ios::binary);
+    out.write(reinterpret_cast<const char*>(bad.data()),
+              static_cast<std::streamsize>(bad.size() * sizeof(float)));
+  }
+  try {
+    read_kitti_bin(dir / "nan.bin", KittiFormat::kXyz);
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()), (dir / "nan.bin").string() + ": point 1 is not finite");
+  }
+  ReadOptions drop;
+  drop.drop_non_finite = true;
+  EXPECT_EQ(read_kitti_bin(dir / "nan.bin", KittiFormat::kXyz, drop).size(), 1u);
 }
 
 }  // namespace

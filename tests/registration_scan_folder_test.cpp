@@ -1,17 +1,12 @@
-// Scan folders (natural order, hidden and non-regular entries, poses by vertex id), a frame's own
-// geometric constraint (planes, lines, outliers), and ATE alignments that positions alone cannot
-// fix (collinear or coincident positions).
+// Scan folders: natural order, hidden and non-regular entries, poses by vertex id.
 #include <gtest/gtest.h>
 #include <sys/stat.h>
 
-#include <cmath>
 #include <fstream>
 #include <random>
 
-#include "carat/registration/frame.hpp"
 #include "carat/registration/kitti_io.hpp"
 #include "carat/registration/scan_folder.hpp"
-#include "carat/registration/trajectory_error.hpp"
 #include "carat/solver/error.hpp"
 #include "test_support.hpp"
 
@@ -128,80 +123,6 @@ TEST(ScanFolderTest, GraphPosesPairWithScansByVertexId) {
   graph.stamps = {9, 3, 5};
   const Trajectory sorted = poses_in_scan_order(graph, TrajectoryFormat::kGraph, named, "g.txt");
   EXPECT_EQ(sorted.stamps, (std::vector<double>{3, 5, 9}));
-}
-
-/// A frame from `points` (covariances from 10 neighbours).
-std::shared_ptr<Frame> frame_of(const std::vector<Eigen::Vector3f>& points) {
-  PointCloud cloud;
-  cloud.points = points;
-  return std::make_shared<Frame>(std::move(cloud), CovarianceOptions{});
-}
-
-TEST(FrameConstraintTest, PlanesAreDegenerateScenesAreNotAndOutliersDoNotMatter) {
-  std::mt19937 rng(4);
-  std::uniform_real_distribution<float> u(-10.0f, 10.0f);
-  std::normal_distribution<float> noise(0.0f, 0.01f);
-  std::vector<Eigen::Vector3f> plane, scene;
-  for (int i = 0; i < 6000; ++i) plane.emplace_back(u(rng), u(rng), noise(rng));
-  for (int i = 0; i < 6000; ++i) {
-    const int kind = i % 3;
-    if (kind == 0) scene.emplace_back(u(rng), u(rng), -1.5f + noise(rng));         // floor
-    if (kind == 1) scene.emplace_back(8.0f + noise(rng), u(rng), 0.2f * u(rng));   // wall x = 8
-    if (kind == 2) scene.emplace_back(u(rng), -7.0f + noise(rng), 0.2f * u(rng));  // wall y = -7
-  }
-  EXPECT_EQ(frame_of(plane)->constrained_dof(), 3);
-  EXPECT_LT(frame_of(plane)->min_eigenvalue_ratio(), 5e-3);
-  EXPECT_EQ(frame_of(scene)->constrained_dof(), 6);
-  // Two walls and a floor fix everything; a few points 10 km away change nothing.
-  std::vector<Eigen::Vector3f> with_outliers = scene;
-  for (int k = 0; k < 5; ++k)
-    with_outliers.emplace_back(10000.0f, 100.0f * static_cast<float>(k), 0.0f);
-  EXPECT_EQ(frame_of(with_outliers)->constrained_dof(), 6);
-  // A corridor (two parallel walls and a floor) is free along its axis.
-  std::vector<Eigen::Vector3f> corridor;
-  for (int i = 0; i < 6000; ++i) {
-    const int kind = i % 3;
-    if (kind == 0) corridor.emplace_back(u(rng), 0.1f * u(rng), -1.5f + noise(rng));
-    if (kind == 1) corridor.emplace_back(u(rng), 1.0f + noise(rng), 0.1f * u(rng));
-    if (kind == 2) corridor.emplace_back(u(rng), -1.0f + noise(rng), 0.1f * u(rng));
-  }
-  EXPECT_EQ(frame_of(corridor)->constrained_dof(), 5);
-}
-
-Eigen::Isometry3d pose(double yaw, const Eigen::Vector3d& t) {
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear() = Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
-  T.translation() = t;
-  return T;
-}
-
-TEST(AteAlignmentTest, CollinearPositionsTakeTheRotationAboutTheirLineFromOrientations) {
-  // The estimate drives a straight line with identity orientation; the reference is the same
-  // drive rolled by 30 degrees about that line and shifted. Positions cannot see the roll.
-  const Eigen::Isometry3d T_ref_est = [] {
-    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-    T.linear() = Eigen::AngleAxisd(0.5236, Eigen::Vector3d::UnitX()).toRotationMatrix();
-    T.translation() = Eigen::Vector3d(1, 2, 3);
-    return T;
-  }();
-  std::vector<Eigen::Isometry3d> estimate, reference;
-  for (int k = 0; k < 10; ++k) {
-    estimate.push_back(pose(0.0, Eigen::Vector3d(k, 0, 0)));
-    reference.push_back(T_ref_est * estimate.back());
-  }
-  const AteStatistics ate = compute_ate(estimate, reference);
-  EXPECT_LT(ate.rmse, 1e-9);
-  EXPECT_LT(ate.rotation_max_deg, 1e-6);
-  EXPECT_TRUE(ate.T_reference_estimate.isApprox(T_ref_est, 1e-9));
-  // Coincident positions (a robot turning on the spot): the rotation comes from orientations.
-  std::vector<Eigen::Isometry3d> spin_estimate, spin_reference;
-  for (int k = 0; k < 6; ++k) {
-    spin_estimate.push_back(pose(0.3 * k, Eigen::Vector3d(5, 5, 0)));
-    spin_reference.push_back(T_ref_est * spin_estimate.back());
-  }
-  const AteStatistics spin = compute_ate(spin_estimate, spin_reference);
-  EXPECT_LT(spin.rmse, 1e-9);
-  EXPECT_LT(spin.rotation_max_deg, 1e-6);
 }
 
 }  // namespace

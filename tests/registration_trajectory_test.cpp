@@ -85,7 +85,7 @@ constexpr TrajectoryFormat kTum = TrajectoryFormat::kTum;
 constexpr TrajectoryFormat kGraph = TrajectoryFormat::kGraph;
 const std::string kIdentityKitti = "1 0 0 0 0 1 0 0 0 0 1 0\n";
 
-TEST(TrajectoryIo, FormatNames) {
+TEST(TrajectoryIoTest, FormatNames) {
   EXPECT_EQ(parse_trajectory_format("kitti"), kKitti);
   EXPECT_EQ(parse_trajectory_format("tum"), kTum);
   EXPECT_EQ(parse_trajectory_format("graph"), kGraph);
@@ -97,7 +97,7 @@ TEST(TrajectoryIo, FormatNames) {
             "unknown trajectory format 'euroc' (valid: kitti, tum, graph)");
 }
 
-TEST(TrajectoryIo, RoundTripsAllFormats) {
+TEST(TrajectoryIoTest, RoundTripsAllFormats) {
   std::mt19937 rng(7);
   const auto dir = test::scratch_dir("trajectory_round_trip");
   for (TrajectoryFormat format : {kKitti, kTum, kGraph}) {
@@ -111,7 +111,7 @@ TEST(TrajectoryIo, RoundTripsAllFormats) {
   }
 }
 
-TEST(TrajectoryIo, ReadsEachFormat) {
+TEST(TrajectoryIoTest, ReadsEachFormat) {
   const Trajectory kitti = parse_trajectory(
       "1 0 0 1.5 0 1 0 -2 0 0 1 3e2\r\n\r\n0 -1 0 4 1 0 0 5 0 0 1 6\n", kKitti, "k.txt");
   ASSERT_EQ(kitti.poses.size(), 2u);
@@ -135,7 +135,7 @@ TEST(TrajectoryIo, ReadsEachFormat) {
   EXPECT_NEAR(graph.poses[1].linear()(1, 1), -1.0, 1e-15);  // 180 degrees about x
 }
 
-TEST(TrajectoryIo, ReorthonormalizesAndNormalizesNearlyValidRotations) {
+TEST(TrajectoryIoTest, ReorthonormalizesAndNormalizesNearlyValidRotations) {
   const Trajectory kitti =
       parse_trajectory("1.0001 0.0002 0 0 -0.0002 0.9999 0 0 0 0 1 0\n", kKitti, "k.txt");
   const Eigen::Matrix3d R = kitti.poses[0].linear();
@@ -146,7 +146,7 @@ TEST(TrajectoryIo, ReorthonormalizesAndNormalizesNearlyValidRotations) {
   EXPECT_LE((tum.poses[0].linear() - Eigen::Matrix3d::Identity()).norm(), 1e-14);
 }
 
-TEST(TrajectoryIo, KittiErrorsNameFileAndLine) {
+TEST(TrajectoryIoTest, KittiErrorsNameFileAndLine) {
   EXPECT_PARSE_ERROR("1 0 0 0 0 1 0 0 0 0 1\n", kKitti,
                      "t.txt:1: KITTI pose (3x4 row-major [R|t]) needs 12 fields, found 11");
   EXPECT_PARSE_ERROR(kIdentityKitti + kIdentityKitti + "1 0 0 0 0 1 0 0 0 0 1 0 7\n", kKitti,
@@ -171,7 +171,7 @@ TEST(TrajectoryIo, KittiErrorsNameFileAndLine) {
   EXPECT_PARSE_ERROR("# comment\n" + kIdentityKitti, kKitti, "t.txt:1: ");
 }
 
-TEST(TrajectoryIo, TumErrorsNameFileAndLine) {
+TEST(TrajectoryIoTest, TumErrorsNameFileAndLine) {
   EXPECT_PARSE_ERROR("1 0 0 0 0 0 1\n", kTum,
                      "t.txt:1: TUM pose (stamp tx ty tz qx qy qz qw) needs 8 fields, found 7");
   EXPECT_PARSE_ERROR("1 0 0 0 0 0 0 1 # trailing\n", kTum, "needs 8 fields, found 10");
@@ -188,7 +188,7 @@ TEST(TrajectoryIo, TumErrorsNameFileAndLine) {
   EXPECT_PARSE_ERROR("1 0 0 0 1e200 1e200 0 0\n", kTum, "t.txt:1: quaternion is not normalized");
 }
 
-TEST(TrajectoryIo, GraphErrorsNameFileAndLine) {
+TEST(TrajectoryIoTest, GraphErrorsNameFileAndLine) {
   EXPECT_PARSE_ERROR("v0 0 0 0 0 0 0\n", kGraph,
                      "t.txt:1: graph pose (vN tx ty tz qx qy qz qw) needs 8 fields, found 7");
   EXPECT_PARSE_ERROR("x0 0 0 0 0 0 0 1\n", kGraph,
@@ -204,7 +204,7 @@ TEST(TrajectoryIo, GraphErrorsNameFileAndLine) {
   EXPECT_PARSE_ERROR("# comment\n", kGraph, "t.txt:1: ");
 }
 
-TEST(TrajectoryIo, EmptyAndPathologicalInput) {
+TEST(TrajectoryIoTest, EmptyAndPathologicalInput) {
   for (TrajectoryFormat format : {kKitti, kTum, kGraph}) {
     EXPECT_PARSE_ERROR("", format, "t.txt: no ");
     EXPECT_PARSE_ERROR("\n  \r\n\t\n", format, "poses (the file is empty");
@@ -231,7 +231,7 @@ TEST(TrajectoryIo, EmptyAndPathologicalInput) {
   EXPECT_PARSE_ERROR(binary, kGraph, "t.txt:2: ");
 }
 
-TEST(TrajectoryIo, ReadAndWriteErrorsNameThePath) {
+TEST(TrajectoryIoTest, ReadAndWriteErrorsNameThePath) {
   const auto dir = test::scratch_dir("trajectory_files");
   const auto expect_read_error = [](const std::filesystem::path& path, const std::string& what) {
     try {
@@ -271,7 +271,7 @@ TEST(TrajectoryIo, ReadAndWriteErrorsNameThePath) {
   expect_write_error(kKitti, "pose 1 is not finite");
 }
 
-TEST(TrajectoryIo, ReadsRealGraph) {
+TEST(TrajectoryIoTest, ReadsRealGraph) {
   CARAT_REQUIRE_DATA("kitti07_seq5/graph.txt");
   const Trajectory graph =
       read_trajectory(test::data_dir() / "kitti07_seq5/graph.txt", TrajectoryFormat::kGraph);
@@ -285,7 +285,7 @@ TEST(TrajectoryIo, ReadsRealGraph) {
   EXPECT_GT(rotation.axis().z(), 0.99);
 }
 
-TEST(Umeyama, RecoversRigidTransformFromNoiselessPoints) {
+TEST(UmeyamaTest, RecoversRigidTransformFromNoiselessPoints) {
   std::mt19937 rng(3);
   std::normal_distribution<double> normal(0.0, 20.0);
   for (int trial = 0; trial < 20; ++trial) {
@@ -300,7 +300,7 @@ TEST(Umeyama, RecoversRigidTransformFromNoiselessPoints) {
   }
 }
 
-TEST(Umeyama, DegenerateConfigurationsGiveFiniteRotations) {
+TEST(UmeyamaTest, DegenerateConfigurationsGiveFiniteRotations) {
   std::mt19937 rng(5);
   const Eigen::Isometry3d T = random_pose(rng);
   // Collinear points: the rotation about the line is free, but the points still map exactly.
@@ -336,7 +336,7 @@ TEST(Umeyama, DegenerateConfigurationsGiveFiniteRotations) {
   }
 }
 
-TEST(Umeyama, RejectsBadInput) {
+TEST(UmeyamaTest, RejectsBadInput) {
   std::vector<Eigen::Vector3d> three(3, Eigen::Vector3d::Ones());
   std::vector<Eigen::Vector3d> two(2, Eigen::Vector3d::Ones());
   EXPECT_THROW(align_umeyama(two, two), Error);
@@ -347,7 +347,7 @@ TEST(Umeyama, RejectsBadInput) {
   EXPECT_THROW(align_umeyama(three, bad), Error);
 }
 
-TEST(Ate, AlignedTransformedTrajectoryHasZeroError) {
+TEST(AteTest, AlignedTransformedTrajectoryHasZeroError) {
   std::mt19937 rng(11);
   const Eigen::Isometry3d T = random_pose(rng, 50.0);
   std::vector<Eigen::Isometry3d> reference, estimate;
@@ -366,7 +366,7 @@ TEST(Ate, AlignedTransformedTrajectoryHasZeroError) {
   EXPECT_TRUE(raw.T_reference_estimate.matrix().isIdentity(0.0));
 }
 
-TEST(Ate, ConstantShift) {
+TEST(AteTest, ConstantShift) {
   std::mt19937 rng(13);
   const Eigen::Vector3d shift(0.3, -1.2, 0.4);  // |shift| = 1.3
   std::vector<Eigen::Isometry3d> reference, estimate;
@@ -386,7 +386,7 @@ TEST(Ate, ConstantShift) {
   EXPECT_LE((aligned.T_reference_estimate.translation() + shift).norm(), 1e-9);
 }
 
-TEST(Ate, HandComputedStatistics) {
+TEST(AteTest, HandComputedStatistics) {
   std::vector<Eigen::Isometry3d> reference(4, Eigen::Isometry3d::Identity());
   std::vector<Eigen::Isometry3d> estimate(4, Eigen::Isometry3d::Identity());
   const double offsets[4] = {3, 1, 4, 2};  // errors 1, 2, 3, 4 in some order
@@ -412,7 +412,7 @@ TEST(Ate, HandComputedStatistics) {
   EXPECT_NEAR(s.std, 0.0, 1e-12);
 }
 
-TEST(Ate, RotationErrorInDegrees) {
+TEST(AteTest, RotationErrorInDegrees) {
   std::mt19937 rng(17);
   const Eigen::Matrix3d turn =
       Eigen::AngleAxisd(10.0 * M_PI / 180.0, Eigen::Vector3d::UnitZ()).toRotationMatrix();
@@ -429,7 +429,7 @@ TEST(Ate, RotationErrorInDegrees) {
   EXPECT_NEAR(s.rotation_max_deg, 10.0, 1e-9);
 }
 
-TEST(Ate, RejectsBadInput) {
+TEST(AteTest, RejectsBadInput) {
   const std::vector<Eigen::Isometry3d> three(3, Eigen::Isometry3d::Identity());
   const std::vector<Eigen::Isometry3d> four(4, Eigen::Isometry3d::Identity());
   try {
@@ -448,7 +448,7 @@ TEST(Ate, RejectsBadInput) {
   EXPECT_THROW(compute_ate(three, bad, {.align = false}), Error);
 }
 
-TEST(Associate, PairsClosestStampsOnce) {
+TEST(AssociateTest, PairsClosestStampsOnce) {
   using Pairs = std::vector<std::pair<int, int>>;
   const std::vector<double> a = {0.0, 0.1, 0.2, 0.3};
   EXPECT_EQ(associate_by_stamp(a, a), (Pairs{{0, 0}, {1, 1}, {2, 2}, {3, 3}}));
@@ -546,7 +546,7 @@ void expect_association_matches_brute_force(const std::vector<double>& values,
   }
 }
 
-TEST(Associate, StampsMatchBruteForceGreedyWithTies) {
+TEST(AssociateTest, StampsMatchBruteForceGreedyWithTies) {
   // Multiples of 0.25 on a small grid: many equal stamps and equal (exact) differences.
   std::vector<double> values;
   for (int k = -6; k <= 14; ++k) values.push_back(0.25 * k);
@@ -555,7 +555,7 @@ TEST(Associate, StampsMatchBruteForceGreedyWithTies) {
   expect_association_matches_brute_force({0.0, 0.25, 0.5, 0.75}, {0.0, 0.25, 0.5, 1e9}, 1000);
 }
 
-TEST(Associate, StampsMatchBruteForceGreedyWithRoundingTies) {
+TEST(AssociateTest, StampsMatchBruteForceGreedyWithRoundingTies) {
   // Stamps a fraction of an ulp of the difference apart: unequal gaps whose rounded differences
   // tie (|0.5 - (-0.5 - 2^-53)| rounds to 1, as does |0.5 + 2^-53 - (-0.5)|, but not both ends).
   const double tiny = std::ldexp(1.0, -53);
@@ -565,7 +565,7 @@ TEST(Associate, StampsMatchBruteForceGreedyWithRoundingTies) {
   expect_association_matches_brute_force(values, {0.0, 1.0, 1.0 + 2 * tiny, 2.0, 1e9}, 3000);
 }
 
-TEST(Associate, StampsScaleWithoutListingCandidates) {
+TEST(AssociateTest, StampsScaleWithoutListingCandidates) {
   // 200,000 poses each and a bound that admits all 4e10 pairs: the candidates would need ~640 GB.
   // Estimate k is at 2 (n - 1 - k), reference j at 2 j + 1: every neighbour differs by 1, so the
   // tie rule decides it all. Estimate k < n - 1 takes reference n - 2 - k (the lower of its two
@@ -598,12 +598,48 @@ TEST(Associate, StampsScaleWithoutListingCandidates) {
   for (int k = 0; k < n; k += 9973) EXPECT_EQ(shuffled[k], std::make_pair(k, permutation[k]));
 }
 
-TEST(Associate, RejectsBadInput) {
+TEST(AssociateTest, RejectsBadInput) {
   const std::vector<double> a = {0.0, 1.0};
   EXPECT_THROW(associate_by_stamp(a, a, -0.1), Error);
   EXPECT_THROW(associate_by_stamp(a, a, std::nan("")), Error);
   EXPECT_THROW(associate_by_stamp(std::vector<double>{std::nan("")}, a), Error);
   EXPECT_THROW(associate_by_stamp(a, std::vector<double>{0.0, HUGE_VAL}), Error);
+}
+
+Eigen::Isometry3d pose(double yaw, const Eigen::Vector3d& t) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  T.translation() = t;
+  return T;
+}
+
+TEST(AteTest, CollinearPositionsTakeTheRotationAboutTheirLineFromOrientations) {
+  // The estimate drives a straight line with identity orientation; the reference is the same
+  // drive rolled by 30 degrees about that line and shifted. Positions cannot see the roll.
+  const Eigen::Isometry3d T_ref_est = [] {
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.linear() = Eigen::AngleAxisd(0.5236, Eigen::Vector3d::UnitX()).toRotationMatrix();
+    T.translation() = Eigen::Vector3d(1, 2, 3);
+    return T;
+  }();
+  std::vector<Eigen::Isometry3d> estimate, reference;
+  for (int k = 0; k < 10; ++k) {
+    estimate.push_back(pose(0.0, Eigen::Vector3d(k, 0, 0)));
+    reference.push_back(T_ref_est * estimate.back());
+  }
+  const AteStatistics ate = compute_ate(estimate, reference);
+  EXPECT_LT(ate.rmse, 1e-9);
+  EXPECT_LT(ate.rotation_max_deg, 1e-6);
+  EXPECT_TRUE(ate.T_reference_estimate.isApprox(T_ref_est, 1e-9));
+  // Coincident positions (a robot turning on the spot): the rotation comes from orientations.
+  std::vector<Eigen::Isometry3d> spin_estimate, spin_reference;
+  for (int k = 0; k < 6; ++k) {
+    spin_estimate.push_back(pose(0.3 * k, Eigen::Vector3d(5, 5, 0)));
+    spin_reference.push_back(T_ref_est * spin_estimate.back());
+  }
+  const AteStatistics spin = compute_ate(spin_estimate, spin_reference);
+  EXPECT_LT(spin.rmse, 1e-9);
+  EXPECT_LT(spin.rotation_max_deg, 1e-6);
 }
 
 }  // namespace

@@ -48,7 +48,7 @@ PointCloud to_world(const PointCloud& cloud, const Eigen::Isometry3d& T) {
   return out;
 }
 
-TEST(SyntheticWorld, ScansAreDeterministicAndSeeded) {
+TEST(SyntheticWorldTest, ScansAreDeterministicAndSeeded) {
   const SyntheticWorld& world = default_world();
   const auto poses = world.trajectory({});
   const PointCloud a = world.scan(poses[3], 7);
@@ -62,7 +62,7 @@ TEST(SyntheticWorld, ScansAreDeterministicAndSeeded) {
   EXPECT_FALSE(same_points(a, world2.scan(poses[3], 7)));  // other scene
 }
 
-TEST(SyntheticWorld, SequenceDoesNotDependOnThreadCount) {
+TEST(SyntheticWorldTest, SequenceDoesNotDependOnThreadCount) {
   const SyntheticWorld& world = default_world();
   SyntheticTrajectoryOptions options;
   options.frames = 6;
@@ -79,7 +79,7 @@ TEST(SyntheticWorld, SequenceDoesNotDependOnThreadCount) {
   EXPECT_FALSE(same_points(one.scans[0], one.scans[1]));
 }
 
-TEST(SyntheticWorld, PointsAreFiniteInRangeAndInTheExpectedBand) {
+TEST(SyntheticWorldTest, PointsAreFiniteInRangeAndInTheExpectedBand) {
   const SyntheticWorld& world = default_world();
   const auto poses = world.trajectory({});
   const auto& o = world.options();
@@ -104,7 +104,7 @@ TEST(SyntheticWorld, PointsAreFiniteInRangeAndInTheExpectedBand) {
               o.beams, o.azimuth_steps, scans);
 }
 
-TEST(SyntheticWorld, NoiseFreePointsLieOnTheScene) {
+TEST(SyntheticWorldTest, NoiseFreePointsLieOnTheScene) {
   SyntheticWorldOptions options;
   options.range_noise = 0.0;
   const SyntheticWorld world(options);
@@ -129,7 +129,7 @@ TEST(SyntheticWorld, NoiseFreePointsLieOnTheScene) {
   EXPECT_LT(on_ground, cloud.size() * 9 / 10);  // and the rest is scenery
 }
 
-TEST(SyntheticWorld, ConsecutiveScansOverlap) {
+TEST(SyntheticWorldTest, ConsecutiveScansOverlap) {
   const SyntheticWorld& world = default_world();
   SyntheticTrajectoryOptions options;
   options.frames = 100;
@@ -150,7 +150,7 @@ TEST(SyntheticWorld, ConsecutiveScansOverlap) {
   }
 }
 
-TEST(SyntheticWorld, TrajectoryIsAClosedCircuitWithFewMetreSpacing) {
+TEST(SyntheticWorldTest, TrajectoryIsAClosedCircuitWithFewMetreSpacing) {
   const SyntheticWorld& world = default_world();
   const auto poses = world.trajectory({});
   ASSERT_EQ(poses.size(), 100u);
@@ -179,7 +179,7 @@ TEST(SyntheticWorld, TrajectoryIsAClosedCircuitWithFewMetreSpacing) {
   EXPECT_LT((poses.back().translation() - poses[50].translation()).norm(), 6.0);
 }
 
-TEST(SyntheticWorld, CircuitAroundSeveralBlocksFollowsTheOuterStreets) {
+TEST(SyntheticWorldTest, CircuitAroundSeveralBlocksFollowsTheOuterStreets) {
   SyntheticWorldOptions options;
   options.blocks_x = 4;
   options.blocks_y = 2;
@@ -219,7 +219,7 @@ TEST(SyntheticWorld, CircuitAroundSeveralBlocksFollowsTheOuterStreets) {
               ::testing::ThrowsMessage<Error>(HasSubstr("circuit_blocks_y")));
 }
 
-TEST(SyntheticWorld, DriftIsExactWithoutNoiseAndGrowsWithDistance) {
+TEST(SyntheticWorldTest, DriftIsExactWithoutNoiseAndGrowsWithDistance) {
   const SyntheticWorld& world = default_world();
   const auto truth = world.trajectory({});
   DriftOptions none;
@@ -255,7 +255,7 @@ TEST(SyntheticWorld, DriftIsExactWithoutNoiseAndGrowsWithDistance) {
               ::testing::ThrowsMessage<Error>(HasSubstr("rotation_sigma_deg")));
 }
 
-TEST(SyntheticWorld, WritesAKittiStyleSequence) {
+TEST(SyntheticWorldTest, WritesAKittiStyleSequence) {
   const SyntheticWorld& world = default_world();
   SyntheticTrajectoryOptions options;
   options.frames = 3;
@@ -298,7 +298,7 @@ TEST(SyntheticWorld, WritesAKittiStyleSequence) {
   std::filesystem::remove_all(dir.parent_path());
 }
 
-TEST(SyntheticWorld, RejectsBadOptionsNamingTheField) {
+TEST(SyntheticWorldTest, RejectsBadOptionsNamingTheField) {
   auto world_error = [](const std::function<void(SyntheticWorldOptions&)>& change,
                         const std::string& field) {
     SyntheticWorldOptions options;
@@ -331,7 +331,7 @@ TEST(SyntheticWorld, RejectsBadOptionsNamingTheField) {
               ::testing::ThrowsMessage<Error>(HasSubstr("corner_radius")));
 }
 
-TEST(SyntheticWorld, GicpRecoversConsecutiveAndLoopClosurePoses) {
+TEST(SyntheticWorldTest, GicpRecoversConsecutiveAndLoopClosurePoses) {
   const SyntheticWorld& world = default_world();
   const auto poses = world.trajectory({});
   // Consecutive frames on a straight and on a corner, and a loop closure (one lap later).

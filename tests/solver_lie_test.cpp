@@ -2,6 +2,8 @@
 #include <gtest/gtest.h>
 
 #include <random>
+#include <sstream>
+#include <string>
 
 #include "carat/solver/error.hpp"
 #include "carat/solver/manifold.hpp"
@@ -116,7 +118,17 @@ TEST_P(LieTest, So3ManifoldPlusMinusInverse) {
   }
 }
 
-INSTANTIATE_TEST_SUITE_P(Magnitudes, LieTest, ::testing::Values(0.0, 1e-9, 1e-4, 0.5, 2.0, 3.1));
+INSTANTIATE_TEST_SUITE_P(Magnitudes, LieTest, ::testing::Values(0.0, 1e-9, 1e-4, 0.5, 2.0, 3.1),
+                         [](const ::testing::TestParamInfo<double>& param_info) {
+                           // e.g. "angle_1e_09", "angle_0_5": digits and underscores only
+                           std::ostringstream text;
+                           text << "angle_" << param_info.param;
+                           std::string name = text.str();
+                           for (char& c : name) {
+                             if (c == '.' || c == '-' || c == '+') c = '_';
+                           }
+                           return name;
+                         });
 
 TEST(ManifoldTest, EuclideanPlusMinus) {
   const EuclideanManifold m(3);

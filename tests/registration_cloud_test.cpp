@@ -1,0 +1,111 @@
+// Cloud preprocessing: the voxel grid, covariance estimation and the k-d tree.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <random>
+#include <vector>
+
+#include "carat/registration/covariance.hpp"
+#include "carat/registration/kdtree.hpp"
+#include "carat/registration/voxel_grid.hpp"
+#include "test_support.hpp"
+
+namespace carat {
+namespace {
+
+TEST(VoxelGridTest, CentroidsPerVoxel) {
+  PointCloud cloud;
+  cloud.points = {{0.1f, 0.1f, 0.1f}, {0.3f, 0.3f, 0.3f}, {1.5f, 0.2f, 0.2f}, {-0.2f, 0.1f, 0.1f}};
+  const PointCloud down = voxel_downsample(cloud, 1.0);
+  ASSERT_EQ(down.size(), 3u);
+  EXPECT_TRUE(down.points[0].isApprox(Eigen::Vector3f(-0.2f, 0.1f, 0.1f)));
+  EXPECT_TRUE(down.points[1].isApprox(Eigen::Vector3f(0.2f, 0.2f, 0.2f)));
+  EXPECT_TRUE(down.points[2].isApprox(Eigen::Vector3f(1.5f, 0.2f, 0.2f)));
+  EXPECT_THROW(voxel_downsample(cloud, 0.0), Error);
+  // Regression (found by the KITTI fuzzer): coordinates far outside the grid are an error, not
+  // an undefined float-to-integer conversion.
+  cloud.points.push_back({3e38f, 0.0f, 0.0f});
+  EXPECT_THROW(voxel_downsample(cloud, 0.5), Error);
+}
+
+TEST(CovarianceTest, PlaneGetsTheRegularizedShape) {
+  PointCloud cloud;
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  for (int i = 0; i < 500; ++i) cloud.points.emplace_back(u(rng), u(rng), 0.0f);
+  const KdTree tree(cloud);
+  estimate_covariances(cloud, tree);
+  ASSERT_TRUE(cloud.has_covariances());
+  for (std::size_t i = 0; i < cloud.size(); i += 50) {
+    const Eigen::Matrix3d C = cloud.covariance(i);
+    EXPECT_NEAR(C(2, 2), 1e-3, 1e-6);
+    EXPECT_NEAR(C(0, 0), 1.0, 1e-6);
+    EXPECT_NEAR(C(1, 1), 1.0, 1e-6);
+  }
+  // Fewer points than k: every neighbourhood is the whole cloud.
+  PointCloud small;
+  small.points = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {1, 1, 0}, {0.5f, 0.5f, 0.0f}};
+  const KdTree small_tree(small);
+  estimate_covariances(small, small_tree);
+  EXPECT_NEAR(small.covariance(0)(2, 2), 1e-3, 1e-6);
+  PointCloud tiny;
+  tiny.points = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+  const KdTree tiny_tree(tiny);
+  try {
+    estimate_covariances(tiny, tiny_tree);
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_STREQ(e.what(),
+                 "estimate_covariances: a cloud of 3 points is too small (at least 4 are needed)");
+  }
+}
+
+TEST(KdTreeTest, NearestWithinMatchesBruteForce) {
+  std::mt19937 rng(17);
+  std::uniform_real_distribution<float> u(-5.0f, 5.0f);
+  PointCloud cloud;
+  for (int k = 0; k < 2000; ++k) cloud.points.emplace_back(u(rng), u(rng), u(rng));
+  const KdTree tree(cloud);
+  int found = 0, missing = 0;
+  for (int q = 0; q < 400; ++q) {
+    // Queries inside the cloud and up to 3 m outside it.
+    const Eigen::Vector3f query(1.6f * u(rng), 1.6f * u(rng), 1.6f * u(rng));
+    float best = std::numeric_limits<float>::infinity();
+    std::uint32_t best_index = 0;
+    for (std::uint32_t k = 0; k < cloud.points.size(); ++k) {
+      const float d = (cloud.points[k] - query).squaredNorm();
+      if (d < best) best = d, best_index = k;
+    }
+    // The tree's own squared distance (its summation order, the last bits can differ from
+    // squaredNorm()) as the exact bound: a point at the bound counts.
+    std::uint32_t nearest_index = 0;
+    float nearest_sq = 0.0f;
+    ASSERT_TRUE(tree.nearest(query, &nearest_index, &nearest_sq));
+    ASSERT_EQ(nearest_index, best_index);
+    for (const float bound : {0.01f, 0.25f, 1.0f, nearest_sq}) {
+      std::uint32_t index = 0;
+      float sq = -1.0f;
+      const bool hit = tree.nearest_within(query, bound, &index, &sq);
+      ASSERT_EQ(hit, nearest_sq <= bound) << "query " << q << " bound " << bound;
+      if (!hit) {
+        ++missing;
+        continue;
+      }
+      ++found;
+      EXPECT_EQ(index, best_index);
+      EXPECT_EQ(sq, nearest_sq);
+      EXPECT_FLOAT_EQ(sq, best);
+    }
+  }
+  EXPECT_GT(found, 400);  // both outcomes were exercised
+  EXPECT_GT(missing, 100);
+  std::uint32_t index = 0;
+  float sq = 0.0f;
+  EXPECT_FALSE(tree.nearest_within(Eigen::Vector3f::Zero(), -1.0f, &index, &sq));
+  const PointCloud empty;
+  EXPECT_FALSE(KdTree(empty).nearest_within(Eigen::Vector3f::Zero(), 1.0f, &index, &sq));
+}
+
+}  // namespace
+}  // namespace carat
