@@ -9,8 +9,8 @@
 #include <random>
 
 #include "carat/registration/frame.hpp"
-#include "carat/registration/kitti_io.hpp"
-#include "carat/registration/scan_folder.hpp"
+#include "carat/registration/io/kitti_io.hpp"
+#include "carat/registration/io/scan_folder.hpp"
 #include "carat/registration/trajectory_error.hpp"
 #include "carat/solver/error.hpp"
 #include "test_support.hpp"
