@@ -13,9 +13,9 @@
 
 #include "carat/registration/align.hpp"
 #include "carat/registration/covariance.hpp"
+#include "carat/registration/io/kitti_io.hpp"
+#include "carat/registration/io/trajectory_io.hpp"
 #include "carat/registration/kdtree.hpp"
-#include "carat/registration/kitti_io.hpp"
-#include "carat/registration/trajectory_io.hpp"
 #include "carat/registration/voxel_grid.hpp"
 #include "carat/solver/se3.hpp"
 

@@ -9,7 +9,7 @@
 #include <filesystem>
 #include <string>
 
-#include "carat/residuals/g2o_io.hpp"
+#include "carat/residuals/io/g2o_io.hpp"
 #include "carat/residuals/pose_graph.hpp"
 #include "carat/residuals/synthetic_pose_graph.hpp"
 #include "carat/solver/solve.hpp"

@@ -9,8 +9,8 @@
 
 #include "carat/registration/align.hpp"
 #include "carat/registration/covariance.hpp"
+#include "carat/registration/io/kitti_io.hpp"
 #include "carat/registration/kdtree.hpp"
-#include "carat/registration/kitti_io.hpp"
 #include "carat/registration/voxel_grid.hpp"
 
 namespace {

@@ -2,12 +2,14 @@
 
 #carat_add_module(NAME <name>[DEPS <targets...>][PRIVATE_DEPS <targets...>])
 #Declares the library carat_ < name>(alias carat:: <name>, export name <name>)from
-# <name> / src/*.cpp with public headers in <name>/include/carat/<name>/. PRIVATE_DEPS that only
+# <name> / src/*.cpp and <name>/src/io/*.cpp (file formats) with public headers in
+# <name>/include/carat/<name>/ (and its io/ folder). PRIVATE_DEPS that only
 # the sources include (header-only libraries) are wrapped in $<BUILD_INTERFACE:...> by the
 # caller, so that the installed package does not ask consumers for them.
 function(carat_add_module)
   cmake_parse_arguments(ARG "" "NAME" "DEPS;PRIVATE_DEPS" ${ARGN})
-  file(GLOB _sources CONFIGURE_DEPENDS "${CMAKE_CURRENT_SOURCE_DIR}/src/*.cpp")
+  file(GLOB _sources CONFIGURE_DEPENDS "${CMAKE_CURRENT_SOURCE_DIR}/src/*.cpp"
+       "${CMAKE_CURRENT_SOURCE_DIR}/src/io/*.cpp")
   set(_target carat_${ARG_NAME})
   if(_sources)
     add_library(${_target} STATIC ${_sources})

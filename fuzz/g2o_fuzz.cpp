@@ -5,7 +5,7 @@
 #include <cstdint>
 #include <string_view>
 
-#include "carat/residuals/g2o_io.hpp"
+#include "carat/residuals/io/g2o_io.hpp"
 #include "carat/residuals/pose_graph.hpp"
 #include "carat/solver/error.hpp"
 

@@ -4,7 +4,7 @@
 #include <cstdint>
 #include <string_view>
 
-#include "carat/registration/kitti_io.hpp"
+#include "carat/registration/io/kitti_io.hpp"
 #include "carat/registration/voxel_grid.hpp"
 #include "carat/solver/error.hpp"
 

@@ -7,7 +7,7 @@
 #include <cstdint>
 #include <string_view>
 
-#include "carat/registration/point_cloud_io.hpp"
+#include "carat/registration/io/point_cloud_io.hpp"
 #include "carat/solver/error.hpp"
 #include "header_mutator.hpp"
 

@@ -10,7 +10,7 @@
 #include <string>
 #include <string_view>
 
-#include "carat/registration/trajectory_io.hpp"
+#include "carat/registration/io/trajectory_io.hpp"
 #include "carat/solver/error.hpp"
 
 namespace {

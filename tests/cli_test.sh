@@ -243,6 +243,36 @@ if [[ -e "$scratch/never_g2o.g2o" ]]; then echo "FAIL solve-g2o left an output a
 check simulate 0 "" -- "$CARAT" simulate --out "$scratch/seq" --frames 20 --laps 1
 if [[ ! -s "$scratch/seq/000019.bin" ]] || [[ $(grep -c . "$scratch/seq/poses.txt") -ne 20 ]]; then
   echo "FAIL simulate did not write 20 frames and 20 poses"; fail=$((fail + 1)); else pass=$((pass + 1)); fi
+# align reads every cloud format: two simulated scans (frames 5 and 6, at a corner, where the
+# geometry fixes all six directions) as KITTI .bin, binary PCD and ASCII PLY (the same float32
+# points) give the same T_target_source in any pairing.
+python3 - "$scratch" <<'PY'
+import struct, sys
+d = sys.argv[1]
+for frame in ("000005", "000006"):
+    data = open(f"{d}/seq/{frame}.bin", "rb").read()
+    points = [struct.unpack_from("<3f", data, k) for k in range(0, len(data), 16)]
+    with open(f"{d}/{frame}.pcd", "wb") as f:
+        f.write((f"VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH {len(points)}\n"
+                 f"HEIGHT 1\nPOINTS {len(points)}\nDATA binary\n").encode())
+        f.write(b"".join(struct.pack("<3f", *p) for p in points))
+    with open(f"{d}/{frame}.ply", "w") as f:
+        f.write(f"ply\nformat ascii 1.0\nelement vertex {len(points)}\nproperty float x\n"
+                "property float y\nproperty float z\nend_header\n")
+        f.writelines(" ".join(repr(c) for c in p) + "\n" for p in points)
+PY
+cp "$scratch/seq/000005.bin" "$scratch/seq/000006.bin" "$scratch/"
+for pair in bin:bin pcd:pcd ply:ply pcd:ply; do
+  check "align_${pair/:/_}" 0 "" -- "$CARAT" align --target "$scratch/000005.${pair%:*}" --source "$scratch/000006.${pair#*:}" --json
+  cp "$scratch/out" "$scratch/align_${pair/:/_}.json"
+done
+for pair in pcd_pcd ply_ply pcd_ply; do
+  expect "align_${pair}_as_bin" "$(python3 -c "
+import json, sys
+a, b = (json.load(open(f)) for f in sys.argv[1:])
+print(a['T_target_source'] == b['T_target_source'] and a['iterations'] == b['iterations'] and a['points_source'] == b['points_source'])" "$scratch/align_$pair.json" "$scratch/align_bin_bin.json")"
+done
+check align_unknown_extension 1 "$scratch/tiny.g2o: unsupported file type '.g2o' (expected .pcd, .ply or .bin)" -- "$CARAT" align --target "$scratch/000005.pcd" --source "$scratch/tiny.g2o"
 # A longer circuit: around three blocks in a row (about 162 m by 54 m between centre lines).
 check simulate_long 0 "" -- "$CARAT" simulate --out "$scratch/seq-long" --frames 40 --laps 1 --circuit-blocks 3
 if [[ $(python3 -c "

@@ -40,16 +40,17 @@ TEST(PackageTest, UmbrellaHeaderIncludesEveryPublicHeader) {
   std::set<std::string> expected;
   for (const char* module : {"solver", "coreset", "residuals", "registration"}) {
     const std::filesystem::path folder = source / module / "include" / "carat" / module;
-    for (const auto& entry : std::filesystem::directory_iterator(folder)) {
+    for (const auto& entry : std::filesystem::recursive_directory_iterator(folder)) {
       if (entry.path().extension() == ".hpp") {
-        expected.insert(std::string("carat/") + module + "/" + entry.path().filename().string());
+        const std::string relative = entry.path().lexically_relative(folder).generic_string();
+        expected.insert(std::string("carat/") + module + "/" + relative);
       }
     }
   }
   ASSERT_GT(expected.size(), 40u);
   std::ifstream umbrella(source / "include" / "carat" / "carat.hpp");
   ASSERT_TRUE(umbrella.good());
-  std::set<std::string> included;  // "carat/<module>/<name>.hpp" of each #include <...> line
+  std::set<std::string> included;  // "carat/<module>/[io/]<name>.hpp" of each #include <...> line
   const std::string open = "#include <";
   std::string line;
   while (std::getline(umbrella, line)) {

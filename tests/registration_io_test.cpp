@@ -5,8 +5,8 @@
 #include <fstream>
 #include <vector>
 
-#include "carat/registration/kitti_io.hpp"
-#include "carat/registration/point_cloud_io.hpp"
+#include "carat/registration/io/kitti_io.hpp"
+#include "carat/registration/io/point_cloud_io.hpp"
 #include "carat/solver/error.hpp"
 #include "test_support.hpp"
 
@@ -47,6 +47,40 @@ TEST(PointCloudIoTest, RoundTripsInEveryFormat) {
       ASSERT_EQ(back.size(), cloud.size()) << file;
       for (std::size_t i = 0; i < cloud.size(); ++i)
         EXPECT_EQ(back.points[i], cloud.points[i]) << file << " " << i;
+    }
+  }
+}
+
+// read_point_cloud() picks the reader by the extension: a cloud written by each writer comes back
+// the same (.bin in both record layouts), and any other extension is one error naming the file
+// and the formats.
+TEST(PointCloudIoTest, ReadPointCloudDispatchesOnTheExtension) {
+  const auto dir = test::scratch_dir("pcio_dispatch");
+  const PointCloud cloud = sample_cloud();
+  const auto expect_same = [&](const PointCloud& back, const std::string& file) {
+    ASSERT_EQ(back.size(), cloud.size()) << file;
+    for (std::size_t i = 0; i < cloud.size(); ++i)
+      EXPECT_EQ(back.points[i], cloud.points[i]) << file << " " << i;
+  };
+  write_pcd(dir / "c.pcd", cloud);
+  expect_same(read_point_cloud(dir / "c.pcd"), "c.pcd");
+  write_ply(dir / "c.ply", cloud);
+  expect_same(read_point_cloud(dir / "c.ply"), "c.ply");
+  write_kitti_bin(dir / "xyzi.bin", cloud, KittiFormat::kXyzi);
+  expect_same(read_point_cloud(dir / "xyzi.bin", KittiFormat::kXyzi), "xyzi.bin");
+  write_kitti_bin(dir / "xyz.bin", cloud, KittiFormat::kXyz);
+  expect_same(read_point_cloud(dir / "xyz.bin", KittiFormat::kXyz), "xyz.bin");
+  // The layout option matters for .bin only: 100 records of 12 bytes are 75 of 16.
+  EXPECT_EQ(read_point_cloud(dir / "xyz.bin", KittiFormat::kXyzi).size(), 75u);
+  for (const char* file : {"c.xyz", "c.PCD", "c"}) {
+    std::filesystem::copy_file(dir / "c.pcd", dir / file);
+    try {
+      read_point_cloud(dir / file);
+      ADD_FAILURE() << file << " was read";
+    } catch (const Error& e) {
+      const std::string ext = std::filesystem::path(file).extension().string();
+      EXPECT_EQ(std::string(e.what()), (dir / file).string() + ": unsupported file type '" + ext +
+                                           "' (expected .pcd, .ply or .bin)");
     }
   }
 }

@@ -5,8 +5,8 @@
 #include <fstream>
 #include <random>
 
-#include "carat/registration/kitti_io.hpp"
-#include "carat/registration/scan_folder.hpp"
+#include "carat/registration/io/kitti_io.hpp"
+#include "carat/registration/io/scan_folder.hpp"
 #include "carat/solver/error.hpp"
 #include "test_support.hpp"
 

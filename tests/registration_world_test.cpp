@@ -16,8 +16,8 @@
 
 #include "carat/registration/align.hpp"
 #include "carat/registration/covariance.hpp"
+#include "carat/registration/io/kitti_io.hpp"
 #include "carat/registration/kdtree.hpp"
-#include "carat/registration/kitti_io.hpp"
 #include "carat/registration/synthetic_world.hpp"
 #include "carat/registration/voxel_grid.hpp"
 #include "carat/solver/error.hpp"

@@ -9,7 +9,7 @@
 #include <random>
 #include <sstream>
 
-#include "carat/residuals/g2o_io.hpp"
+#include "carat/residuals/io/g2o_io.hpp"
 #include "carat/residuals/pose_graph.hpp"
 #include "carat/residuals/pose_prior_block.hpp"
 #include "carat/residuals/relative_pose_block.hpp"

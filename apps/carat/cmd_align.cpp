@@ -9,11 +9,9 @@
 #include <string>
 
 #include "carat/registration/align.hpp"
-#include "carat/registration/covariance.hpp"
-#include "carat/registration/kdtree.hpp"
-#include "carat/registration/kitti_io.hpp"
-#include "carat/registration/point_cloud_io.hpp"
-#include "carat/registration/voxel_grid.hpp"
+#include "carat/registration/frame.hpp"
+#include "carat/registration/io/kitti_io.hpp"
+#include "carat/registration/io/point_cloud_io.hpp"
 #include "carat/solver/error.hpp"
 #include "carat/solver/stopwatch.hpp"
 #include "cli_support.hpp"
@@ -39,36 +37,19 @@ int run_align(const AlignArgs& args) {
   const PointCloud target_raw = read_point_cloud(args.target, format);
   const PointCloud source_raw = read_point_cloud(args.source, format);
   const double read_s = stage.restart();
-  CovarianceOptions covariance_options;
-  covariance_options.num_threads = args.threads;
-  const auto downsample = [&](const PointCloud& raw, const std::string& name) {
-    try {
-      return voxel_downsample(raw, args.voxel);
-    } catch (const Error& e) {
-      throw Error(name + ": " + e.what());
-    }
-  };
-  PointCloud target = downsample(target_raw, args.target);
-  PointCloud source = downsample(source_raw, args.source);
-  for (const auto* cloud : {&target, &source}) {
-    if (cloud->size() < 29) {
-      throw Error((cloud == &target ? args.target : args.source) + ": only " +
-                  std::to_string(cloud->size()) +
-                  " points after downsampling (at least 29 are needed)");
-    }
-  }
-  const KdTree target_tree(target);
-  const KdTree source_tree(source);
-  estimate_covariances(target, target_tree, covariance_options);
-  estimate_covariances(source, source_tree, covariance_options);
+  PreprocessOptions preprocess;
+  preprocess.voxel_size = args.voxel;
+  preprocess.num_threads = args.threads;
+  const auto target = preprocess_frame(target_raw, preprocess, args.target);
+  const auto source = preprocess_frame(source_raw, preprocess, args.source);
   const double preprocess_s = stage.elapsed_s();
   AlignSettings settings;
   settings.max_correspondence_distance = args.max_distance;
   settings.num_threads = args.threads;
   settings.method = parse_registration_method(args.method);
   stage.restart();
-  const AlignResult result =
-      align(target, target_tree, source, Eigen::Isometry3d::Identity(), settings);
+  const AlignResult result = align(target->cloud(), target->tree(), source->cloud(),
+                                   Eigen::Isometry3d::Identity(), settings);
   const double align_s = stage.elapsed_s();
   if (result.constrained_dof < 6) {
     throw Error(args.source + " onto " + args.target + ": the scans constrain only " +
@@ -90,8 +71,8 @@ int run_align(const AlignArgs& args) {
     j["constrained_dof"] = result.constrained_dof;
     j["min_eigenvalue_ratio"] = result.min_eigenvalue_ratio;
     j["correspondences"] = result.num_correspondences;
-    j["points_target"] = target.size();
-    j["points_source"] = source.size();
+    j["points_target"] = target->size();
+    j["points_source"] = source->size();
     j["time_breakdown"] = {{"read_s", read_s},
                            {"preprocess_s", preprocess_s},
                            {"align_s", align_s},
@@ -107,8 +88,8 @@ int run_align(const AlignArgs& args) {
   std::printf("iterations %d (%s), error %.6e, %d correspondences\n", result.iterations,
               result.converged ? "converged" : "NOT converged", result.error,
               result.num_correspondences);
-  std::printf("points after %.2f m voxels: target %zu, source %zu\n", args.voxel, target.size(),
-              source.size());
+  std::printf("points after %.2f m voxels: target %zu, source %zu\n", args.voxel, target->size(),
+              source->size());
   std::printf(
       "time: read %.3f s, preprocess %.3f s, align %.3f s (search %.3f s, optimize %.3f s)\n",
       read_s, preprocess_s, align_s, result.search_s, result.optimize_s);

@@ -19,13 +19,13 @@
 #include "carat/registration/dense_graph.hpp"
 #include "carat/registration/frame.hpp"
 #include "carat/registration/global_registration.hpp"
-#include "carat/registration/kitti_io.hpp"
-#include "carat/registration/point_cloud_io.hpp"
+#include "carat/registration/io/kitti_io.hpp"
+#include "carat/registration/io/point_cloud_io.hpp"
+#include "carat/registration/io/scan_folder.hpp"
+#include "carat/registration/io/trajectory_io.hpp"
 #include "carat/registration/pose_graph_baseline.hpp"
 #include "carat/registration/pose_perturbation.hpp"
-#include "carat/registration/scan_folder.hpp"
 #include "carat/registration/trajectory_error.hpp"
-#include "carat/registration/trajectory_io.hpp"
 #include "carat/solver/atomic_file.hpp"
 #include "carat/solver/error.hpp"
 #include "carat/solver/stopwatch.hpp"
@@ -151,7 +151,17 @@ int run_map(const CLI::App& command, const MapArgs& args) {
   {
     ProgressBar bar("reading and preprocessing", true);
     input.frames = preprocess_frames(
-        files.size(), [&](std::size_t k) { return read_scan(files[k], read_options); },
+        files.size(),
+        [&](std::size_t k) {
+          PointCloud scan = read_scan(files[k], read_options);
+          // A scan too small as read is named by its own count, before downsampling merges any.
+          if (scan.size() < static_cast<std::size_t>(preprocess.min_points)) {
+            throw Error(files[k].path.string() + ": only " + std::to_string(scan.size()) +
+                        " points (at least " + std::to_string(preprocess.min_points) +
+                        " are needed)");
+          }
+          return scan;
+        },
         [&](std::size_t k) { return files[k].path.string(); }, preprocess, threads, bar.callback());
   }
   const double preprocess_s = preprocess_time.elapsed_s();

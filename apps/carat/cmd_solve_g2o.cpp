@@ -6,7 +6,7 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
-#include "carat/residuals/g2o_io.hpp"
+#include "carat/residuals/io/g2o_io.hpp"
 #include "carat/residuals/pose_graph.hpp"
 #include "carat/solver/atomic_file.hpp"
 #include "carat/solver/error.hpp"

@@ -1,6 +1,6 @@
 #include "mapping_output.hpp"
 
-#include "carat/registration/trajectory_io.hpp"
+#include "carat/registration/io/trajectory_io.hpp"
 #include "svg.hpp"
 
 namespace carat::cli {

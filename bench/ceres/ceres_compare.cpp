@@ -17,7 +17,7 @@
 #include <string>
 #include <vector>
 
-#include "carat/residuals/g2o_io.hpp"
+#include "carat/residuals/io/g2o_io.hpp"
 #include "carat/residuals/pose_graph.hpp"
 #include "carat/solver/solve.hpp"
 

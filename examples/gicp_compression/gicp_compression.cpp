@@ -15,7 +15,7 @@
 #include "carat/registration/align.hpp"
 #include "carat/registration/correspondences.hpp"
 #include "carat/registration/frame.hpp"
-#include "carat/registration/kitti_io.hpp"
+#include "carat/registration/io/kitti_io.hpp"
 #include "carat/residuals/gicp_block.hpp"
 #include "carat/residuals/lossless_block.hpp"
 #include "carat/solver/error.hpp"

@@ -10,7 +10,7 @@
 #include <memory>
 #include <string>
 
-#include "carat/residuals/g2o_io.hpp"
+#include "carat/residuals/io/g2o_io.hpp"
 #include "carat/residuals/synthetic_pose_graph.hpp"
 #include "carat/solver/error.hpp"
 #include "carat/solver/solve.hpp"

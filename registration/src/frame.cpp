@@ -9,7 +9,6 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
-#include <cstdio>
 #include <string>
 #include <utility>
 
@@ -78,21 +77,16 @@ std::shared_ptr<const Frame> preprocess_frame(const PointCloud& raw,
                 std::to_string(options.voxel_size));
   if (options.min_points < 4)
     throw Error(name + ": min_points must be >= 4, got " + std::to_string(options.min_points));
-  if (static_cast<int>(raw.size()) < options.min_points) {
-    throw Error(name + ": only " + std::to_string(raw.size()) + " points (at least " +
-                std::to_string(options.min_points) + " are needed)");
-  }
   PointCloud cloud;
   try {
     cloud = voxel_downsample(raw, options.voxel_size);
   } catch (const Error& e) {
     throw Error(name + ": " + e.what());
   }
-  if (static_cast<int>(cloud.size()) < options.min_points) {
-    char voxel[32];
-    std::snprintf(voxel, sizeof(voxel), "%g", options.voxel_size);
-    throw Error(name + ": only " + std::to_string(cloud.size()) + " points after " + voxel +
-                " m downsampling (at least " + std::to_string(options.min_points) + " are needed)");
+  if (cloud.size() < static_cast<std::size_t>(options.min_points)) {
+    throw Error(name + ": only " + std::to_string(cloud.size()) +
+                " points after downsampling (at least " + std::to_string(options.min_points) +
+                " are needed)");
   }
   CovarianceOptions covariance;
   covariance.neighbors = options.covariance_neighbors;

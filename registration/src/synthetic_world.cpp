@@ -13,7 +13,7 @@
 #include <sstream>
 #include <string>
 
-#include "carat/registration/kitti_io.hpp"
+#include "carat/registration/io/kitti_io.hpp"
 #include "carat/solver/atomic_file.hpp"
 #include "carat/solver/error.hpp"
 #include "carat/solver/se3.hpp"

@@ -1,4 +1,4 @@
-#include "carat/residuals/g2o_io.hpp"
+#include "carat/residuals/io/g2o_io.hpp"
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>

@@ -7,7 +7,7 @@
 #include <string>
 #include <string_view>
 
-#include "carat/registration/kitti_io.hpp"
+#include "carat/registration/io/kitti_io.hpp"
 #include "carat/registration/point_cloud.hpp"
 
 namespace carat {
@@ -40,7 +40,10 @@ void write_pcd(const std::filesystem::path& path, const PointCloud& cloud, bool 
 /// Writes positions as PLY (binary_little_endian unless ascii is true), float32 x y z.
 void write_ply(const std::filesystem::path& path, const PointCloud& cloud, bool ascii = false);
 
-/// Reads .pcd, .ply or .bin (KITTI, with `kitti_format`) by the file's extension.
+/// Reads a cloud by the file's extension: .pcd (read_pcd), .ply (read_ply) or .bin
+/// (read_kitti_bin with `kitti_format`, which the other formats ignore). Any other extension
+/// (they are case-sensitive) throws carat::Error "PATH: unsupported file type 'EXT' (expected
+/// .pcd, .ply or .bin)"; otherwise throws as the reader does.
 PointCloud read_point_cloud(const std::filesystem::path& path,
                             KittiFormat kitti_format = KittiFormat::kXyzi,
                             const ReadOptions& options = {});

@@ -1,4 +1,4 @@
-#include "carat/registration/point_cloud_io.hpp"
+#include "carat/registration/io/point_cloud_io.hpp"
 
 #include <array>
 #include <charconv>

@@ -10,9 +10,9 @@
 #include <string_view>
 #include <vector>
 
-#include "carat/registration/kitti_io.hpp"
+#include "carat/registration/io/kitti_io.hpp"
+#include "carat/registration/io/trajectory_io.hpp"
 #include "carat/registration/point_cloud.hpp"
-#include "carat/registration/trajectory_io.hpp"
 
 namespace carat {
 

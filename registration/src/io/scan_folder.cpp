@@ -1,11 +1,11 @@
-#include "carat/registration/scan_folder.hpp"
+#include "carat/registration/io/scan_folder.hpp"
 
 #include <algorithm>
 #include <charconv>
 #include <map>
 #include <system_error>
 
-#include "carat/registration/point_cloud_io.hpp"
+#include "carat/registration/io/point_cloud_io.hpp"
 #include "carat/solver/error.hpp"
 
 namespace carat {

@@ -1,4 +1,4 @@
-#include "carat/registration/trajectory_io.hpp"
+#include "carat/registration/io/trajectory_io.hpp"
 
 #include <Eigen/SVD>
 #include <charconv>

@@ -1,4 +1,4 @@
-#include "carat/registration/kitti_io.hpp"
+#include "carat/registration/io/kitti_io.hpp"
 
 #include <bit>
 #include <cmath>
