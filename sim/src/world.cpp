@@ -1,136 +1,28 @@
-#include "carat/registration/synthetic_world.hpp"
-
-#include <tbb/parallel_for.h>
+#include "carat/sim/world.hpp"
 
 #include <algorithm>
 #include <array>
-#include <atomic>
 #include <cmath>
-#include <cstdio>
 #include <limits>
 #include <numbers>
-#include <random>
-#include <sstream>
 #include <string>
 
-#include "carat/registration/kitti_io.hpp"
-#include "carat/solver/atomic_file.hpp"
 #include "carat/solver/error.hpp"
-#include "carat/solver/se3.hpp"
+#include "primitive.hpp"
+#include "random.hpp"
 
 namespace carat {
 namespace {
+
+using sim_detail::intersect;
+using sim_detail::Primitive;
+using sim_detail::Random;
+using sim_detail::Shape;
 
 constexpr double kPi = std::numbers::pi;
 constexpr double kInf = std::numeric_limits<double>::infinity();
 constexpr double kLaneClearance = 3.0;  // metres either side of a street centre line kept empty
 constexpr double kCellSize = 4.0;       // metres, edge of a cell of the 2-D acceleration grid
-
-std::uint64_t splitmix64(std::uint64_t x) {
-  x += 0x9e3779b97f4a7c15ULL;
-  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ULL;
-  x = (x ^ (x >> 27)) * 0x94d049bb133111ebULL;
-  return x ^ (x >> 31);
-}
-
-/// Portable random numbers: std::mt19937_64 bits turned into uniforms and Gaussians here.
-class Random {
- public:
-  explicit Random(std::uint64_t seed) : engine_(splitmix64(seed)) {}
-  /// Uniform in [0, 1).
-  double uniform() { return static_cast<double>(engine_() >> 11) * 0x1.0p-53; }
-  /// Uniform in [a, b).
-  double uniform(double a, double b) { return a + (b - a) * uniform(); }
-  /// True with probability p.
-  bool chance(double p) { return uniform() < p; }
-  /// Standard normal (Box-Muller, cosine branch).
-  double normal() {
-    const double u1 = 1.0 - uniform();  // (0, 1]
-    const double u2 = uniform();
-    return std::sqrt(-2.0 * std::log(u1)) * std::cos(2.0 * kPi * u2);
-  }
-
- private:
-  std::mt19937_64 engine_;
-};
-
-enum class Shape : std::uint8_t { kBox, kCylinder, kSphere };
-
-/// One primitive. Box: centre, half extents, yaw about z. Cylinder: vertical, centre (x, y),
-/// radius, z range. Sphere: centre, radius.
-struct Primitive {
-  Shape shape = Shape::kBox;
-  Eigen::Vector3d center = Eigen::Vector3d::Zero();
-  Eigen::Vector3d half = Eigen::Vector3d::Zero();                // box half extents
-  double cos_yaw = 1.0, sin_yaw = 0.0;                           // box orientation
-  double radius = 0.0;                                           // cylinder, sphere
-  double z0 = 0.0, z1 = 0.0;                                     // cylinder
-  double min_x = 0, min_y = 0, max_x = 0, max_y = 0, max_z = 0;  // bounds
-};
-
-/// Nearest hit of the ray o + t d with t in (0, t_best) on a primitive, or t_best.
-double intersect(const Primitive& p, const Eigen::Vector3d& o, const Eigen::Vector3d& d,
-                 double t_best) {
-  constexpr double kEps = 1e-9;
-  switch (p.shape) {
-    case Shape::kBox: {
-      const double px = o.x() - p.center.x(), py = o.y() - p.center.y();
-      const double lo[3] = {p.cos_yaw * px + p.sin_yaw * py, -p.sin_yaw * px + p.cos_yaw * py,
-                            o.z() - p.center.z()};
-      const double ld[3] = {p.cos_yaw * d.x() + p.sin_yaw * d.y(),
-                            -p.sin_yaw * d.x() + p.cos_yaw * d.y(), d.z()};
-      double t_min = -kInf, t_max = kInf;
-      for (int a = 0; a < 3; ++a) {
-        if (ld[a] == 0.0) {
-          if (std::abs(lo[a]) > p.half[a]) return t_best;
-          continue;
-        }
-        const double inv = 1.0 / ld[a];
-        double t1 = (-p.half[a] - lo[a]) * inv, t2 = (p.half[a] - lo[a]) * inv;
-        if (t1 > t2) std::swap(t1, t2);
-        t_min = std::max(t_min, t1);
-        t_max = std::min(t_max, t2);
-        if (t_min > t_max) return t_best;
-      }
-      if (t_min > kEps && t_min < t_best) return t_min;
-      return t_best;
-    }
-    case Shape::kCylinder: {
-      double best = t_best;
-      const double px = o.x() - p.center.x(), py = o.y() - p.center.y();
-      const double a = d.x() * d.x() + d.y() * d.y();
-      if (a > 0.0) {
-        const double b = px * d.x() + py * d.y();
-        const double c = px * px + py * py - p.radius * p.radius;
-        const double disc = b * b - a * c;
-        if (disc >= 0.0) {
-          const double t = (-b - std::sqrt(disc)) / a;
-          const double z = o.z() + t * d.z();
-          if (t > kEps && t < best && z >= p.z0 && z <= p.z1) best = t;
-        }
-      }
-      if (d.z() != 0.0) {
-        for (const double zc : {p.z0, p.z1}) {
-          const double t = (zc - o.z()) / d.z();
-          if (t <= kEps || t >= best) continue;
-          const double x = px + t * d.x(), y = py + t * d.y();
-          if (x * x + y * y <= p.radius * p.radius) best = t;
-        }
-      }
-      return best;
-    }
-    case Shape::kSphere: {
-      const Eigen::Vector3d q = o - p.center;
-      const double b = q.dot(d);
-      const double c = q.squaredNorm() - p.radius * p.radius;
-      const double disc = b * b - c;
-      if (disc < 0.0) return t_best;
-      const double t = -b - std::sqrt(disc);
-      return t > kEps && t < t_best ? t : t_best;
-    }
-  }
-  return t_best;
-}
 
 void require(bool ok, const std::string& field, const std::string& problem) {
   if (!ok) throw Error("SyntheticWorldOptions." + field + ": " + problem);
@@ -596,6 +488,10 @@ SyntheticWorld::SyntheticWorld(const SyntheticWorldOptions& options) : options_(
 
 double SyntheticWorld::ground_height(double x, double y) const { return scene_->height(x, y); }
 
+Eigen::Vector3d SyntheticWorld::ground_normal() const {
+  return Eigen::Vector3d(-scene_->plane_gx, -scene_->plane_gy, 1.0).normalized();
+}
+
 double SyntheticWorld::cast_ray(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction,
                                 double max_distance) const {
   const double t = scene_->cast(origin, direction.normalized(), max_distance);
@@ -627,203 +523,6 @@ PointCloud SyntheticWorld::scan(const Eigen::Isometry3d& T_world_sensor,
     }
   }
   return cloud;
-}
-
-std::vector<Eigen::Isometry3d> SyntheticWorld::trajectory(
-    const SyntheticTrajectoryOptions& options) const {
-  auto require_t = [](bool ok, const std::string& field, const std::string& problem) {
-    if (!ok) throw Error("SyntheticTrajectoryOptions." + field + ": " + problem);
-  };
-  const double B = options_.block_size, W = options_.street_width;
-  require_t(options.frames >= 2, "frames", "must be >= 2, got " + std::to_string(options.frames));
-  require_t(options.laps >= 1, "laps", "must be >= 1, got " + std::to_string(options.laps));
-  require_t(
-      std::isfinite(options.lap_offset) && options.lap_offset >= 0.0 && options.lap_offset <= 1.5,
-      "lap_offset", "must be finite and in [0, 1.5] m, got " + std::to_string(options.lap_offset));
-  require_t(std::isfinite(options.corner_radius) && options.corner_radius > options.lap_offset &&
-                options.corner_radius < 0.5 * (B + W),
-            "corner_radius",
-            "must be finite, > lap_offset and < (block_size + street_width) / 2, got " +
-                std::to_string(options.corner_radius));
-  require_t(std::isfinite(options.lap_yaw_deg) && std::abs(options.lap_yaw_deg) <= 10.0,
-            "lap_yaw_deg",
-            "must be finite with |.| <= 10 deg, got " + std::to_string(options.lap_yaw_deg));
-
-  require_t(options.circuit_blocks_x >= 1 && options.circuit_blocks_x <= options_.blocks_x,
-            "circuit_blocks_x",
-            "must be in [1, blocks_x = " + std::to_string(options_.blocks_x) + "], got " +
-                std::to_string(options.circuit_blocks_x));
-  require_t(options.circuit_blocks_y >= 1 && options.circuit_blocks_y <= options_.blocks_y,
-            "circuit_blocks_y",
-            "must be in [1, blocks_y = " + std::to_string(options_.blocks_y) + "], got " +
-                std::to_string(options.circuit_blocks_y));
-
-  // The centre-line rectangle through the streets around the circuit's blocks: straights of
-  // n (B + W) - 2 r between the rounded corners (one block: B + W - 2 r on every side).
-  const double span_x = options.circuit_blocks_x * (B + W),
-               span_y = options.circuit_blocks_y * (B + W);
-  // (Written so that one block gives exactly the centre (B / 2, B / 2) of block (0, 0).)
-  const Eigen::Vector2d center(0.5 * B + 0.5 * (options.circuit_blocks_x - 1) * (B + W),
-                               0.5 * B + 0.5 * (options.circuit_blocks_y - 1) * (B + W));
-  const std::array<double, 2> straight = {span_x - 2.0 * options.corner_radius,
-                                          span_y - 2.0 * options.corner_radius};
-  // Unit normal of the ground plane: sensor z axis.
-  const Eigen::Vector3d up =
-      Eigen::Vector3d(-scene_->plane_gx, -scene_->plane_gy, 1.0).normalized();
-  std::vector<Eigen::Isometry3d> poses;
-  poses.reserve(options.frames);
-  for (int k = 0; k < options.frames; ++k) {
-    const double lap_pos = static_cast<double>(k) * options.laps / options.frames;
-    const int lap = static_cast<int>(std::floor(lap_pos));
-    const double fraction = lap_pos - lap;
-    const double factor = std::array<double, 3>{0.0, 1.0, -1.0}[lap % 3];
-    const double offset = options.lap_offset * factor;
-    const double half_y = 0.5 * span_y + offset, radius = options.corner_radius + offset;
-    const double length = 2.0 * (straight[0] + straight[1]) + 2.0 * kPi * radius;
-    // Arc length from the start of the bottom straight; frame 0 sits at its middle.
-    double s = std::fmod(fraction * length + 0.5 * straight[0], length);
-    Eigen::Vector2d p(center.x() - 0.5 * straight[0], center.y() - half_y);
-    double heading = 0.0;
-    for (int q = 0; q < 4; ++q) {
-      const double side = straight[static_cast<std::size_t>(q % 2)];
-      const Eigen::Vector2d dir(std::cos(heading), std::sin(heading));
-      const Eigen::Vector2d left(-dir.y(), dir.x());
-      if (s <= side) {
-        p += s * dir;
-        break;
-      }
-      s -= side;
-      const Eigen::Vector2d arc_center = p + side * dir + radius * left;
-      const double arc = 0.5 * kPi * radius;
-      if (s <= arc || q == 3) {
-        const double phi = std::min(s, arc) / radius;
-        p = arc_center +
-            radius * Eigen::Vector2d(std::sin(heading + phi), -std::cos(heading + phi));
-        heading += phi;
-        break;
-      }
-      s -= arc;
-      p = arc_center + radius * dir;
-      heading += 0.5 * kPi;
-    }
-    const double yaw = heading + factor * options.lap_yaw_deg * kPi / 180.0;
-    const Eigen::Vector3d forward(std::cos(yaw), std::sin(yaw), 0.0);
-    const Eigen::Vector3d x_axis = (forward - forward.dot(up) * up).normalized();
-    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-    T.linear().col(0) = x_axis;
-    T.linear().col(1) = up.cross(x_axis);
-    T.linear().col(2) = up;
-    T.translation() =
-        Eigen::Vector3d(p.x(), p.y(), scene_->height(p.x(), p.y()) + options_.sensor_height);
-    poses.push_back(T);
-  }
-  return poses;
-}
-
-std::uint64_t synthetic_frame_noise_seed(std::uint64_t seed, std::size_t frame) {
-  return splitmix64(seed ^ splitmix64(0x5eed0000ULL + frame));
-}
-
-SyntheticSequence make_synthetic_sequence(const SyntheticWorld& world,
-                                          const SyntheticTrajectoryOptions& options) {
-  SyntheticSequence sequence;
-  sequence.T_world_frame = world.trajectory(options);
-  sequence.scans.resize(sequence.T_world_frame.size());
-  tbb::parallel_for(std::size_t{0}, sequence.scans.size(), [&](std::size_t k) {
-    sequence.scans[k] =
-        world.scan(sequence.T_world_frame[k], synthetic_frame_noise_seed(world.options().seed, k));
-  });
-  return sequence;
-}
-
-std::vector<Eigen::Isometry3d> apply_drift(std::span<const Eigen::Isometry3d> T_world_frame,
-                                           const DriftOptions& options) {
-  if (!std::isfinite(options.translation_sigma) || options.translation_sigma < 0.0) {
-    throw Error("DriftOptions.translation_sigma: must be finite and >= 0, got " +
-                std::to_string(options.translation_sigma));
-  }
-  if (!std::isfinite(options.rotation_sigma_deg) || options.rotation_sigma_deg < 0.0) {
-    throw Error("DriftOptions.rotation_sigma_deg: must be finite and >= 0, got " +
-                std::to_string(options.rotation_sigma_deg));
-  }
-  std::vector<Eigen::Isometry3d> out(T_world_frame.begin(), T_world_frame.end());
-  if (out.empty() || (options.translation_sigma == 0.0 && options.rotation_sigma_deg == 0.0)) {
-    return out;
-  }
-  Random rng(options.seed);
-  const double rotation_sigma = options.rotation_sigma_deg * kPi / 180.0;
-  for (std::size_t k = 1; k < out.size(); ++k) {
-    const Eigen::Isometry3d relative = T_world_frame[k - 1].inverse() * T_world_frame[k];
-    const double distance = relative.translation().norm();
-    se3::Vector6d xi;
-    for (int i = 0; i < 3; ++i) xi[i] = rotation_sigma * distance * rng.normal();
-    for (int i = 3; i < 6; ++i) xi[i] = options.translation_sigma * distance * rng.normal();
-    out[k] = out[k - 1] * relative * se3::exp(xi);
-  }
-  return out;
-}
-
-namespace {
-
-void write_kitti_poses(const std::filesystem::path& path,
-                       std::span<const Eigen::Isometry3d> T_world_frame) {
-  std::string text;
-  for (const Eigen::Isometry3d& T : T_world_frame) {
-    const Eigen::Matrix4d M = T.matrix();
-    for (int r = 0; r < 3; ++r) {
-      for (int c = 0; c < 4; ++c) {
-        char number[40];
-        std::snprintf(number, sizeof(number), "%.9g", M(r, c));
-        if (r + c > 0) text += ' ';
-        text += number;
-      }
-    }
-    text += '\n';
-  }
-  write_file_atomically(path, [&](std::ostream& out) { out << text; });
-}
-
-std::filesystem::path frame_file(const std::filesystem::path& dir, std::size_t k) {
-  char name[32];
-  std::snprintf(name, sizeof(name), "%06zu.bin", k);
-  return dir / name;
-}
-
-void create_folder(const std::filesystem::path& dir) {
-  std::error_code ec;
-  std::filesystem::create_directories(dir, ec);
-  if (ec) throw Error(dir.string() + ": cannot create the directory (" + ec.message() + ")");
-}
-
-}  // namespace
-
-void write_synthetic_sequence(const std::filesystem::path& dir, const SyntheticSequence& sequence) {
-  if (sequence.scans.size() != sequence.T_world_frame.size()) {
-    throw Error("write_synthetic_sequence: " + std::to_string(sequence.scans.size()) +
-                " scans but " + std::to_string(sequence.T_world_frame.size()) + " poses");
-  }
-  create_folder(dir);
-  for (std::size_t k = 0; k < sequence.scans.size(); ++k) {
-    write_kitti_bin(frame_file(dir, k), sequence.scans[k], KittiFormat::kXyzi);
-  }
-  write_kitti_poses(dir / "poses.txt", sequence.T_world_frame);
-}
-
-std::size_t write_synthetic_drive(const std::filesystem::path& dir, const SyntheticWorld& world,
-                                  const SyntheticTrajectoryOptions& options,
-                                  const std::function<void(std::size_t, std::size_t)>& progress) {
-  const std::vector<Eigen::Isometry3d> poses = world.trajectory(options);
-  create_folder(dir);
-  std::atomic<std::size_t> points{0}, done{0};
-  tbb::parallel_for(std::size_t{0}, poses.size(), [&](std::size_t k) {
-    const PointCloud scan =
-        world.scan(poses[k], synthetic_frame_noise_seed(world.options().seed, k));
-    write_kitti_bin(frame_file(dir, k), scan, KittiFormat::kXyzi);
-    points += scan.size();
-    if (progress) progress(done.fetch_add(1) + 1, poses.size());
-  });
-  write_kitti_poses(dir / "poses.txt", poses);
-  return points.load();
 }
 
 }  // namespace carat
