@@ -4,6 +4,7 @@
 // compressed. The ratio compress / linearize-full says after how many LM iterations the exact
 // factor has paid for itself.
 #include <benchmark/benchmark.h>
+#include <tbb/info.h>
 
 #include <memory>
 #include <vector>
@@ -12,9 +13,9 @@
 #include "carat/registration/correspondences.hpp"
 #include "carat/registration/dense_graph.hpp"
 #include "carat/registration/frame.hpp"
-#include "carat/registration/synthetic_world.hpp"
 #include "carat/residuals/gicp_block.hpp"
 #include "carat/residuals/lossless_block.hpp"
+#include "carat/sim/pipeline.hpp"
 #include "carat/solver/se3.hpp"
 
 namespace {
@@ -30,14 +31,17 @@ struct Graph {
 const Graph& graph() {
   static const Graph g = [] {
     Graph out;
-    const carat::SyntheticWorld world;
-    carat::SyntheticTrajectoryOptions drive;
-    drive.frames = 30;
-    const auto sequence = carat::make_synthetic_sequence(world, drive);
-    for (const auto& scan : sequence.scans)
-      out.frames.push_back(carat::preprocess_frame(scan, carat::PreprocessOptions{}, "frame"));
-    out.poses = sequence.T_world_frame;
-    out.pairs = carat::build_dense_graph(out.frames, out.poses);
+    // The dense graph at the ground truth: no drift, no odometry.
+    carat::SyntheticPipelineOptions options;
+    options.drive.frames = 30;
+    options.drift.translation_sigma = 0.0;
+    options.drift.rotation_sigma_deg = 0.0;
+    options.odometry = false;
+    options.threads = tbb::info::default_concurrency();
+    carat::SyntheticPipeline pipeline = carat::simulate_pipeline(options);
+    out.frames = std::move(pipeline.frames);
+    out.poses = std::move(pipeline.T_world_truth);
+    out.pairs = std::move(pipeline.pairs);
     for (const auto& p : out.pairs) {
       const auto T = out.poses[p.target].inverse() * out.poses[p.source];
       const auto c =

@@ -11,7 +11,7 @@
 
 #include "carat/residuals/io/g2o_io.hpp"
 #include "carat/residuals/pose_graph.hpp"
-#include "carat/residuals/synthetic_pose_graph.hpp"
+#include "carat/sim/pose_graph.hpp"
 #include "carat/solver/solve.hpp"
 
 namespace {

@@ -29,8 +29,6 @@
 // the next size starts.
 #include <benchmark/benchmark.h>
 #include <tbb/info.h>
-#include <tbb/parallel_for.h>
-#include <tbb/task_arena.h>
 
 #if defined(__GLIBC__)
 #include <malloc.h>
@@ -50,9 +48,9 @@
 #include "carat/registration/frame.hpp"
 #include "carat/registration/global_registration.hpp"
 #include "carat/registration/pose_perturbation.hpp"
-#include "carat/registration/synthetic_world.hpp"
 #include "carat/registration/trajectory_error.hpp"
 #include "carat/residuals/gicp_block.hpp"
+#include "carat/sim/pipeline.hpp"
 #include "carat/solver/solve.hpp"
 #include "carat/solver/stopwatch.hpp"
 
@@ -121,10 +119,9 @@ int circuit_blocks(int frames) {
   return std::clamp(static_cast<int>(std::lround((2.0 * frames - 90.8) / 108.0)), 1, 63);
 }
 
-/// The world and ground truth of a drive of `frames` frames, scanned and preprocessed.
+/// The ground truth of a drive of `frames` frames and its scans, preprocessed.
 struct Drive {
   int frames = 0;
-  std::unique_ptr<carat::SyntheticWorld> world;
   std::vector<Eigen::Isometry3d> truth;
   std::vector<std::shared_ptr<const carat::Frame>> scans;  // preprocessed
   double scan_s = 0.0;                                     // scanning + preprocessing
@@ -134,28 +131,23 @@ Drive make_drive(int frames) {
   Drive d;
   d.frames = frames;
   const int n = circuit_blocks(frames);
-  carat::SyntheticWorldOptions world;
-  world.blocks_x = n + 1;
-  world.blocks_y = 2;
-  d.world = std::make_unique<carat::SyntheticWorld>(world);
-  carat::SyntheticTrajectoryOptions options;
-  options.frames = frames;
-  options.laps = 2;
-  options.circuit_blocks_x = n;
-  d.truth = d.world->trajectory(options);
-  carat::PreprocessOptions preprocess;
-  preprocess.voxel_size = voxel_metres();
-  const carat::Stopwatch stopwatch;
-  d.scans.resize(static_cast<std::size_t>(frames));
-  tbb::task_arena arena(num_threads());
-  arena.execute([&] {
-    tbb::parallel_for(std::size_t{0}, d.scans.size(), [&](std::size_t k) {
-      const carat::PointCloud raw =
-          d.world->scan(d.truth[k], carat::synthetic_frame_noise_seed(world.seed, k));
-      d.scans[k] = carat::preprocess_frame(raw, preprocess, "frame " + std::to_string(k));
-    });
-  });
-  d.scan_s = stopwatch.elapsed_s();
+  // Scanned and preprocessed frames and the ground truth only: the start is set per size below.
+  carat::SyntheticPipelineOptions options;
+  options.world.blocks_x = n + 1;
+  options.world.blocks_y = 2;
+  options.drive.frames = frames;
+  options.drive.laps = 2;
+  options.drive.circuit_blocks_x = n;
+  options.preprocess.voxel_size = voxel_metres();
+  options.drift.translation_sigma = 0.0;
+  options.drift.rotation_sigma_deg = 0.0;
+  options.odometry = false;
+  options.dense_graph = false;
+  options.threads = num_threads();
+  carat::SyntheticPipeline pipeline = carat::simulate_pipeline(options);
+  d.truth = std::move(pipeline.T_world_truth);
+  d.scans = std::move(pipeline.frames);
+  d.scan_s = pipeline.timings.simulate_s + pipeline.timings.preprocess_s;
   return d;
 }
 
@@ -163,7 +155,7 @@ Drive make_drive(int frames) {
 
 struct Scene {
   int frames = 0;
-  Drive drive;  // world, ground truth and scans
+  Drive drive;  // ground truth and scans
   std::vector<Eigen::Isometry3d> initial;
   std::vector<carat::FramePair> pairs;
   double graph_s = 0.0;

@@ -24,8 +24,8 @@
 #include "carat/registration/overlap.hpp"
 #include "carat/registration/pose_graph_baseline.hpp"
 #include "carat/registration/pose_perturbation.hpp"
-#include "carat/registration/synthetic_world.hpp"
 #include "carat/registration/trajectory_error.hpp"
+#include "carat/sim/pipeline.hpp"
 #include "carat/solver/error.hpp"
 #include "carat/solver/evaluate.hpp"
 #include "carat/solver/loss_function.hpp"
@@ -47,24 +47,20 @@ struct SmallWorld {
 
 const SmallWorld& small_world() {
   static const SmallWorld world = [] {
-    SyntheticWorldOptions options;
-    options.seed = 7;
-    const SyntheticWorld scene(options);
-    SyntheticTrajectoryOptions drive;
-    drive.frames = 40;
-    drive.laps = 2;
-    const SyntheticSequence sequence = make_synthetic_sequence(scene, drive);
+    SyntheticPipelineOptions options;
+    options.world.seed = 7;
+    options.drive.frames = 40;
+    options.drive.laps = 2;
+    options.preprocess.voxel_size = 0.5;
+    options.drift = {.seed = 3, .translation_sigma = 0.005, .rotation_sigma_deg = 0.03};
+    options.odometry = false;
+    options.dense_graph = false;
+    options.threads = 2;
+    SyntheticPipeline pipeline = simulate_pipeline(options);
     SmallWorld out;
-    out.truth = sequence.T_world_frame;
-    PreprocessOptions preprocess;
-    preprocess.voxel_size = 0.5;
-    for (std::size_t k = 0; k < sequence.scans.size(); ++k)
-      out.frames.push_back(preprocess_frame(sequence.scans[k], preprocess, "frame"));
-    DriftOptions drift;
-    drift.seed = 3;
-    drift.translation_sigma = 0.005;
-    drift.rotation_sigma_deg = 0.03;
-    out.initial = apply_drift(out.truth, drift);
+    out.frames = std::move(pipeline.frames);
+    out.truth = std::move(pipeline.T_world_truth);
+    out.initial = std::move(pipeline.T_world_drift);
     return out;
   }();
   return world;

@@ -13,7 +13,7 @@
 #include "carat/residuals/pose_graph.hpp"
 #include "carat/residuals/pose_prior_block.hpp"
 #include "carat/residuals/relative_pose_block.hpp"
-#include "carat/residuals/synthetic_pose_graph.hpp"
+#include "carat/sim/pose_graph.hpp"
 #include "carat/solver/error.hpp"
 #include "carat/solver/jacobian_checker.hpp"
 #include "carat/solver/solve.hpp"

@@ -7,22 +7,20 @@
 #include <tbb/info.h>
 #include <tbb/task_arena.h>
 
-#include <atomic>
 #include <cstdio>
 #include <filesystem>
 #include <memory>
+#include <mutex>
 #include <nlohmann/json.hpp>
 #include <string>
 
 #include "carat/registration/dense_graph.hpp"
 #include "carat/registration/frame.hpp"
-#include "carat/registration/odometry.hpp"
-#include "carat/registration/synthetic_world.hpp"
 #include "carat/registration/trajectory_error.hpp"
+#include "carat/sim/pipeline.hpp"
 #include "carat/solver/atomic_file.hpp"
 #include "carat/solver/error.hpp"
 #include "carat/solver/output_folder.hpp"
-#include "carat/solver/stopwatch.hpp"
 #include "cli_support.hpp"
 #include "commands.hpp"
 #include "mapping_methods.hpp"
@@ -108,6 +106,19 @@ void check_full_factor_memory(const MappingInput& input) {
   }
 }
 
+/// The progress bar's label of a pipeline stage.
+const char* stage_label(SyntheticPipelineStage stage) {
+  switch (stage) {
+    case SyntheticPipelineStage::kPreprocess:
+      return "simulating and preprocessing";
+    case SyntheticPipelineStage::kOdometry:
+      return "GICP odometry";
+    case SyntheticPipelineStage::kDenseGraph:
+      return "overlap assessment";
+  }
+  return "";
+}
+
 int run_demo(const DemoArgs& args) {
   check_memory(args);
   check_output_folder("--out", args.out, {});
@@ -115,20 +126,39 @@ int run_demo(const DemoArgs& args) {
   const int threads = thread_count(args.threads);
   nlohmann::json stages = nlohmann::json::object();
 
-  // The world and the drive: scans are simulated as they are preprocessed, so that the raw
-  // scans are never all in memory.
-  Stopwatch stage_time;
-  SyntheticWorldOptions world_options;
-  world_options.seed = args.seed;
-  const SyntheticWorld world(world_options);
-  SyntheticTrajectoryOptions drive;
-  drive.frames = args.frames;
-  drive.laps = 2;
-  SyntheticSequence sequence;
-  sequence.T_world_frame = world.trajectory(drive);
-  stages["simulate_s"] = stage_time.restart();
+  // The world, the drive, preprocessing, the initial guess (a drifting wheel-odometry prior,
+  // refined by GICP odometry by default) and the dense graph at the initial guess.
+  SyntheticPipelineOptions pipeline_options;
+  pipeline_options.world.seed = args.seed;
+  pipeline_options.drive.frames = args.frames;
+  pipeline_options.drive.laps = 2;
+  pipeline_options.drift.seed = args.seed;
+  pipeline_options.odometry = args.initial == "odometry";
+  pipeline_options.graph.overlap_threshold = args.overlap;
+  pipeline_options.threads = threads;
+  SyntheticPipeline pipeline;
+  {
+    // One bar per stage; stages run one after the other, a stage's reports come from any thread.
+    std::mutex mutex;
+    std::unique_ptr<ProgressBar> bar;
+    SyntheticPipelineStage shown = SyntheticPipelineStage::kPreprocess;
+    auto progress = [&](SyntheticPipelineStage stage, std::size_t done, std::size_t total) {
+      const std::lock_guard<std::mutex> lock(mutex);
+      if (!bar || stage != shown) {
+        bar.reset();
+        bar = std::make_unique<ProgressBar>(stage_label(stage), true);
+        shown = stage;
+      }
+      bar->callback()(done, total);
+    };
+    pipeline = simulate_pipeline(pipeline_options, progress);
+  }
+  stages["simulate_s"] = pipeline.timings.simulate_s;
+  stages["preprocess_s"] = pipeline.timings.preprocess_s;
+  stages["initial_guess_s"] = pipeline.timings.initial_guess_s;
+  stages["dense_graph_s"] = pipeline.timings.dense_graph_s;
+  const std::vector<Eigen::Isometry3d> truth = std::move(pipeline.T_world_truth);
 
-  // Simulation and preprocessing: downsampling, covariances, k-d trees.
   MappingInput input;
   input.threads = threads;
   input.seed = args.seed;
@@ -138,51 +168,12 @@ int run_demo(const DemoArgs& args) {
   input.pgo_cauchy_scale = args.pgo_cauchy;
   input.gre_cauchy_scale = args.gre_cauchy;
   input.gre_excess_cauchy_scale = args.gre_excess_cauchy;
-  std::atomic<std::size_t> raw_points{0};
-  {
-    ProgressBar bar("simulating and preprocessing", true);
-    input.frames = preprocess_frames(
-        sequence.T_world_frame.size(),
-        [&](std::size_t k) {
-          PointCloud scan =
-              world.scan(sequence.T_world_frame[k], synthetic_frame_noise_seed(args.seed, k));
-          raw_points += scan.size();
-          return scan;
-        },
-        [](std::size_t k) { return "synthetic frame " + std::to_string(k); }, PreprocessOptions{},
-        threads, bar.callback());
-  }
+  input.frames = std::move(pipeline.frames);
+  input.T_world_initial = std::move(pipeline.T_world_initial);
+  input.pairs = std::move(pipeline.pairs);
+  const std::size_t raw_points = pipeline.raw_points;
   std::size_t points = 0;
   for (const auto& frame : input.frames) points += frame->size();
-  stages["preprocess_s"] = stage_time.restart();
-
-  // Initial guess: a drifting wheel-odometry prior, refined by GICP odometry (default).
-  DriftOptions drift;
-  drift.seed = args.seed;
-  drift.translation_sigma = 0.02;
-  drift.rotation_sigma_deg = 0.1;
-  std::vector<Eigen::Isometry3d> guess = apply_drift(sequence.T_world_frame, drift);
-  if (args.initial == "odometry") {
-    ProgressBar bar("GICP odometry", true);
-    AlignSettings settings;
-    settings.max_correspondence_distance = 2.0;
-    input.T_world_initial =
-        run_odometry(input.frames, guess, settings, threads, bar.callback()).T_world_frame;
-  } else {
-    input.T_world_initial = guess;
-  }
-  stages["initial_guess_s"] = stage_time.restart();
-
-  // The dense graph at the initial guess.
-  DenseGraphOptions graph_options;
-  graph_options.overlap_threshold = args.overlap;
-  graph_options.num_threads = threads;
-  {
-    ProgressBar bar("overlap assessment", true);
-    input.pairs =
-        build_dense_graph(input.frames, input.T_world_initial, graph_options, bar.callback());
-  }
-  stages["dense_graph_s"] = stage_time.elapsed_s();
   check_full_factor_memory(input);
 
   // The methods.
@@ -193,21 +184,20 @@ int run_demo(const DemoArgs& args) {
   for (ResidualSampling sampling : {ResidualSampling::kFull, ResidualSampling::kExact,
                                     ResidualSampling::kRandom, ResidualSampling::kLossless})
     results.push_back(run_registration(input, sampling));
-  const AteStatistics initial_ate = compute_ate(input.T_world_initial, sequence.T_world_frame);
-  for (MethodResult& r : results) r.ate = compute_ate(r.T_world_frame, sequence.T_world_frame);
+  const AteStatistics initial_ate = compute_ate(input.T_world_initial, truth);
+  for (MethodResult& r : results) r.ate = compute_ate(r.T_world_frame, truth);
 
   // Files, into the temporary folder that becomes --out when all are written.
   const std::filesystem::path dir = folder.path();
   std::vector<std::filesystem::path> written;
-  for (const auto& p : write_trajectory_pair(dir, "ground_truth", sequence.T_world_frame))
-    written.push_back(p);
+  for (const auto& p : write_trajectory_pair(dir, "ground_truth", truth)) written.push_back(p);
   for (const auto& p : write_trajectory_pair(dir, "initial", input.T_world_initial))
     written.push_back(p);
   for (const MethodResult& r : results)
     for (const auto& p : write_trajectory_pair(dir, r.key, r.T_world_frame)) written.push_back(p);
   const MethodResult* exact = &results[3];
-  for (const auto& p : write_mapping_pictures(dir, sequence.T_world_frame, input.T_world_initial,
-                                              results, input.pairs, exact))
+  for (const auto& p :
+       write_mapping_pictures(dir, truth, input.T_world_initial, results, input.pairs, exact))
     written.push_back(p);
 
   nlohmann::json j;
@@ -216,7 +206,7 @@ int run_demo(const DemoArgs& args) {
   j["seed"] = args.seed;
   j["residuals"] = args.residuals;
   j["threads"] = threads;
-  j["points_raw"] = raw_points.load();
+  j["points_raw"] = raw_points;
   j["points_downsampled"] = points;
   j["initial"] = args.initial;
   j["gre_rounds"] = args.rounds;
@@ -244,7 +234,7 @@ int run_demo(const DemoArgs& args) {
   }
   std::printf("carat demo: synthetic city, %zu LiDAR frames (2 laps), seed %llu, %d threads\n",
               input.frames.size(), static_cast<unsigned long long>(args.seed), threads);
-  std::printf("  %zu points simulated, %zu after 0.5 m downsampling\n", raw_points.load(), points);
+  std::printf("  %zu points simulated, %zu after 0.5 m downsampling\n", raw_points, points);
   std::printf("  initial guess (%s): ATE %.4f ± %.4f m (RMSE %.4f)\n", args.initial.c_str(),
               initial_ate.mean, initial_ate.std, initial_ate.rmse);
   std::printf("  dense graph: %zu factors (overlap >= %.2f, plus consecutive pairs)\n",

@@ -12,7 +12,9 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
-#include "carat/registration/synthetic_world.hpp"
+#include "carat/sim/kitti_writer.hpp"
+#include "carat/sim/sequence.hpp"
+#include "carat/sim/world.hpp"
 #include "carat/solver/output_folder.hpp"
 #include "cli_support.hpp"
 #include "commands.hpp"

@@ -11,7 +11,7 @@
 #include <string>
 
 #include "carat/residuals/io/g2o_io.hpp"
-#include "carat/residuals/synthetic_pose_graph.hpp"
+#include "carat/sim/pose_graph.hpp"
 #include "carat/solver/error.hpp"
 #include "carat/solver/solve.hpp"
 

@@ -1,6 +1,6 @@
 #pragma once
 
-// Every public header of carat (solver, coreset, residuals, registration), for programs that
+// Every public header of carat (solver, coreset, residuals, registration, sim), for programs that
 // would rather include one file. Each header stands alone as well.
 
 #include <carat/coreset/caratheodory.hpp>
@@ -27,7 +27,6 @@
 #include <carat/registration/point_cloud.hpp>
 #include <carat/registration/pose_graph_baseline.hpp>
 #include <carat/registration/pose_perturbation.hpp>
-#include <carat/registration/synthetic_world.hpp>
 #include <carat/registration/trajectory_error.hpp>
 #include <carat/registration/voxel_grid.hpp>
 #include <carat/residuals/gicp_block.hpp>
@@ -41,7 +40,14 @@
 #include <carat/residuals/registration_rows.hpp>
 #include <carat/residuals/relative_pose_autodiff_block.hpp>
 #include <carat/residuals/relative_pose_block.hpp>
-#include <carat/residuals/synthetic_pose_graph.hpp>
+#include <carat/sim/circuit_options.hpp>
+#include <carat/sim/drift.hpp>
+#include <carat/sim/kitti_writer.hpp>
+#include <carat/sim/pipeline.hpp>
+#include <carat/sim/pose_graph.hpp>
+#include <carat/sim/sequence.hpp>
+#include <carat/sim/world.hpp>
+#include <carat/sim/world_options.hpp>
 #include <carat/solver/atomic_file.hpp>
 #include <carat/solver/autodiff_block.hpp>
 #include <carat/solver/block_checker.hpp>

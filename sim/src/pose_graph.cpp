@@ -1,4 +1,4 @@
-#include "carat/residuals/synthetic_pose_graph.hpp"
+#include "carat/sim/pose_graph.hpp"
 
 #include <cmath>
 #include <random>

@@ -1,6 +1,7 @@
 // The synthetic LiDAR world: determinism (also across thread counts), point counts and ranges,
 // geometric consistency with the scene, the ground-truth circuit, the drift model, KITTI-style
-// output, option validation and one GICP alignment of consecutive scans.
+// output, option validation, one GICP alignment of consecutive scans and the whole synthetic
+// pipeline in one call.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <tbb/task_arena.h>
@@ -18,8 +19,12 @@
 #include "carat/registration/covariance.hpp"
 #include "carat/registration/io/kitti_io.hpp"
 #include "carat/registration/kdtree.hpp"
-#include "carat/registration/synthetic_world.hpp"
 #include "carat/registration/voxel_grid.hpp"
+#include "carat/sim/drift.hpp"
+#include "carat/sim/kitti_writer.hpp"
+#include "carat/sim/pipeline.hpp"
+#include "carat/sim/sequence.hpp"
+#include "carat/sim/world.hpp"
 #include "carat/solver/error.hpp"
 #include "carat/solver/stopwatch.hpp"
 
@@ -363,6 +368,67 @@ TEST(SyntheticWorldTest, GicpRecoversConsecutiveAndLoopClosurePoses) {
     EXPECT_LT(Eigen::AngleAxisd(error.linear()).angle(), 0.5 * M_PI / 180.0)
         << "frames " << k << ", " << j;
   }
+}
+
+/// A quick pipeline: a sparse sensor and a short drive.
+SyntheticPipelineOptions quick_pipeline(int threads) {
+  SyntheticPipelineOptions options;
+  options.world.seed = 5;
+  options.world.beams = 16;
+  options.world.azimuth_steps = 256;
+  options.drive.frames = 8;
+  options.drift.seed = 5;
+  options.threads = threads;
+  return options;
+}
+
+TEST(SyntheticPipelineTest, ComposesTheStagesAndDoesNotDependOnThreadCount) {
+  const SyntheticPipeline one = simulate_pipeline(quick_pipeline(1));
+  std::size_t reported = 0;
+  const SyntheticPipeline two = simulate_pipeline(
+      quick_pipeline(2), [&](SyntheticPipelineStage, std::size_t, std::size_t) { ++reported; });
+  EXPECT_GT(reported, 0u);
+  ASSERT_EQ(one.frames.size(), 8u);
+  ASSERT_EQ(one.T_world_truth.size(), 8u);
+  ASSERT_EQ(one.T_world_initial.size(), 8u);
+
+  // The stages, one by one.
+  const SyntheticPipelineOptions options = quick_pipeline(1);
+  const SyntheticWorld world(options.world);
+  const std::vector<Eigen::Isometry3d> truth = world.trajectory(options.drive);
+  const std::vector<Eigen::Isometry3d> drift = apply_drift(truth, options.drift);
+  std::size_t raw = 0;
+  for (std::size_t k = 0; k < truth.size(); ++k) {
+    EXPECT_TRUE(truth[k].isApprox(one.T_world_truth[k], 0.0));
+    EXPECT_TRUE(drift[k].isApprox(one.T_world_drift[k], 0.0));
+    const PointCloud scan = world.scan(truth[k], synthetic_frame_noise_seed(options.world.seed, k));
+    raw += scan.size();
+    const auto frame = preprocess_frame(scan, options.preprocess, "frame");
+    EXPECT_TRUE(same_points(frame->cloud(), one.frames[k]->cloud())) << k;
+    EXPECT_TRUE(same_points(one.frames[k]->cloud(), two.frames[k]->cloud())) << k;
+    EXPECT_TRUE(one.T_world_initial[k].isApprox(two.T_world_initial[k], 1e-12)) << k;
+  }
+  EXPECT_EQ(one.raw_points, raw);
+  EXPECT_FALSE(one.pairs.empty());
+  ASSERT_EQ(one.pairs.size(), two.pairs.size());
+  for (std::size_t i = 0; i < one.pairs.size(); ++i) {
+    EXPECT_EQ(one.pairs[i].source, two.pairs[i].source);
+    EXPECT_EQ(one.pairs[i].target, two.pairs[i].target);
+  }
+}
+
+TEST(SyntheticPipelineTest, SkipsOdometryAndGraphWhenAskedAndRejectsNoThreads) {
+  SyntheticPipelineOptions options = quick_pipeline(1);
+  options.odometry = false;
+  options.dense_graph = false;
+  const SyntheticPipeline pipeline = simulate_pipeline(options);
+  ASSERT_EQ(pipeline.T_world_initial.size(), pipeline.T_world_drift.size());
+  for (std::size_t k = 0; k < pipeline.T_world_drift.size(); ++k)
+    EXPECT_TRUE(pipeline.T_world_initial[k].isApprox(pipeline.T_world_drift[k], 0.0));
+  EXPECT_TRUE(pipeline.pairs.empty());
+  options.threads = 0;
+  EXPECT_THAT([&] { simulate_pipeline(options); },
+              ::testing::ThrowsMessage<Error>(HasSubstr("SyntheticPipelineOptions.threads")));
 }
 
 }  // namespace
