@@ -44,6 +44,7 @@
 #include <string>
 #include <vector>
 
+#include "carat/base/stopwatch.hpp"
 #include "carat/registration/dense_graph.hpp"
 #include "carat/registration/frame.hpp"
 #include "carat/registration/global_registration.hpp"
@@ -52,7 +53,6 @@
 #include "carat/residuals/gicp_block.hpp"
 #include "carat/sim/pipeline.hpp"
 #include "carat/solver/solve.hpp"
-#include "carat/solver/stopwatch.hpp"
 
 namespace {
 

@@ -5,9 +5,9 @@
 #include <cstdint>
 #include <string_view>
 
+#include "carat/base/error.hpp"
 #include "carat/residuals/io/g2o_io.hpp"
 #include "carat/residuals/pose_graph.hpp"
-#include "carat/solver/error.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const std::string_view text(reinterpret_cast<const char*>(data), size);

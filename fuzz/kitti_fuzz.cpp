@@ -4,9 +4,9 @@
 #include <cstdint>
 #include <string_view>
 
+#include "carat/base/error.hpp"
 #include "carat/registration/io/kitti_io.hpp"
 #include "carat/registration/voxel_grid.hpp"
-#include "carat/solver/error.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const std::string_view bytes(reinterpret_cast<const char*>(data), size);

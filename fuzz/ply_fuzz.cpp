@@ -7,8 +7,8 @@
 #include <cstdint>
 #include <string_view>
 
+#include "carat/base/error.hpp"
 #include "carat/registration/io/point_cloud_io.hpp"
-#include "carat/solver/error.hpp"
 #include "header_mutator.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {

@@ -10,8 +10,8 @@
 #include <string>
 #include <string_view>
 
+#include "carat/base/error.hpp"
 #include "carat/registration/io/trajectory_io.hpp"
-#include "carat/solver/error.hpp"
 
 namespace {
 

@@ -8,11 +8,11 @@
 #include <random>
 #include <tuple>
 
+#include "carat/base/error.hpp"
 #include "carat/coreset/caratheodory.hpp"
 #include "carat/coreset/compress.hpp"
 #include "carat/coreset/quadratic_model.hpp"
 #include "carat/coreset/row_coreset.hpp"
-#include "carat/solver/error.hpp"
 #include "carat/solver/jacobian_checker.hpp"
 #include "carat/solver/manifold.hpp"
 #include "coreset_test_blocks.hpp"

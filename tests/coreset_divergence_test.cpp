@@ -6,8 +6,8 @@
 #include <Eigen/LU>
 #include <cmath>
 
+#include "carat/base/error.hpp"
 #include "carat/coreset/information_divergence.hpp"
-#include "carat/solver/error.hpp"
 
 namespace carat {
 namespace {

@@ -8,9 +8,9 @@
 #include <random>
 #include <string>
 
+#include "carat/base/error.hpp"
 #include "carat/coreset/quadratic_model.hpp"
 #include "carat/coreset/row_coreset.hpp"
-#include "carat/solver/error.hpp"
 
 namespace carat::test {
 

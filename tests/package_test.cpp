@@ -38,7 +38,7 @@ TEST(PackageTest, VersionIsTheProjectVersion) {
 TEST(PackageTest, UmbrellaHeaderIncludesEveryPublicHeader) {
   const std::filesystem::path source(CARAT_SOURCE_DIR);
   std::set<std::string> expected;
-  for (const char* module : {"solver", "coreset", "residuals", "registration", "sim"}) {
+  for (const char* module : {"base", "solver", "coreset", "residuals", "registration", "sim"}) {
     const std::filesystem::path folder = source / module / "include" / "carat" / module;
     for (const auto& entry : std::filesystem::recursive_directory_iterator(folder)) {
       if (entry.path().extension() == ".hpp") {

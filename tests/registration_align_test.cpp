@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <random>
 
+#include "carat/base/error.hpp"
 #include "carat/coreset/compress.hpp"
 #include "carat/registration/align.hpp"
 #include "carat/registration/covariance.hpp"
@@ -14,7 +15,6 @@
 #include "carat/registration/kdtree.hpp"
 #include "carat/registration/voxel_grid.hpp"
 #include "carat/residuals/gicp_block.hpp"
-#include "carat/solver/error.hpp"
 #include "carat/solver/jacobian_checker.hpp"
 #include "carat/solver/manifold.hpp"
 #include "test_support.hpp"

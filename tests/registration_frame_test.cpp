@@ -6,8 +6,8 @@
 #include <random>
 #include <vector>
 
+#include "carat/base/error.hpp"
 #include "carat/registration/frame.hpp"
-#include "carat/solver/error.hpp"
 
 namespace carat {
 namespace {

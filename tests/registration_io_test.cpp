@@ -5,9 +5,9 @@
 #include <fstream>
 #include <vector>
 
+#include "carat/base/error.hpp"
 #include "carat/registration/io/kitti_io.hpp"
 #include "carat/registration/io/point_cloud_io.hpp"
-#include "carat/solver/error.hpp"
 #include "test_support.hpp"
 
 namespace carat {

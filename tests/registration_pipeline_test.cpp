@@ -14,6 +14,7 @@
 #include <utility>
 #include <vector>
 
+#include "carat/base/error.hpp"
 #include "carat/coreset/problem_compression.hpp"
 #include "carat/registration/dense_graph.hpp"
 #include "carat/registration/frame.hpp"
@@ -26,7 +27,6 @@
 #include "carat/registration/pose_perturbation.hpp"
 #include "carat/registration/trajectory_error.hpp"
 #include "carat/sim/pipeline.hpp"
-#include "carat/solver/error.hpp"
 #include "carat/solver/evaluate.hpp"
 #include "carat/solver/loss_function.hpp"
 #include "carat/solver/se3.hpp"

@@ -5,8 +5,8 @@
 #include <cmath>
 #include <vector>
 
+#include "carat/base/error.hpp"
 #include "carat/registration/pose_perturbation.hpp"
-#include "carat/solver/error.hpp"
 
 namespace carat {
 namespace {

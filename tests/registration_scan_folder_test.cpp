@@ -5,9 +5,9 @@
 #include <fstream>
 #include <random>
 
+#include "carat/base/error.hpp"
 #include "carat/registration/io/kitti_io.hpp"
 #include "carat/registration/io/scan_folder.hpp"
-#include "carat/solver/error.hpp"
 #include "test_support.hpp"
 
 namespace carat {

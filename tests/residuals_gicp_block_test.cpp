@@ -7,8 +7,8 @@
 #include <string>
 #include <vector>
 
+#include "carat/base/error.hpp"
 #include "carat/residuals/gicp_block.hpp"
-#include "carat/solver/error.hpp"
 #include "carat/solver/jacobian_checker.hpp"
 #include "carat/solver/manifold.hpp"
 #include "carat/solver/se3.hpp"

@@ -10,12 +10,12 @@
 #include <random>
 #include <vector>
 
+#include "carat/base/error.hpp"
 #include "carat/residuals/gicp_block.hpp"
 #include "carat/residuals/lossless_block.hpp"
 #include "carat/residuals/point_to_plane_block.hpp"
 #include "carat/residuals/point_to_point_block.hpp"
 #include "carat/residuals/pose_gram.hpp"
-#include "carat/solver/error.hpp"
 #include "carat/solver/jacobian_checker.hpp"
 #include "carat/solver/manifold.hpp"
 #include "carat/solver/se3.hpp"

@@ -5,10 +5,10 @@
 #include <numeric>
 #include <random>
 
+#include "carat/base/error.hpp"
 #include "carat/coreset/compress.hpp"
 #include "carat/residuals/point_to_plane_block.hpp"
 #include "carat/residuals/point_to_point_block.hpp"
-#include "carat/solver/error.hpp"
 #include "carat/solver/jacobian_checker.hpp"
 #include "carat/solver/manifold.hpp"
 #include "carat/solver/se3.hpp"

@@ -9,12 +9,12 @@
 #include <random>
 #include <sstream>
 
+#include "carat/base/error.hpp"
 #include "carat/residuals/io/g2o_io.hpp"
 #include "carat/residuals/pose_graph.hpp"
 #include "carat/residuals/pose_prior_block.hpp"
 #include "carat/residuals/relative_pose_block.hpp"
 #include "carat/sim/pose_graph.hpp"
-#include "carat/solver/error.hpp"
 #include "carat/solver/jacobian_checker.hpp"
 #include "carat/solver/solve.hpp"
 #include "test_support.hpp"

@@ -15,6 +15,8 @@
 #include <sstream>
 #include <string>
 
+#include "carat/base/error.hpp"
+#include "carat/base/stopwatch.hpp"
 #include "carat/registration/align.hpp"
 #include "carat/registration/covariance.hpp"
 #include "carat/registration/io/kitti_io.hpp"
@@ -25,8 +27,6 @@
 #include "carat/sim/pipeline.hpp"
 #include "carat/sim/sequence.hpp"
 #include "carat/sim/world.hpp"
-#include "carat/solver/error.hpp"
-#include "carat/solver/stopwatch.hpp"
 
 namespace carat {
 namespace {

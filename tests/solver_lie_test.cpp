@@ -5,7 +5,7 @@
 #include <sstream>
 #include <string>
 
-#include "carat/solver/error.hpp"
+#include "carat/base/error.hpp"
 #include "carat/solver/manifold.hpp"
 #include "carat/solver/se3.hpp"
 #include "carat/solver/so3.hpp"

@@ -14,7 +14,7 @@
 
 #include "../solver/src/block_evaluator.hpp"
 #include "../solver/src/sparse_system.hpp"
-#include "carat/solver/error.hpp"
+#include "carat/base/error.hpp"
 #include "carat/solver/loss_function.hpp"
 #include "carat/solver/problem.hpp"
 #include "carat/solver/solver_options.hpp"

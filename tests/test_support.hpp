@@ -6,7 +6,7 @@
 #include <functional>
 #include <string>
 
-#include "carat/solver/error.hpp"
+#include "carat/base/error.hpp"
 
 namespace carat::test {
 

@@ -16,9 +16,9 @@
 #include <limits>
 #include <thread>
 
-#include "carat/solver/atomic_file.hpp"
-#include "carat/solver/output_folder.hpp"
-#include "carat/solver/temporary_paths.hpp"
+#include "carat/base/atomic_file.hpp"
+#include "carat/base/output_folder.hpp"
+#include "carat/base/temporary_paths.hpp"
 
 namespace carat::cli {
 namespace fs = std::filesystem;

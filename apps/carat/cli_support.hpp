@@ -12,7 +12,7 @@
 #include <utility>
 #include <vector>
 
-#include "carat/solver/error.hpp"
+#include "carat/base/error.hpp"
 
 namespace carat::cli {
 

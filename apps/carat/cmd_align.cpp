@@ -8,12 +8,12 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
+#include "carat/base/error.hpp"
+#include "carat/base/stopwatch.hpp"
 #include "carat/registration/align.hpp"
 #include "carat/registration/frame.hpp"
 #include "carat/registration/io/kitti_io.hpp"
 #include "carat/registration/io/point_cloud_io.hpp"
-#include "carat/solver/error.hpp"
-#include "carat/solver/stopwatch.hpp"
 #include "cli_support.hpp"
 #include "commands.hpp"
 

@@ -13,9 +13,9 @@
 #include <utility>
 #include <vector>
 
+#include "carat/base/error.hpp"
 #include "carat/registration/io/trajectory_io.hpp"
 #include "carat/registration/trajectory_error.hpp"
-#include "carat/solver/error.hpp"
 #include "cli_support.hpp"
 #include "commands.hpp"
 

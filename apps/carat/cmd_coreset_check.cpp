@@ -11,10 +11,10 @@
 #include <string>
 #include <vector>
 
+#include "carat/base/error.hpp"
+#include "carat/base/statistics.hpp"
 #include "carat/coreset/quadratic_model.hpp"
 #include "carat/coreset/row_coreset.hpp"
-#include "carat/solver/error.hpp"
-#include "carat/solver/statistics.hpp"
 #include "cli_support.hpp"
 #include "commands.hpp"
 #include "coreset_timing.hpp"

@@ -14,13 +14,13 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
+#include "carat/base/atomic_file.hpp"
+#include "carat/base/error.hpp"
+#include "carat/base/output_folder.hpp"
 #include "carat/registration/dense_graph.hpp"
 #include "carat/registration/frame.hpp"
 #include "carat/registration/trajectory_error.hpp"
 #include "carat/sim/pipeline.hpp"
-#include "carat/solver/atomic_file.hpp"
-#include "carat/solver/error.hpp"
-#include "carat/solver/output_folder.hpp"
 #include "cli_support.hpp"
 #include "commands.hpp"
 #include "mapping_methods.hpp"

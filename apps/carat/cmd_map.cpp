@@ -16,6 +16,9 @@
 #include <string>
 #include <vector>
 
+#include "carat/base/atomic_file.hpp"
+#include "carat/base/error.hpp"
+#include "carat/base/stopwatch.hpp"
 #include "carat/registration/dense_graph.hpp"
 #include "carat/registration/frame.hpp"
 #include "carat/registration/global_registration.hpp"
@@ -26,9 +29,6 @@
 #include "carat/registration/pose_graph_baseline.hpp"
 #include "carat/registration/pose_perturbation.hpp"
 #include "carat/registration/trajectory_error.hpp"
-#include "carat/solver/atomic_file.hpp"
-#include "carat/solver/error.hpp"
-#include "carat/solver/stopwatch.hpp"
 #include "cli_support.hpp"
 #include "commands.hpp"
 #include "mapping_methods.hpp"

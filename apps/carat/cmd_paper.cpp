@@ -11,9 +11,9 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
-#include "carat/solver/atomic_file.hpp"
-#include "carat/solver/output_folder.hpp"
-#include "carat/solver/stopwatch.hpp"
+#include "carat/base/atomic_file.hpp"
+#include "carat/base/output_folder.hpp"
+#include "carat/base/stopwatch.hpp"
 #include "cli_support.hpp"
 #include "commands.hpp"
 #include "paper/paper.hpp"

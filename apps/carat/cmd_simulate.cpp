@@ -12,10 +12,10 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
+#include "carat/base/output_folder.hpp"
 #include "carat/sim/kitti_writer.hpp"
 #include "carat/sim/sequence.hpp"
 #include "carat/sim/world.hpp"
-#include "carat/solver/output_folder.hpp"
 #include "cli_support.hpp"
 #include "commands.hpp"
 #include "progress.hpp"

@@ -6,10 +6,10 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
+#include "carat/base/atomic_file.hpp"
+#include "carat/base/error.hpp"
 #include "carat/residuals/io/g2o_io.hpp"
 #include "carat/residuals/pose_graph.hpp"
-#include "carat/solver/atomic_file.hpp"
-#include "carat/solver/error.hpp"
 #include "carat/solver/loss_function.hpp"
 #include "carat/solver/solve.hpp"
 #include "carat/solver/solver_options.hpp"

@@ -2,7 +2,7 @@
 
 #include <utility>
 
-#include "carat/solver/stopwatch.hpp"
+#include "carat/base/stopwatch.hpp"
 
 namespace carat::cli {
 namespace {

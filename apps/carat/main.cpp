@@ -7,7 +7,7 @@
 #include <new>
 #include <string>
 
-#include "carat/solver/version.hpp"
+#include "carat/base/version.hpp"
 #include "cli_support.hpp"
 #include "commands.hpp"
 

@@ -9,7 +9,7 @@
 #include <mutex>
 #include <string>
 
-#include "carat/solver/stopwatch.hpp"
+#include "carat/base/stopwatch.hpp"
 
 namespace carat::cli {
 

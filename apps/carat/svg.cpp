@@ -6,7 +6,7 @@
 #include <limits>
 #include <sstream>
 
-#include "carat/solver/atomic_file.hpp"
+#include "carat/base/atomic_file.hpp"
 
 namespace carat::cli {
 namespace {

@@ -24,12 +24,12 @@
 #include <vector>
 
 #include "../../examples/camera_localization/camera_scene.hpp"
+#include "carat/base/stopwatch.hpp"
 #include "carat/coreset/problem_compression.hpp"
 #include "carat/residuals/relative_pose_block.hpp"
 #include "carat/solver/autodiff_block.hpp"
 #include "carat/solver/evaluate.hpp"
 #include "carat/solver/solve.hpp"
-#include "carat/solver/stopwatch.hpp"
 
 namespace {
 

@@ -6,7 +6,7 @@
 #include <random>
 #include <string>
 
-#include "carat/solver/error.hpp"
+#include "carat/base/error.hpp"
 #include "elimination.hpp"
 #include "reduction.hpp"
 #include "shuffle.hpp"

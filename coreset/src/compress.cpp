@@ -6,8 +6,8 @@
 #include <string>
 #include <vector>
 
+#include "carat/base/error.hpp"
 #include "carat/coreset/row_coreset.hpp"
-#include "carat/solver/error.hpp"
 #include "shuffle.hpp"
 
 namespace carat {

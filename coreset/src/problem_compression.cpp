@@ -11,10 +11,10 @@
 #include <limits>
 #include <memory>
 
-#include "carat/solver/error.hpp"
+#include "carat/base/error.hpp"
+#include "carat/base/stopwatch.hpp"
 #include "carat/solver/evaluate.hpp"
 #include "carat/solver/solve.hpp"
-#include "carat/solver/stopwatch.hpp"
 
 namespace carat {
 namespace {

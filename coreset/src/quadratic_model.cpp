@@ -2,7 +2,7 @@
 
 #include <cmath>
 
-#include "carat/solver/error.hpp"
+#include "carat/base/error.hpp"
 
 namespace carat {
 namespace {

@@ -9,7 +9,7 @@
 #include <numeric>
 #include <string>
 
-#include "carat/solver/error.hpp"
+#include "carat/base/error.hpp"
 #include "lift.hpp"
 #include "reduction.hpp"
 #include "shuffle.hpp"

@@ -1,7 +1,7 @@
 // Fits y = exp(m x + c) with an automatically differentiated block, through carat::solver alone.
+#include <carat/base/version.hpp>
 #include <carat/solver/autodiff_block.hpp>
 #include <carat/solver/solve.hpp>
-#include <carat/solver/version.hpp>
 #include <cmath>
 #include <cstdio>
 #include <vector>

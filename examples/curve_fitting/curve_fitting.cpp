@@ -15,11 +15,11 @@
 #include <string>
 #include <vector>
 
+#include "carat/base/stopwatch.hpp"
 #include "carat/coreset/problem_compression.hpp"
 #include "carat/solver/autodiff_block.hpp"
 #include "carat/solver/evaluate.hpp"
 #include "carat/solver/solve.hpp"
-#include "carat/solver/stopwatch.hpp"
 
 namespace {
 

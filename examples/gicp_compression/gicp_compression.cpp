@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <string>
 
+#include "carat/base/error.hpp"
 #include "carat/coreset/compress.hpp"
 #include "carat/registration/align.hpp"
 #include "carat/registration/correspondences.hpp"
@@ -18,7 +19,6 @@
 #include "carat/registration/io/kitti_io.hpp"
 #include "carat/residuals/gicp_block.hpp"
 #include "carat/residuals/lossless_block.hpp"
-#include "carat/solver/error.hpp"
 #include "carat/solver/jacobian_checker.hpp"
 #include "carat/solver/se3.hpp"
 

@@ -11,13 +11,13 @@
 #include <random>
 #include <vector>
 
+#include "carat/base/stopwatch.hpp"
 #include "carat/coreset/compress.hpp"
 #include "carat/residuals/relative_pose_autodiff_block.hpp"
 #include "carat/solver/jacobian_checker.hpp"
 #include "carat/solver/problem.hpp"
 #include "carat/solver/se3.hpp"
 #include "carat/solver/solve.hpp"
-#include "carat/solver/stopwatch.hpp"
 
 namespace {
 

@@ -10,9 +10,9 @@
 #include <memory>
 #include <string>
 
+#include "carat/base/error.hpp"
 #include "carat/residuals/io/g2o_io.hpp"
 #include "carat/sim/pose_graph.hpp"
-#include "carat/solver/error.hpp"
 #include "carat/solver/solve.hpp"
 
 int main(int argc, char** argv) {

@@ -3,6 +3,14 @@
 // Every public header of carat (solver, coreset, residuals, registration, sim), for programs that
 // would rather include one file. Each header stands alone as well.
 
+#include <carat/base/atomic_file.hpp>
+#include <carat/base/error.hpp>
+#include <carat/base/input_file.hpp>
+#include <carat/base/output_folder.hpp>
+#include <carat/base/statistics.hpp>
+#include <carat/base/stopwatch.hpp>
+#include <carat/base/temporary_paths.hpp>
+#include <carat/base/version.hpp>
 #include <carat/coreset/caratheodory.hpp>
 #include <carat/coreset/compress.hpp>
 #include <carat/coreset/compressed_block.hpp>
@@ -48,19 +56,15 @@
 #include <carat/sim/sequence.hpp>
 #include <carat/sim/world.hpp>
 #include <carat/sim/world_options.hpp>
-#include <carat/solver/atomic_file.hpp>
 #include <carat/solver/autodiff_block.hpp>
 #include <carat/solver/block_checker.hpp>
-#include <carat/solver/error.hpp>
 #include <carat/solver/evaluate.hpp>
 #include <carat/solver/grouped_rows_block.hpp>
-#include <carat/solver/input_file.hpp>
 #include <carat/solver/jacobian_checker.hpp>
 #include <carat/solver/lie_functions.hpp>
 #include <carat/solver/loss_function.hpp>
 #include <carat/solver/manifold.hpp>
 #include <carat/solver/numeric_diff_block.hpp>
-#include <carat/solver/output_folder.hpp>
 #include <carat/solver/problem.hpp>
 #include <carat/solver/residual_block.hpp>
 #include <carat/solver/se3.hpp>
@@ -68,8 +72,4 @@
 #include <carat/solver/solve.hpp>
 #include <carat/solver/solver_options.hpp>
 #include <carat/solver/solver_summary.hpp>
-#include <carat/solver/statistics.hpp>
-#include <carat/solver/stopwatch.hpp>
-#include <carat/solver/temporary_paths.hpp>
 #include <carat/solver/variable_id.hpp>
-#include <carat/solver/version.hpp>

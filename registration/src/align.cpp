@@ -12,14 +12,14 @@
 #include <string>
 #include <vector>
 
+#include "carat/base/error.hpp"
+#include "carat/base/stopwatch.hpp"
 #include "carat/registration/correspondences.hpp"
 #include "carat/residuals/gicp_block.hpp"
 #include "carat/residuals/point_to_plane_block.hpp"
 #include "carat/residuals/point_to_point_block.hpp"
-#include "carat/solver/error.hpp"
 #include "carat/solver/problem.hpp"
 #include "carat/solver/solve.hpp"
-#include "carat/solver/stopwatch.hpp"
 
 namespace carat {
 namespace {

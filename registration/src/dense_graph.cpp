@@ -10,8 +10,8 @@
 #include <cmath>
 #include <string>
 
+#include "carat/base/error.hpp"
 #include "carat/registration/overlap.hpp"
-#include "carat/solver/error.hpp"
 #include "parallel.hpp"
 
 namespace carat {

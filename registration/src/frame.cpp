@@ -12,8 +12,8 @@
 #include <string>
 #include <utility>
 
+#include "carat/base/error.hpp"
 #include "carat/registration/voxel_grid.hpp"
-#include "carat/solver/error.hpp"
 #include "parallel.hpp"
 
 namespace carat {

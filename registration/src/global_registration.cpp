@@ -13,15 +13,15 @@
 #include <string>
 #include <utility>
 
+#include "carat/base/error.hpp"
+#include "carat/base/stopwatch.hpp"
 #include "carat/coreset/compress.hpp"
 #include "carat/coreset/row_coreset.hpp"
 #include "carat/registration/correspondences.hpp"
 #include "carat/residuals/gicp_block.hpp"
 #include "carat/residuals/lossless_block.hpp"
-#include "carat/solver/error.hpp"
 #include "carat/solver/se3.hpp"
 #include "carat/solver/solve.hpp"
-#include "carat/solver/stopwatch.hpp"
 #include "parallel.hpp"
 
 namespace carat {

@@ -2,7 +2,7 @@
 
 #include <string>
 
-#include "carat/solver/error.hpp"
+#include "carat/base/error.hpp"
 
 namespace carat {
 

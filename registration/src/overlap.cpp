@@ -4,7 +4,7 @@
 #include <cmath>
 #include <string>
 
-#include "carat/solver/error.hpp"
+#include "carat/base/error.hpp"
 
 namespace carat {
 namespace {

@@ -8,8 +8,8 @@
 #include <atomic>
 #include <string>
 
-#include "carat/solver/error.hpp"
-#include "carat/solver/stopwatch.hpp"
+#include "carat/base/error.hpp"
+#include "carat/base/stopwatch.hpp"
 #include "parallel.hpp"
 
 namespace carat {

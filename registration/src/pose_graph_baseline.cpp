@@ -3,8 +3,8 @@
 #include <memory>
 #include <string>
 
+#include "carat/base/error.hpp"
 #include "carat/residuals/pose_graph.hpp"
-#include "carat/solver/error.hpp"
 #include "carat/solver/solve.hpp"
 
 namespace carat {

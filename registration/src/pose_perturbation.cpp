@@ -5,7 +5,7 @@
 #include <random>
 #include <string>
 
-#include "carat/solver/error.hpp"
+#include "carat/base/error.hpp"
 
 namespace carat {
 

@@ -12,8 +12,8 @@
 #include <utility>
 #include <vector>
 
-#include "carat/solver/error.hpp"
-#include "carat/solver/statistics.hpp"
+#include "carat/base/error.hpp"
+#include "carat/base/statistics.hpp"
 
 namespace carat {
 namespace {

@@ -8,7 +8,7 @@
 #include <utility>
 #include <vector>
 
-#include "carat/solver/error.hpp"
+#include "carat/base/error.hpp"
 
 namespace carat {
 

@@ -6,8 +6,8 @@
 #include <cmath>
 #include <string>
 
+#include "carat/base/error.hpp"
 #include "carat/residuals/registration_rows.hpp"
-#include "carat/solver/error.hpp"
 #include "pose_gram_sum.hpp"
 
 namespace carat {

@@ -6,8 +6,8 @@
 #include <string>
 #include <utility>
 
+#include "carat/base/error.hpp"
 #include "carat/residuals/registration_rows.hpp"
-#include "carat/solver/error.hpp"
 
 namespace carat {
 namespace {

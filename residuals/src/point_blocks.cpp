@@ -2,10 +2,10 @@
 #include <cmath>
 #include <string>
 
+#include "carat/base/error.hpp"
 #include "carat/residuals/point_to_plane_block.hpp"
 #include "carat/residuals/point_to_point_block.hpp"
 #include "carat/residuals/registration_rows.hpp"
-#include "carat/solver/error.hpp"
 #include "pose_gram_sum.hpp"
 
 namespace carat {

@@ -4,8 +4,8 @@
 #include <unordered_map>
 #include <vector>
 
+#include "carat/base/error.hpp"
 #include "carat/residuals/relative_pose_block.hpp"
-#include "carat/solver/error.hpp"
 
 namespace carat {
 

@@ -3,7 +3,7 @@
 #include <Eigen/Cholesky>
 #include <string>
 
-#include "carat/solver/error.hpp"
+#include "carat/base/error.hpp"
 #include "carat/solver/so3.hpp"
 
 namespace carat {

@@ -6,8 +6,8 @@
 #include <string>
 #include <vector>
 
+#include "carat/base/error.hpp"
 #include "carat/sim/world.hpp"
-#include "carat/solver/error.hpp"
 
 namespace carat {
 namespace {

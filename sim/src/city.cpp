@@ -6,7 +6,7 @@
 #include <string>
 #include <utility>
 
-#include "carat/solver/error.hpp"
+#include "carat/base/error.hpp"
 #include "scene.hpp"
 
 namespace carat {

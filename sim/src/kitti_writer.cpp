@@ -8,9 +8,9 @@
 #include <string>
 #include <system_error>
 
+#include "carat/base/atomic_file.hpp"
+#include "carat/base/error.hpp"
 #include "carat/registration/io/kitti_io.hpp"
-#include "carat/solver/atomic_file.hpp"
-#include "carat/solver/error.hpp"
 
 namespace carat {
 namespace {

@@ -3,11 +3,11 @@
 #include <atomic>
 #include <string>
 
+#include "carat/base/error.hpp"
+#include "carat/base/stopwatch.hpp"
 #include "carat/registration/odometry.hpp"
 #include "carat/sim/sequence.hpp"
 #include "carat/sim/world.hpp"
-#include "carat/solver/error.hpp"
-#include "carat/solver/stopwatch.hpp"
 
 namespace carat {
 namespace {

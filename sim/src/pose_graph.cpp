@@ -4,7 +4,7 @@
 #include <random>
 #include <string>
 
-#include "carat/solver/error.hpp"
+#include "carat/base/error.hpp"
 #include "carat/solver/se3.hpp"
 
 namespace carat {

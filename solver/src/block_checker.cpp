@@ -12,7 +12,7 @@
 #include <numeric>
 #include <random>
 
-#include "carat/solver/error.hpp"
+#include "carat/base/error.hpp"
 
 namespace carat {
 namespace {

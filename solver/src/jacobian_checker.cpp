@@ -6,7 +6,7 @@
 #include <numeric>
 #include <vector>
 
-#include "carat/solver/error.hpp"
+#include "carat/base/error.hpp"
 
 namespace carat {
 

@@ -5,7 +5,7 @@
 #include <string>
 #include <utility>
 
-#include "carat/solver/error.hpp"
+#include "carat/base/error.hpp"
 
 namespace carat {
 

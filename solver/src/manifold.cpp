@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-#include "carat/solver/error.hpp"
+#include "carat/base/error.hpp"
 #include "carat/solver/se3.hpp"
 #include "carat/solver/so3.hpp"
 

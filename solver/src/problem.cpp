@@ -3,7 +3,7 @@
 #include <algorithm>
 #include <string>
 
-#include "carat/solver/error.hpp"
+#include "carat/base/error.hpp"
 #include "carat/solver/se3.hpp"
 
 namespace carat {

@@ -10,8 +10,8 @@
 #include <vector>
 
 #include "block_evaluator.hpp"
-#include "carat/solver/error.hpp"
-#include "carat/solver/stopwatch.hpp"
+#include "carat/base/error.hpp"
+#include "carat/base/stopwatch.hpp"
 #include "factorization_reuse.hpp"
 #include "hessian_damping.hpp"
 #include "sparse_system.hpp"

@@ -9,7 +9,7 @@
 #include <numeric>
 #include <tuple>
 
-#include "carat/solver/error.hpp"
+#include "carat/base/error.hpp"
 #include "huge_pages.hpp"
 
 namespace carat::internal {

@@ -2,10 +2,10 @@
 #include <cstdio>
 #include <system_error>
 
+#include "carat/base/error.hpp"
 #include "carat/registration/align.hpp"
 #include "carat/registration/correspondences.hpp"
 #include "carat/registration/io/kitti_io.hpp"
-#include "carat/solver/error.hpp"
 #include "carat/solver/se3.hpp"
 #include "paper.hpp"
 

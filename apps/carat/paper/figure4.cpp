@@ -4,9 +4,9 @@
 #include <numbers>
 #include <random>
 
+#include "carat/base/statistics.hpp"
 #include "carat/coreset/compress.hpp"
 #include "carat/solver/se3.hpp"
-#include "carat/solver/statistics.hpp"
 #include "paper.hpp"
 #include "report_table.hpp"
 #include "svg.hpp"

@@ -1,9 +1,9 @@
 // carat paper: the real KITTI 07 dense graph, GRE exact vs full vs PGO from a perturbed start.
+#include "carat/base/error.hpp"
 #include "carat/registration/dense_graph.hpp"
-#include "carat/registration/pose_perturbation.hpp"
 #include "carat/registration/io/scan_folder.hpp"
 #include "carat/registration/io/trajectory_io.hpp"
-#include "carat/solver/error.hpp"
+#include "carat/registration/pose_perturbation.hpp"
 #include "mapping_methods.hpp"
 #include "paper.hpp"
 #include "report_table.hpp"

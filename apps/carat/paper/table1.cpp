@@ -1,9 +1,9 @@
 // carat paper, Table I: coreset time vs M at N = 30 000 (random J, e), beside Eigen's H, b, c.
 #include <algorithm>
 
+#include "carat/base/statistics.hpp"
 #include "carat/coreset/quadratic_model.hpp"
 #include "carat/coreset/row_coreset.hpp"
-#include "carat/solver/statistics.hpp"
 #include "coreset_timing.hpp"
 #include "paper.hpp"
 #include "report_table.hpp"

@@ -2,9 +2,9 @@
 // sampling on the real KITTI 00 pair.
 #include <random>
 
+#include "carat/base/error.hpp"
 #include "carat/coreset/compress.hpp"
 #include "carat/coreset/information_divergence.hpp"
-#include "carat/solver/error.hpp"
 #include "paper.hpp"
 #include "report_table.hpp"
 

@@ -7,9 +7,9 @@
 #include <string>
 #include <vector>
 
-#include "carat/solver/atomic_file.hpp"
-#include "carat/solver/error.hpp"
-#include "carat/solver/input_file.hpp"
+#include "carat/base/atomic_file.hpp"
+#include "carat/base/error.hpp"
+#include "carat/base/input_file.hpp"
 
 namespace carat {
 namespace {

@@ -5,8 +5,8 @@
 #include <map>
 #include <system_error>
 
+#include "carat/base/error.hpp"
 #include "carat/registration/io/point_cloud_io.hpp"
-#include "carat/solver/error.hpp"
 
 namespace carat {
 namespace fs = std::filesystem;

@@ -9,10 +9,10 @@
 #include <unordered_map>
 #include <vector>
 
+#include "carat/base/atomic_file.hpp"
+#include "carat/base/error.hpp"
+#include "carat/base/input_file.hpp"
 #include "carat/residuals/pose_prior_block.hpp"
-#include "carat/solver/atomic_file.hpp"
-#include "carat/solver/error.hpp"
-#include "carat/solver/input_file.hpp"
 
 namespace carat {
 namespace {

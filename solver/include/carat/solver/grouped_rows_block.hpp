@@ -19,7 +19,7 @@
 #include <utility>
 #include <vector>
 
-#include "carat/solver/error.hpp"
+#include "carat/base/error.hpp"
 #include "carat/solver/residual_block.hpp"
 
 namespace carat {

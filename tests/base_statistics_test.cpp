@@ -6,8 +6,8 @@
 #include <random>
 #include <vector>
 
-#include "carat/solver/error.hpp"
-#include "carat/solver/statistics.hpp"
+#include "carat/base/error.hpp"
+#include "carat/base/statistics.hpp"
 #include "test_support.hpp"
 
 namespace carat {

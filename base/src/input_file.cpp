@@ -1,4 +1,4 @@
-#include "carat/solver/input_file.hpp"
+#include "carat/base/input_file.hpp"
 
 #include <fcntl.h>
 #include <sys/stat.h>
@@ -8,7 +8,7 @@
 #include <cerrno>
 #include <cstring>
 
-#include "carat/solver/error.hpp"
+#include "carat/base/error.hpp"
 
 namespace carat {
 namespace {

@@ -1,4 +1,4 @@
-#include "carat/solver/version.hpp"
+#include "carat/base/version.hpp"
 
 namespace carat {
 

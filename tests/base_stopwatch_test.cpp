@@ -5,7 +5,7 @@
 #include <chrono>
 #include <thread>
 
-#include "carat/solver/stopwatch.hpp"
+#include "carat/base/stopwatch.hpp"
 
 namespace carat {
 namespace {

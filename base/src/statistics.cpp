@@ -1,10 +1,10 @@
-#include "carat/solver/statistics.hpp"
+#include "carat/base/statistics.hpp"
 
 #include <algorithm>
 #include <cstddef>
 #include <vector>
 
-#include "carat/solver/error.hpp"
+#include "carat/base/error.hpp"
 
 namespace carat {
 

@@ -1,4 +1,4 @@
-#include "carat/solver/atomic_file.hpp"
+#include "carat/base/atomic_file.hpp"
 
 #include <fcntl.h>
 #include <sys/stat.h>
@@ -16,8 +16,8 @@
 #include <string>
 #include <system_error>
 
-#include "carat/solver/error.hpp"
-#include "carat/solver/temporary_paths.hpp"
+#include "carat/base/error.hpp"
+#include "carat/base/temporary_paths.hpp"
 #include "temporary_name.hpp"
 
 namespace carat {

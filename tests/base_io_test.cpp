@@ -13,11 +13,11 @@
 #include <thread>
 #include <vector>
 
-#include "carat/solver/atomic_file.hpp"
-#include "carat/solver/error.hpp"
-#include "carat/solver/input_file.hpp"
-#include "carat/solver/output_folder.hpp"
-#include "carat/solver/temporary_paths.hpp"
+#include "carat/base/atomic_file.hpp"
+#include "carat/base/error.hpp"
+#include "carat/base/input_file.hpp"
+#include "carat/base/output_folder.hpp"
+#include "carat/base/temporary_paths.hpp"
 #include "test_support.hpp"
 
 namespace carat {

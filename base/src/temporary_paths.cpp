@@ -1,4 +1,4 @@
-#include "carat/solver/temporary_paths.hpp"
+#include "carat/base/temporary_paths.hpp"
 
 #include <algorithm>
 #include <mutex>

@@ -1,4 +1,4 @@
-#include "carat/solver/output_folder.hpp"
+#include "carat/base/output_folder.hpp"
 
 #include <fcntl.h>
 #include <stdio.h>
@@ -9,9 +9,9 @@
 #include <fstream>
 #include <system_error>
 
-#include "carat/solver/atomic_file.hpp"
-#include "carat/solver/error.hpp"
-#include "carat/solver/temporary_paths.hpp"
+#include "carat/base/atomic_file.hpp"
+#include "carat/base/error.hpp"
+#include "carat/base/temporary_paths.hpp"
 #include "temporary_name.hpp"
 
 namespace carat {
