@@ -13,17 +13,12 @@
 #include "carat/solver/jacobian_checker.hpp"
 #include "carat/solver/lie_functions.hpp"
 #include "carat/solver/se3.hpp"
+#include "test_support.hpp"
 
 namespace carat {
 namespace {
 
-Eigen::Isometry3d random_pose(std::mt19937_64& rng, double rotation = 1.0, double shift = 3.0) {
-  std::normal_distribution<double> n;
-  se3::Vector6d xi;
-  for (int k = 0; k < 3; ++k) xi[k] = rotation * n(rng);
-  for (int k = 3; k < 6; ++k) xi[k] = shift * n(rng);
-  return se3::exp(xi);
-}
+using test::random_pose;
 
 /// carat's GICP row written as a functor of T_ij: W (mu_target - T_ij mu_source).
 struct GicpDatum {

@@ -23,19 +23,14 @@
 #include "carat/solver/so3.hpp"
 #include "carat/solver/solve.hpp"
 #include "curve_fit_problem.hpp"
+#include "test_support.hpp"
 
 namespace carat {
 namespace {
 
 using Dual = Eigen::AutoDiffScalar<Eigen::Matrix<double, 3, 1>>;
 
-Eigen::Isometry3d random_pose(std::mt19937_64& rng, double rotation = 1.0, double shift = 3.0) {
-  std::normal_distribution<double> n;
-  se3::Vector6d xi;
-  for (int k = 0; k < 3; ++k) xi[k] = rotation * n(rng);
-  for (int k = 3; k < 6; ++k) xi[k] = shift * n(rng);
-  return se3::exp(xi);
-}
+using test::random_pose;
 
 TEST(LieFunctionsTest, MatchTheDoubleVersions) {
   std::mt19937_64 rng(2);

@@ -2,11 +2,14 @@
 
 // Helpers shared by carat's tests.
 
+#include <Eigen/Geometry>
 #include <filesystem>
 #include <functional>
+#include <random>
 #include <string>
 
 #include "carat/base/error.hpp"
+#include "carat/solver/se3.hpp"
 
 namespace carat::test {
 
@@ -27,6 +30,17 @@ inline std::string error_of(const std::function<void()>& f) {
     return e.what();
   }
   return "(no error)";
+}
+
+/// A random pose Exp(xi): rotation vector ~ N(0, rotation^2) per axis (radians), translation
+/// ~ N(0, shift^2) per axis (metres).
+inline Eigen::Isometry3d random_pose(std::mt19937_64& rng, double rotation = 1.0,
+                                     double shift = 3.0) {
+  std::normal_distribution<double> n;
+  se3::Vector6d xi;
+  for (int k = 0; k < 3; ++k) xi[k] = rotation * n(rng);
+  for (int k = 3; k < 6; ++k) xi[k] = shift * n(rng);
+  return se3::exp(xi);
 }
 
 }  // namespace carat::test

@@ -6,7 +6,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <exception>
 #include <limits>
 #include <memory>
@@ -17,16 +16,6 @@
 #include "carat/solver/solve.hpp"
 
 namespace carat {
-namespace {
-
-std::string number(double value) {
-  char buffer[32];
-  std::snprintf(buffer, sizeof(buffer), "%.6g", value);
-  return buffer;
-}
-
-}  // namespace
-
 ProblemCompressionReport compress_problem(Problem& problem,
                                           const ProblemCompressionOptions& options) {
   const Stopwatch total_time;
@@ -78,12 +67,12 @@ ProblemCompressionReport compress_problem(Problem& problem,
 }
 
 std::string RecompressedSolveSummary::brief_report() const {
-  return "recompressed solve: full cost " + number(initial_cost) + " -> " + number(final_cost) +
-         " (max |gradient| " + number(final_gradient_max_norm) + "), " +
-         std::to_string(recompressions) + " compressions, " + std::to_string(inner_iterations) +
-         " inner iterations, " + std::to_string(full_rows) + " -> " +
-         std::to_string(compressed_rows) + " rows, " + to_string(termination) + " (" + message +
-         "), " + number(total_s) + " s";
+  return "recompressed solve: full cost " + message_number(initial_cost) + " -> " +
+         message_number(final_cost) + " (max |gradient| " +
+         message_number(final_gradient_max_norm) + "), " + std::to_string(recompressions) +
+         " compressions, " + std::to_string(inner_iterations) + " inner iterations, " +
+         std::to_string(full_rows) + " -> " + std::to_string(compressed_rows) + " rows, " +
+         to_string(termination) + " (" + message + "), " + message_number(total_s) + " s";
 }
 
 RecompressedSolveSummary solve_recompressed(Problem& problem,
@@ -177,8 +166,8 @@ RecompressedSolveSummary solve_recompressed(Problem& problem,
         continue;
       }
       return finish(TerminationType::kNoConvergence,
-                    "a compressed step did not lower the full cost (" + number(next.cost) +
-                        " after " + number(full.cost) + ")");
+                    "a compressed step did not lower the full cost (" + message_number(next.cost) +
+                        " after " + message_number(full.cost) + ")");
     }
     const double change = full.cost - next.cost;
     full = next;
@@ -187,14 +176,14 @@ RecompressedSolveSummary solve_recompressed(Problem& problem,
     problem.set_all_values(accepted);
     inner.max_iterations = options.inner.max_iterations;
     if (full.gradient_max_norm <= options.gradient_tolerance) {
-      return finish(
-          TerminationType::kConvergence,
-          "full gradient tolerance reached: max |gradient| = " + number(full.gradient_max_norm));
+      return finish(TerminationType::kConvergence,
+                    "full gradient tolerance reached: max |gradient| = " +
+                        message_number(full.gradient_max_norm));
     }
     if (change <= options.function_tolerance * std::max(full.cost, 1e-300)) {
       return finish(TerminationType::kConvergence,
                     "full function tolerance reached: |cost change| / cost = " +
-                        number(full.cost > 0.0 ? change / full.cost : 0.0));
+                        message_number(full.cost > 0.0 ? change / full.cost : 0.0));
     }
   }
 }

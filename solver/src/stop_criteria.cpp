@@ -1,25 +1,15 @@
 #include "stop_criteria.hpp"
 
 #include <cmath>
-#include <cstdio>
+
+#include "carat/base/error.hpp"
 
 namespace carat::internal {
-namespace {
-
-/// A number as %g writes it (std::to_string prints 1e-12 as "0.000000").
-std::string number(double value) {
-  char buffer[32];
-  std::snprintf(buffer, sizeof(buffer), "%.6g", value);
-  return buffer;
-}
-
-}  // namespace
-
 std::optional<StopReason> check_gradient_tolerance(double gradient_max_norm,
                                                    double gradient_tolerance) {
   if (!(gradient_max_norm <= gradient_tolerance)) return std::nullopt;
-  return StopReason{TerminationType::kConvergence,
-                    "gradient tolerance reached: max |gradient| = " + number(gradient_max_norm)};
+  return StopReason{TerminationType::kConvergence, "gradient tolerance reached: max |gradient| = " +
+                                                       message_number(gradient_max_norm)};
 }
 
 std::optional<StopReason> check_iteration_limit(int completed_iterations, int max_iterations) {
@@ -34,15 +24,16 @@ std::optional<StopReason> check_parameter_tolerance(double step_norm, double par
     return std::nullopt;
   }
   return StopReason{TerminationType::kConvergence,
-                    "parameter tolerance reached: |step| = " + number(step_norm)};
+                    "parameter tolerance reached: |step| = " + message_number(step_norm)};
 }
 
 std::optional<StopReason> check_function_tolerance(double cost_decrease, double previous_cost,
                                                    double function_tolerance) {
   if (!(std::abs(cost_decrease) <= function_tolerance * previous_cost)) return std::nullopt;
   const double relative = previous_cost > 0.0 ? std::abs(cost_decrease) / previous_cost : 0.0;
-  return StopReason{TerminationType::kConvergence,
-                    "function tolerance reached: |cost change| / cost = " + number(relative)};
+  return StopReason{
+      TerminationType::kConvergence,
+      "function tolerance reached: |cost change| / cost = " + message_number(relative)};
 }
 
 std::optional<StopReason> check_trust_region_radius(double radius, double min_radius,

@@ -1,5 +1,6 @@
 #pragma once
 
+#include <cstdio>
 #include <stdexcept>
 #include <string>
 #include <string_view>
@@ -24,6 +25,14 @@ inline std::string quote_bytes(std::string_view bytes, std::size_t max_chars = 4
   }
   if (bytes.size() > max_chars) out += "...";
   return out + "'";
+}
+
+/// A number as a message shows it: six significant digits, as %g writes them (1e-12 stays
+/// "1e-12", where std::to_string would print "0.000000").
+inline std::string message_number(double value) {
+  char buffer[32];
+  std::snprintf(buffer, sizeof(buffer), "%.6g", value);
+  return buffer;
 }
 
 }  // namespace carat
