@@ -1,4 +1,4 @@
-// The dense global-registration pipeline end to end on a small synthetic world: overlap, the
+// The dense global-registration pipeline end to end on a small synthetic world: the
 // dense graph, odometry, the pose-graph baselines, and GRE with full / exact / random residuals
 // (exactness of the whole graph's quadratic model, ATE improvement, determinism, bad input);
 // and the 5-frame KITTI 07 recovery when the real data are present.
