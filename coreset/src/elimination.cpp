@@ -123,32 +123,38 @@ void apply_panel(double* const* row_of, Eigen::Index rows, Eigen::Index p0, int 
   apply_panel_4(row_of, rows, p0, count, F, scale, begin, end);
 }
 
+/// out = lanes (I0, ..., I7) of the sixteen lanes of a then b (GCC's and Clang's shuffle
+/// builtins differ in spelling).
+template <int I0, int I1, int I2, int I3, int I4, int I5, int I6, int I7>
+__attribute__((always_inline)) inline void shuffle8(const v8d& a, const v8d& b, v8d& out) {
+#if defined(__clang__)
+  out = __builtin_shufflevector(a, b, I0, I1, I2, I3, I4, I5, I6, I7);
+#else
+  const v8l lanes = {I0, I1, I2, I3, I4, I5, I6, I7};
+  out = __builtin_shuffle(a, b, lanes);
+#endif
+}
+
 /// Transposes the 8 x 8 block held by rows x[0..8) in registers: on return x[j] holds what was
 /// column j.
 __attribute__((always_inline)) inline void transpose8(v8d (&x)[8]) {
-  const v8l even = {0, 8, 2, 10, 4, 12, 6, 14};
-  const v8l odd = {1, 9, 3, 11, 5, 13, 7, 15};
-  const v8l low_pairs = {0, 1, 8, 9, 4, 5, 12, 13};
-  const v8l high_pairs = {2, 3, 10, 11, 6, 7, 14, 15};
-  const v8l low_half = {0, 1, 2, 3, 8, 9, 10, 11};
-  const v8l high_half = {4, 5, 6, 7, 12, 13, 14, 15};
   v8d t[8];
   for (int i = 0; i < 8; i += 2) {
-    t[i] = __builtin_shuffle(x[i], x[i + 1], even);
-    t[i + 1] = __builtin_shuffle(x[i], x[i + 1], odd);
+    shuffle8<0, 8, 2, 10, 4, 12, 6, 14>(x[i], x[i + 1], t[i]);
+    shuffle8<1, 9, 3, 11, 5, 13, 7, 15>(x[i], x[i + 1], t[i + 1]);
   }
   // u[0..4) from rows 0-3: columns {0,4}, {2,6}, {1,5}, {3,7}; u[4..8) the same from rows 4-7.
   v8d u[8];
   for (int h = 0; h < 8; h += 4) {
-    u[h] = __builtin_shuffle(t[h], t[h + 2], low_pairs);
-    u[h + 1] = __builtin_shuffle(t[h], t[h + 2], high_pairs);
-    u[h + 2] = __builtin_shuffle(t[h + 1], t[h + 3], low_pairs);
-    u[h + 3] = __builtin_shuffle(t[h + 1], t[h + 3], high_pairs);
+    shuffle8<0, 1, 8, 9, 4, 5, 12, 13>(t[h], t[h + 2], u[h]);
+    shuffle8<2, 3, 10, 11, 6, 7, 14, 15>(t[h], t[h + 2], u[h + 1]);
+    shuffle8<0, 1, 8, 9, 4, 5, 12, 13>(t[h + 1], t[h + 3], u[h + 2]);
+    shuffle8<2, 3, 10, 11, 6, 7, 14, 15>(t[h + 1], t[h + 3], u[h + 3]);
   }
   const int first[4] = {0, 2, 1, 3};  // the column u[i] starts with
   for (int i = 0; i < 4; ++i) {
-    x[first[i]] = __builtin_shuffle(u[i], u[i + 4], low_half);
-    x[first[i] + 4] = __builtin_shuffle(u[i], u[i + 4], high_half);
+    shuffle8<0, 1, 2, 3, 8, 9, 10, 11>(u[i], u[i + 4], x[first[i]]);
+    shuffle8<4, 5, 6, 7, 12, 13, 14, 15>(u[i], u[i + 4], x[first[i] + 4]);
   }
 }
 
