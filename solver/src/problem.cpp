@@ -25,6 +25,7 @@ VariableId Problem::add_variable(std::shared_ptr<const Manifold> manifold,
   values_.insert(values_.end(), initial.begin(), initial.end());
   manifolds_.push_back(std::move(manifold));
   constant_.push_back(0);
+  eliminable_.push_back(0);
   return id;
 }
 
@@ -55,6 +56,20 @@ void Problem::set_constant(VariableId id, bool constant) {
 bool Problem::is_constant(VariableId id) const {
   check(id);
   return constant_[static_cast<std::size_t>(id.index)] != 0;
+}
+
+void Problem::set_eliminable(VariableId id, bool eliminable) {
+  check(id);
+  eliminable_[static_cast<std::size_t>(id.index)] = eliminable ? 1 : 0;
+}
+
+bool Problem::is_eliminable(VariableId id) const {
+  check(id);
+  return eliminable_[static_cast<std::size_t>(id.index)] != 0;
+}
+
+bool Problem::has_eliminable() const {
+  return std::find(eliminable_.begin(), eliminable_.end(), 1) != eliminable_.end();
 }
 
 ResidualBlockId Problem::add_residual_block(std::shared_ptr<const ResidualBlock> block,

@@ -50,6 +50,25 @@ Ordering parse_ordering(std::string_view name) {
   throw Error("unknown ordering " + quote_bytes(name) + " (valid: auto, amd, metis)");
 }
 
+const char* to_string(LinearSolver solver) {
+  switch (solver) {
+    case LinearSolver::kAuto:
+      return "auto";
+    case LinearSolver::kSchur:
+      return "schur";
+    case LinearSolver::kCholesky:
+      return "cholesky";
+  }
+  return "unknown";
+}
+
+LinearSolver parse_linear_solver(std::string_view name) {
+  if (name == "auto") return LinearSolver::kAuto;
+  if (name == "schur") return LinearSolver::kSchur;
+  if (name == "cholesky") return LinearSolver::kCholesky;
+  throw Error("unknown linear solver " + quote_bytes(name) + " (valid: auto, schur, cholesky)");
+}
+
 bool SolverOptions::validate(std::string* error) const {
   if (max_iterations < 0)
     return fail(error, "max_iterations must be >= 0, got " + std::to_string(max_iterations));

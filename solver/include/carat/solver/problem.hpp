@@ -44,6 +44,17 @@ class Problem {
   /// Whether the variable is held fixed.
   bool is_constant(VariableId id) const;
 
+  /// Marks a variable for elimination by the Schur complement (true) or not (false), like
+  /// the first group of Ceres's ParameterBlockOrdering: landmarks in bundle adjustment. No
+  /// residual block may connect two eliminable variables (solve() checks it).
+  void set_eliminable(VariableId id, bool eliminable = true);
+
+  /// Whether the variable is marked for elimination.
+  bool is_eliminable(VariableId id) const;
+
+  /// Whether any variable is marked for elimination.
+  bool has_eliminable() const;
+
   /// Adds a residual block over `variables` (distinct, tangent sizes matching the block's
   /// tangent_dims()); `loss` may be null. Throws carat::Error on any mismatch.
   ResidualBlockId add_residual_block(std::shared_ptr<const ResidualBlock> block,
@@ -102,6 +113,7 @@ class Problem {
   std::vector<std::shared_ptr<const Manifold>> manifolds_;
   std::vector<std::size_t> offsets_;
   std::vector<char> constant_;
+  std::vector<char> eliminable_;
   std::vector<double> values_;
   std::vector<BlockEntry> blocks_;
 };

@@ -31,10 +31,25 @@ const char* to_string(Ordering ordering);
 /// Parses "auto", "amd" or "metis"; throws carat::Error listing them otherwise.
 Ordering parse_ordering(std::string_view name);
 
+/// How the linear system of each iteration is solved.
+enum class LinearSolver {
+  kAuto,      ///< Schur complement when a group of variables can be eliminated (see solve()),
+              ///< else sparse Cholesky of the whole system
+  kSchur,     ///< eliminate the eliminable variables (Problem::set_eliminable(), or the group
+              ///< kAuto would pick), then sparse Cholesky of the reduced system
+  kCholesky,  ///< sparse Cholesky (CHOLMOD supernodal) of the whole system
+};
+
+/// Name of a linear solver: "auto", "schur" or "cholesky".
+const char* to_string(LinearSolver solver);
+/// Parses "auto", "schur" or "cholesky"; throws carat::Error listing them otherwise.
+LinearSolver parse_linear_solver(std::string_view name);
+
 /// What solve() does and when it stops.
 struct SolverOptions {
   Method method = Method::kLevenbergMarquardt;  ///< nonlinear method
   Ordering ordering = Ordering::kAuto;          ///< fill-reducing ordering
+  LinearSolver linear_solver = LinearSolver::kAuto;  ///< whole system or Schur complement
   int max_iterations = 50;                      ///< iterations (accepted or not) before giving up
   double function_tolerance = 1e-6;             ///< stop when |cost change| / cost < this
   double gradient_tolerance = 1e-10;            ///< stop when max |gradient| < this
