@@ -14,7 +14,7 @@
 #include "carat/base/stopwatch.hpp"
 #include "factorization_reuse.hpp"
 #include "hessian_damping.hpp"
-#include "sparse_system.hpp"
+#include "linear_system.hpp"
 #include "step_quality.hpp"
 #include "stop_criteria.hpp"
 #include "trust_region_strategy.hpp"
@@ -94,7 +94,7 @@ class Solver {
   Problem& problem_;
   SolverSummary& summary_;
   Stopwatch solve_time_;  ///< since the solver was made
-  std::unique_ptr<internal::SparseSystem> system_;
+  std::unique_ptr<internal::LinearSystem> system_;
   std::unique_ptr<internal::BlockEvaluator> evaluator_;
   internal::BlockLinearizations lin_;
   std::vector<double> buffers_[2];
@@ -158,7 +158,9 @@ bool Solver::begin_iteration(int iteration, IterationSummary* row) {
 bool Solver::factorize() {
   const Stopwatch t0;
   const bool factorized = system_->factorize(damping_);
-  summary_.time.numeric_s += t0.elapsed_s();
+  const double elimination_s = system_->take_elimination_seconds();
+  summary_.time.schur_s += elimination_s;
+  summary_.time.numeric_s += t0.elapsed_s() - elimination_s;
   return factorized;
 }
 
@@ -183,7 +185,9 @@ bool Solver::solve_for_step(IterationSummary& row, const Stopwatch& iteration_ti
   const Stopwatch t0;
   rhs_ = -gradient_;
   system_->solve(rhs_, &delta_);
-  summary_.time.solve_s += t0.elapsed_s();
+  const double elimination_s = system_->take_elimination_seconds();
+  summary_.time.schur_s += elimination_s;
+  summary_.time.solve_s += t0.elapsed_s() - elimination_s;
   row.step_norm = delta_.norm();
   if (delta_.allFinite()) return true;
   row.linear_solver_failed = true;
@@ -271,7 +275,9 @@ bool Solver::try_reused_factorization(IterationSummary& row, int iteration,
   rhs_ = -gradient_;
   system_->solve(rhs_, &delta_);
   if (delta_.allFinite()) system_->multiply(delta_, &h_delta_);
-  summary_.time.solve_s += ts.elapsed_s();
+  const double elimination_s = system_->take_elimination_seconds();
+  summary_.time.schur_s += elimination_s;
+  summary_.time.solve_s += ts.elapsed_s() - elimination_s;
   if (!delta_.allFinite()) {
     ++summary_.num_refused_reuses;
     return false;
@@ -409,7 +415,13 @@ bool Solver::initialize() {
   }
 
   Stopwatch t0;
-  system_ = std::make_unique<internal::SparseSystem>(problem_, options_.ordering);
+  try {
+    system_ = internal::make_linear_system(problem_, options_);
+  } catch (const Error& e) {
+    summary_.time.symbolic_s += t0.elapsed_s();
+    finish(TerminationType::kFailure, e.what());
+    return false;
+  }
   summary_.time.symbolic_s += t0.elapsed_s();
   summary_.num_tangent_parameters = system_->size();
   summary_.hessian_nonzeros = system_->hessian_nonzeros();

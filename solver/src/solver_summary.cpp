@@ -93,6 +93,7 @@ std::string SolverSummary::full_report() const {
   out += format("  %-28s %.6f\n", "assembly", time.assembly_s);
   out += format("  %-28s %.6f\n", "numeric factorization", time.numeric_s);
   out += format("  %-28s %.6f\n", "triangular solves", time.solve_s);
+  if (time.schur_s > 0.0) out += format("  %-28s %.6f\n", "schur elimination", time.schur_s);
   out += format("  %-28s %.6f\n", "total", time.total_s);
   out += format("\nTermination: %s (%s)\n", to_string(termination), message.c_str());
   return out;
@@ -125,7 +126,7 @@ std::string SolverSummary::to_json() const {
   j["time_breakdown"] = {{"symbolic_s", time.symbolic_s}, {"linearize_s", time.linearize_s},
                          {"cost_s", time.cost_s},         {"assembly_s", time.assembly_s},
                          {"numeric_s", time.numeric_s},   {"solve_s", time.solve_s},
-                         {"total_s", time.total_s}};
+                         {"schur_s", time.schur_s},       {"total_s", time.total_s}};
   nlohmann::json rows = nlohmann::json::array();
   for (const auto& it : iterations) {
     rows.push_back({{"iteration", it.iteration},

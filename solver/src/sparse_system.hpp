@@ -17,63 +17,43 @@
 #include "carat/solver/problem.hpp"
 #include "carat/solver/solver_options.hpp"
 #include "huge_pages.hpp"
+#include "linear_system.hpp"
 
 namespace carat::internal {
 
-/// Per-block dense linearization storage: H (D x D, column-major) and b (D) for every block.
-struct BlockLinearizations {
-  std::vector<std::size_t> h_offset;  ///< start of block i's H in h
-  std::vector<std::size_t> b_offset;  ///< start of block i's b in b
-  std::vector<int> dim;               ///< D of block i
-  HugeVector<double> h;               ///< all blocks' H
-  HugeVector<double> b;               ///< all blocks' b
-  std::vector<double> cost;           ///< 1/2 rho(s) per block
-};
-
-class SparseSystem {
+class SparseSystem final : public LinearSystem {
  public:
   SparseSystem(const Problem& problem, Ordering ordering);
   ~SparseSystem();
   SparseSystem(const SparseSystem&) = delete;
   SparseSystem& operator=(const SparseSystem&) = delete;
 
-  /// Scalar size n of the system (tangent dimensions of the free variables).
-  int size() const { return n_; }
-  /// Tangent offset of each variable in the (permuted) system, -1 for constant variables.
-  const std::vector<int>& variable_offset() const { return var_offset_; }
-  /// Stored nonzeros of the upper triangle.
-  std::size_t hessian_nonzeros() const { return rows_.size(); }
-  /// Nonzeros of the factor after symbolic analysis.
-  std::size_t factor_nonzeros() const { return factor_nnz_; }
+  std::size_t hessian_nonzeros() const override { return rows_.size(); }
+  std::size_t factor_nonzeros() const override { return factor_nnz_; }
   /// Flops of one numeric factorization (CHOLMOD's estimate).
   double factor_flops() const { return factor_flops_; }
-  /// Name of the factorization and ordering for reports.
-  const std::string& description() const { return description_; }
 
   /// Gathers blocks' H and b into the undamped matrix values and the gradient (parallel over
   /// columns; each destination sums its sources in a fixed order).
-  void assemble(const BlockLinearizations& blocks, Eigen::VectorXd* gradient);
+  void assemble(const BlockLinearizations& blocks, Eigen::VectorXd* gradient) override;
 
   /// Undamped diagonal of H.
-  Eigen::VectorXd diagonal() const;
+  Eigen::VectorXd diagonal() const override;
 
   /// Factorizes H + diag(damping) numerically; false if not positive definite.
-  bool factorize(const Eigen::VectorXd& damping);
+  bool factorize(const Eigen::VectorXd& damping) override;
 
   /// y = H x with the undamped values of the last assembly.
-  void multiply(const Eigen::VectorXd& x, Eigen::VectorXd* y) const;
+  void multiply(const Eigen::VectorXd& x, Eigen::VectorXd* y) const override;
 
   /// Solves (H + diag(damping)) x = rhs with the last successful factorization.
-  void solve(const Eigen::VectorXd& rhs, Eigen::VectorXd* x);
+  void solve(const Eigen::VectorXd& rhs, Eigen::VectorXd* x) override;
 
  private:
   struct Impl;
-  int n_ = 0;
   std::size_t factor_nnz_ = 0;
   double factor_flops_ = 0.0;
   std::string ordering_name_;
-  std::string description_;
-  std::vector<int> var_offset_;
   std::vector<int> var_dim_;
   // Lower-triangular CSC pattern, columns in elimination order.
   std::vector<std::int64_t> colptr_;

@@ -42,6 +42,7 @@ struct TimeBreakdown {
   double symbolic_s = 0.0;   ///< pattern, ordering and CHOLMOD symbolic analysis (once)
   double numeric_s = 0.0;    ///< CHOLMOD numeric factorizations
   double solve_s = 0.0;      ///< triangular solves
+  double schur_s = 0.0;      ///< Schur complement: eliminating variables, back-substitution
   double total_s = 0.0;      ///< whole solve() call
 };
 

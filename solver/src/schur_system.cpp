@@ -1,0 +1,675 @@
+#include "schur_system.hpp"
+
+#include <cholmod.h>
+#include <omp.h>
+#include <tbb/parallel_for.h>
+
+#include <Eigen/Cholesky>
+#include <algorithm>
+#include <atomic>
+#include <string>
+#include <tuple>
+
+#include "carat/base/error.hpp"
+#include "carat/base/stopwatch.hpp"
+
+namespace carat::internal {
+namespace {
+
+using Index = std::size_t;
+
+template <int R, int C>
+using MapMatrix = Eigen::Map<Eigen::Matrix<double, R, C>>;
+template <int R, int C>
+using ConstMapMatrix = Eigen::Map<const Eigen::Matrix<double, R, C>>;
+template <int R>
+using MapVector = Eigen::Map<Eigen::Matrix<double, R, 1>>;
+template <int R>
+using ConstMapVector = Eigen::Map<const Eigen::Matrix<double, R, 1>>;
+
+std::size_t at(int k) { return static_cast<std::size_t>(k); }
+
+}  // namespace
+
+struct SchurSystem::Impl {
+  cholmod_common common{};
+  cholmod_sparse A_storage{};
+  cholmod_factor* L = nullptr;
+  cholmod_dense* B = nullptr;
+  cholmod_dense* X = nullptr;
+  cholmod_dense* Y = nullptr;
+  cholmod_dense* E = nullptr;
+  bool started = false;
+
+  ~Impl() {
+    if (!started) return;
+    cholmod_l_free_dense(&B, &common);
+    cholmod_l_free_dense(&X, &common);
+    cholmod_l_free_dense(&Y, &common);
+    cholmod_l_free_dense(&E, &common);
+    cholmod_l_free_factor(&L, &common);
+    cholmod_l_finish(&common);
+  }
+};
+
+SchurSystem::~SchurSystem() = default;
+
+SchurSystem::SchurSystem(const Problem& problem, const std::vector<char>& eliminate,
+                         Ordering ordering)
+    : impl_(std::make_unique<Impl>()) {
+  const int num_vars = problem.num_variables();
+  var_offset_.assign(at(num_vars), -1);
+  std::vector<int> cam_of(at(num_vars), -1), pt_of(at(num_vars), -1), dim(at(num_vars), 0);
+  for (int v = 0; v < num_vars; ++v) {
+    const VariableId id{v};
+    dim[at(v)] = problem.manifold(id).tangent_size();
+    if (problem.is_constant(id)) continue;
+    if (eliminate[at(v)]) {
+      pt_of[at(v)] = static_cast<int>(pt_dim_.size());
+      pt_dim_.push_back(dim[at(v)]);
+    } else {
+      cam_of[at(v)] = static_cast<int>(cam_dim_.size());
+      cam_offset_.push_back(ns_);
+      cam_dim_.push_back(dim[at(v)]);
+      var_offset_[at(v)] = ns_;
+      ns_ += dim[at(v)];
+    }
+  }
+  n_ = ns_;
+  std::size_t v_size = 0;
+  for (int v = 0; v < num_vars; ++v) {
+    const int p = pt_of[at(v)];
+    if (p < 0) continue;
+    var_offset_[at(v)] = n_;
+    pt_offset_.push_back(n_);
+    pt_v_offset_.push_back(v_size);
+    n_ += dim[at(v)];
+    v_size += at(dim[at(v)]) * at(dim[at(v)]);
+  }
+  const std::size_t nc = cam_dim_.size();
+  const std::size_t np = pt_dim_.size();
+
+  // Fixed-size kernels when every camera and every point have the same common dimension.
+  const auto all_equal = [](const std::vector<int>& dims, int d) {
+    return std::all_of(dims.begin(), dims.end(), [d](int x) { return x == d; });
+  };
+  if (all_equal(pt_dim_, 3) && all_equal(cam_dim_, 9)) kernel_ = 1;
+  if (all_equal(pt_dim_, 3) && all_equal(cam_dim_, 6)) kernel_ = 2;
+
+  // What each block touches.
+  struct RawPair {
+    int col, row;
+    std::int32_t block;
+    std::int16_t row_local, col_local;
+  };
+  struct RawEdge {
+    int pt, cam;
+    std::int32_t block;
+    std::int16_t cam_local, pt_local;
+  };
+  std::vector<RawPair> raw_pairs;
+  std::vector<RawEdge> raw_edges;
+  std::vector<std::tuple<int, std::int32_t, std::int16_t>> raw_pt, raw_cam;
+  const auto blocks = problem.blocks();
+  std::vector<std::pair<int, int>> cams;  // (camera, local) of one block
+  for (std::size_t bi = 0; bi < blocks.size(); ++bi) {
+    cams.clear();
+    int point = -1;
+    int point_local = 0;
+    int local = 0;
+    for (VariableId v : blocks[bi].variables) {
+      const int c = cam_of[at(v.index)];
+      const int p = pt_of[at(v.index)];
+      if (c >= 0) cams.emplace_back(c, local);
+      if (p >= 0) {
+        if (point >= 0) {
+          throw Error("Schur complement: residual block " + std::to_string(bi) +
+                      " connects two eliminated variables");
+        }
+        point = p;
+        point_local = local;
+      }
+      local += dim[at(v.index)];
+    }
+    const auto block = static_cast<std::int32_t>(bi);
+    for (const auto& [ca, la] : cams) {
+      raw_cam.emplace_back(ca, block, static_cast<std::int16_t>(la));
+      for (const auto& [cb, lb] : cams) {
+        if (ca < cb) continue;
+        raw_pairs.push_back(
+            {cb, ca, block, static_cast<std::int16_t>(la), static_cast<std::int16_t>(lb)});
+      }
+      if (point >= 0) {
+        raw_edges.push_back({point, ca, block, static_cast<std::int16_t>(la),
+                             static_cast<std::int16_t>(point_local)});
+      }
+    }
+    if (point >= 0) raw_pt.emplace_back(point, block, static_cast<std::int16_t>(point_local));
+  }
+
+  // Edges, point-major, and their contributions.
+  std::sort(raw_edges.begin(), raw_edges.end(), [](const RawEdge& x, const RawEdge& y) {
+    return std::tie(x.pt, x.cam, x.block) < std::tie(y.pt, y.cam, y.block);
+  });
+  pt_edge_begin_.assign(np + 1, 0);
+  std::size_t w_size = 0;
+  for (std::size_t k = 0; k < raw_edges.size();) {
+    const RawEdge& first = raw_edges[k];
+    edge_cam_.push_back(first.cam);
+    edge_pt_.push_back(first.pt);
+    edge_w_offset_.push_back(w_size);
+    w_size += at(cam_dim_[at(first.cam)]) * at(pt_dim_[at(first.pt)]);
+    edge_contrib_begin_.push_back(edge_contribs_.size());
+    for (; k < raw_edges.size() && raw_edges[k].pt == first.pt && raw_edges[k].cam == first.cam;
+         ++k) {
+      edge_contribs_.push_back({raw_edges[k].block, raw_edges[k].cam_local, raw_edges[k].pt_local});
+    }
+    pt_edge_begin_[at(first.pt) + 1] = edge_cam_.size();
+  }
+  edge_contrib_begin_.push_back(edge_contribs_.size());
+  for (std::size_t p = 1; p <= np; ++p)
+    pt_edge_begin_[p] = std::max(pt_edge_begin_[p], pt_edge_begin_[p - 1]);
+  raw_edges = {};
+  const std::size_t num_edges = edge_cam_.size();
+
+  // Each camera's edges in point order.
+  cam_edge_begin_.assign(nc + 1, 0);
+  for (std::size_t e = 0; e < num_edges; ++e) ++cam_edge_begin_[at(edge_cam_[e]) + 1];
+  for (std::size_t c = 0; c < nc; ++c) cam_edge_begin_[c + 1] += cam_edge_begin_[c];
+  cam_edges_.resize(num_edges);
+  {
+    std::vector<std::size_t> fill(cam_edge_begin_.begin(), cam_edge_begin_.end() - 1);
+    for (std::size_t e = 0; e < num_edges; ++e) cam_edges_[fill[at(edge_cam_[e])]++] = e;
+  }
+
+  // Points' V and gradient contributions; cameras' gradient contributions.
+  std::sort(raw_pt.begin(), raw_pt.end());
+  pt_contrib_begin_.assign(np + 1, 0);
+  for (const auto& [p, block, local] : raw_pt) {
+    pt_contribs_.emplace_back(block, local);
+    ++pt_contrib_begin_[at(p) + 1];
+  }
+  for (std::size_t p = 0; p < np; ++p) pt_contrib_begin_[p + 1] += pt_contrib_begin_[p];
+  std::sort(raw_cam.begin(), raw_cam.end());
+  cam_grad_begin_.assign(nc + 1, 0);
+  for (const auto& [c, block, local] : raw_cam) {
+    cam_grad_.emplace_back(block, local);
+    ++cam_grad_begin_[at(c) + 1];
+  }
+  for (std::size_t c = 0; c < nc; ++c) cam_grad_begin_[c + 1] += cam_grad_begin_[c];
+
+  // Camera pairs of S: every diagonal, pairs inside blocks, pairs of cameras sharing a point.
+  std::vector<std::uint64_t> keys;  // column << 32 | row
+  const auto key = [](int col, int row) {
+    return (static_cast<std::uint64_t>(col) << 32) | static_cast<std::uint32_t>(row);
+  };
+  for (std::size_t c = 0; c < nc; ++c)
+    keys.push_back(key(static_cast<int>(c), static_cast<int>(c)));
+  for (const RawPair& r : raw_pairs) keys.push_back(key(r.col, r.row));
+  for (std::size_t p = 0; p < np; ++p) {
+    for (std::size_t a = pt_edge_begin_[p]; a < pt_edge_begin_[p + 1]; ++a) {
+      for (std::size_t b = pt_edge_begin_[p]; b <= a; ++b)
+        keys.push_back(key(edge_cam_[b], edge_cam_[a]));
+    }
+  }
+  std::sort(keys.begin(), keys.end());
+  keys.erase(std::unique(keys.begin(), keys.end()), keys.end());
+  const auto pair_index = [&](int col, int row) {
+    return static_cast<std::size_t>(std::lower_bound(keys.begin(), keys.end(), key(col, row)) -
+                                    keys.begin());
+  };
+  pairs_.resize(keys.size());
+  column_pair_begin_.assign(nc + 1, 0);
+  std::size_t a_size = 0;
+  for (std::size_t k = 0; k < keys.size(); ++k) {
+    const auto col = static_cast<int>(keys[k] >> 32);
+    const auto row = static_cast<int>(keys[k] & 0xffffffffu);
+    pairs_[k].row_cam = row;
+    pairs_[k].h_offset = a_size;
+    a_size += at(cam_dim_[at(row)]) * at(cam_dim_[at(col)]);
+    ++column_pair_begin_[at(col) + 1];
+  }
+  for (std::size_t c = 0; c < nc; ++c) column_pair_begin_[c + 1] += column_pair_begin_[c];
+
+  // A's contributions per pair (block order) and the shared-point products per pair (point
+  // order): counting sorts keep both orders fixed.
+  std::sort(raw_pairs.begin(), raw_pairs.end(), [](const RawPair& x, const RawPair& y) {
+    return std::tie(x.col, x.row, x.block) < std::tie(y.col, y.row, y.block);
+  });
+  {
+    std::vector<std::size_t> count(keys.size() + 1, 0);
+    std::vector<std::size_t> pair_of(raw_pairs.size());
+    for (std::size_t k = 0; k < raw_pairs.size(); ++k) {
+      pair_of[k] = pair_index(raw_pairs[k].col, raw_pairs[k].row);
+      ++count[pair_of[k] + 1];
+    }
+    for (std::size_t k = 0; k < keys.size(); ++k) count[k + 1] += count[k];
+    pair_contribs_.resize(raw_pairs.size());
+    for (std::size_t k = 0; k < keys.size(); ++k) {
+      pairs_[k].contrib_begin = count[k];
+      pairs_[k].contrib_end = count[k + 1];
+    }
+    for (std::size_t k = 0; k < raw_pairs.size(); ++k) {
+      pair_contribs_[count[pair_of[k]]++] = {raw_pairs[k].block, raw_pairs[k].row_local,
+                                             raw_pairs[k].col_local};
+    }
+  }
+  raw_pairs = {};
+  {
+    std::vector<std::size_t> term_pair;
+    std::vector<std::pair<std::uint32_t, std::uint32_t>> raw_terms;
+    std::vector<std::size_t> count(keys.size() + 1, 0);
+    for (std::size_t p = 0; p < np; ++p) {
+      for (std::size_t a = pt_edge_begin_[p]; a < pt_edge_begin_[p + 1]; ++a) {
+        for (std::size_t b = pt_edge_begin_[p]; b <= a; ++b) {
+          const std::size_t k = pair_index(edge_cam_[b], edge_cam_[a]);
+          term_pair.push_back(k);
+          raw_terms.emplace_back(static_cast<std::uint32_t>(a), static_cast<std::uint32_t>(b));
+          ++count[k + 1];
+        }
+      }
+    }
+    for (std::size_t k = 0; k < keys.size(); ++k) count[k + 1] += count[k];
+    for (std::size_t k = 0; k < keys.size(); ++k) {
+      pairs_[k].term_begin = count[k];
+      pairs_[k].term_end = count[k + 1];
+    }
+    terms_.resize(raw_terms.size());
+    for (std::size_t t = 0; t < raw_terms.size(); ++t) terms_[count[term_pair[t]]++] = raw_terms[t];
+  }
+
+  // Lower-triangular CSC of S in camera order: per scalar column of camera j, the diagonal
+  // block's rows from the diagonal down, then the blocks of the cameras below it.
+  colptr_.assign(at(ns_) + 1, 0);
+  for (std::size_t j = 0; j < nc; ++j) {
+    const int dj = cam_dim_[j];
+    std::int64_t below = 0;
+    for (std::size_t k = column_pair_begin_[j]; k < column_pair_begin_[j + 1]; ++k) {
+      if (at(pairs_[k].row_cam) == j) continue;
+      pairs_[k].row_in_column = below;
+      below += cam_dim_[at(pairs_[k].row_cam)];
+    }
+    for (int c = 0; c < dj; ++c) {
+      const std::size_t col = at(cam_offset_[j] + c);
+      colptr_[col + 1] = colptr_[col] + (dj - c) + below;
+    }
+  }
+  rows_.assign(static_cast<std::size_t>(colptr_.back()), 0);
+  for (std::size_t j = 0; j < nc; ++j) {
+    const int dj = cam_dim_[j];
+    for (int c = 0; c < dj; ++c) {
+      auto pos = static_cast<std::size_t>(colptr_[at(cam_offset_[j] + c)]);
+      for (int r = c; r < dj; ++r) rows_[pos++] = cam_offset_[j] + r;
+      for (std::size_t k = column_pair_begin_[j]; k < column_pair_begin_[j + 1]; ++k) {
+        const auto i = at(pairs_[k].row_cam);
+        if (i == j) continue;
+        for (int r = 0; r < cam_dim_[i]; ++r) rows_[pos++] = cam_offset_[i] + r;
+      }
+    }
+  }
+  values_.assign(rows_.size(), 0.0);
+  a_.assign(a_size, 0.0);
+  w_.assign(w_size, 0.0);
+  y_.assign(w_size, 0.0);
+  v_.assign(v_size, 0.0);
+  v_inverse_.assign(v_size, 0.0);
+
+  Impl& im = *impl_;
+  cholmod_l_start(&im.common);
+  im.started = true;
+  im.common.print = 0;  // library code never prints
+  im.common.error_handler = nullptr;
+  std::string ordering_name = "none";
+  if (ns_ > 0) {
+    im.A_storage.nrow = at(ns_);
+    im.A_storage.ncol = at(ns_);
+    im.A_storage.nzmax = rows_.size();
+    im.A_storage.p = colptr_.data();
+    im.A_storage.i = rows_.data();
+    im.A_storage.x = values_.data();
+    im.A_storage.stype = -1;  // lower triangle
+    im.A_storage.itype = CHOLMOD_LONG;
+    im.A_storage.xtype = CHOLMOD_REAL;
+    im.A_storage.dtype = CHOLMOD_DOUBLE;
+    im.A_storage.sorted = 1;
+    im.A_storage.packed = 1;
+    im.common.supernodal = CHOLMOD_SUPERNODAL;
+    if (ordering == Ordering::kAmd) {
+      im.common.nmethods = 1;
+      im.common.method[0].ordering = CHOLMOD_AMD;
+    } else if (ordering == Ordering::kMetis) {
+      im.common.nmethods = 1;
+      im.common.method[0].ordering = CHOLMOD_METIS;
+    } else {
+      im.common.nmethods = 2;  // the one whose factor needs fewer flops wins
+      im.common.method[0].ordering = CHOLMOD_AMD;
+      im.common.method[1].ordering = CHOLMOD_METIS;
+    }
+    im.L = cholmod_l_analyze(&im.A_storage, &im.common);
+    if (!im.L) {
+      throw Error("Schur complement: CHOLMOD symbolic analysis failed (status " +
+                  std::to_string(im.common.status) + ")");
+    }
+    const int selected = im.common.method[im.common.selected].ordering;
+    ordering_name = selected == CHOLMOD_METIS ? "METIS" : "AMD";
+    factor_nnz_ = static_cast<std::size_t>(im.common.lnz);
+    im.B = cholmod_l_zeros(at(ns_), 1, CHOLMOD_REAL, &im.common);
+    if (!im.B) throw Error("Schur complement: CHOLMOD could not allocate the right-hand side");
+  }
+  description_ = "schur complement of " + std::to_string(np) + " eliminated variables, " +
+                 "cholmod supernodal on the reduced system (" + std::to_string(ns_) + " x " +
+                 std::to_string(ns_) + ", " + ordering_name + " ordering)";
+}
+
+void SchurSystem::assemble(const BlockLinearizations& blocks, Eigen::VectorXd* gradient) {
+  gradient->setZero(n_);
+  const std::size_t nc = cam_dim_.size();
+  const std::size_t np = pt_dim_.size();
+  // Cameras: their A blocks (column j) and gradients.
+  tbb::parallel_for(
+      tbb::blocked_range<std::size_t>(0, nc, 4), [&](const tbb::blocked_range<std::size_t>& range) {
+        for (std::size_t j = range.begin(); j != range.end(); ++j) {
+          const int dj = cam_dim_[j];
+          for (std::size_t k = column_pair_begin_[j]; k < column_pair_begin_[j + 1]; ++k) {
+            const Pair& pair = pairs_[k];
+            const int di = cam_dim_[at(pair.row_cam)];
+            double* out = a_.data() + pair.h_offset;
+            std::fill_n(out, at(di) * at(dj), 0.0);
+            for (std::size_t q = pair.contrib_begin; q < pair.contrib_end; ++q) {
+              const Contribution& src = pair_contribs_[q];
+              const auto bi = static_cast<std::size_t>(src.block);
+              const auto D = static_cast<std::size_t>(blocks.dim[bi]);
+              const double* H = blocks.h.data() + blocks.h_offset[bi];
+              for (int c = 0; c < dj; ++c) {
+                const double* col = H + (at(src.col_local) + at(c)) * D + at(src.row_local);
+                double* dst = out + at(c) * at(di);
+                for (int r = 0; r < di; ++r) dst[r] += col[r];
+              }
+            }
+          }
+          double* g = gradient->data() + cam_offset_[j];
+          for (std::size_t s = cam_grad_begin_[j]; s < cam_grad_begin_[j + 1]; ++s) {
+            const auto [block, local] = cam_grad_[s];
+            const double* b =
+                blocks.b.data() + blocks.b_offset[static_cast<std::size_t>(block)] + local;
+            for (int r = 0; r < dj; ++r) g[r] += b[r];
+          }
+        }
+      });
+  // Points: V, gradient and the W block of each edge.
+  tbb::parallel_for(
+      tbb::blocked_range<std::size_t>(0, np, 256),
+      [&](const tbb::blocked_range<std::size_t>& range) {
+        for (std::size_t p = range.begin(); p != range.end(); ++p) {
+          const int dp = pt_dim_[p];
+          double* V = v_.data() + pt_v_offset_[p];
+          std::fill_n(V, at(dp) * at(dp), 0.0);
+          double* g = gradient->data() + pt_offset_[p];
+          for (std::size_t s = pt_contrib_begin_[p]; s < pt_contrib_begin_[p + 1]; ++s) {
+            const auto [block, local] = pt_contribs_[s];
+            const auto bi = static_cast<std::size_t>(block);
+            const auto D = static_cast<std::size_t>(blocks.dim[bi]);
+            const double* H = blocks.h.data() + blocks.h_offset[bi];
+            for (int c = 0; c < dp; ++c) {
+              const double* col = H + (at(local) + at(c)) * D + at(local);
+              for (int r = 0; r < dp; ++r) V[at(c) * at(dp) + at(r)] += col[r];
+            }
+            const double* b = blocks.b.data() + blocks.b_offset[bi] + local;
+            for (int r = 0; r < dp; ++r) g[r] += b[r];
+          }
+          for (std::size_t e = pt_edge_begin_[p]; e < pt_edge_begin_[p + 1]; ++e) {
+            const int dc = cam_dim_[at(edge_cam_[e])];
+            double* W = w_.data() + edge_w_offset_[e];
+            std::fill_n(W, at(dc) * at(dp), 0.0);
+            for (std::size_t q = edge_contrib_begin_[e]; q < edge_contrib_begin_[e + 1]; ++q) {
+              const Contribution& src = edge_contribs_[q];
+              const auto bi = static_cast<std::size_t>(src.block);
+              const auto D = static_cast<std::size_t>(blocks.dim[bi]);
+              const double* H = blocks.h.data() + blocks.h_offset[bi];
+              for (int c = 0; c < dp; ++c) {
+                const double* col = H + (at(src.col_local) + at(c)) * D + at(src.row_local);
+                for (int r = 0; r < dc; ++r) W[at(c) * at(dc) + at(r)] += col[r];
+              }
+            }
+          }
+        }
+      });
+}
+
+Eigen::VectorXd SchurSystem::diagonal() const {
+  Eigen::VectorXd d(n_);
+  for (std::size_t j = 0; j < cam_dim_.size(); ++j) {
+    const int dj = cam_dim_[j];
+    const double* A = a_.data() + pairs_[column_pair_begin_[j]].h_offset;  // diagonal pair first
+    for (int r = 0; r < dj; ++r) d[cam_offset_[j] + r] = A[at(r) * at(dj) + at(r)];
+  }
+  for (std::size_t p = 0; p < pt_dim_.size(); ++p) {
+    const int dp = pt_dim_[p];
+    const double* V = v_.data() + pt_v_offset_[p];
+    for (int r = 0; r < dp; ++r) d[pt_offset_[p] + r] = V[at(r) * at(dp) + at(r)];
+  }
+  return d;
+}
+
+/// V^-1 of every point (damped) and Y = W V^-1 of every edge; false if a V is not positive
+/// definite.
+template <int DC, int DP>
+bool SchurSystem::eliminate_points(const Eigen::VectorXd& damping) {
+  std::atomic<bool> failed{false};
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, pt_dim_.size(), 256),
+                    [&](const tbb::blocked_range<std::size_t>& range) {
+                      using MatrixP = Eigen::Matrix<double, DP, DP>;
+                      MatrixP V_damped;
+                      Eigen::LLT<MatrixP> llt;
+                      for (std::size_t p = range.begin(); p != range.end(); ++p) {
+                        const int dp = pt_dim_[p];
+                        V_damped = ConstMapMatrix<DP, DP>(v_.data() + pt_v_offset_[p], dp, dp);
+                        V_damped.diagonal() += damping.segment(pt_offset_[p], dp);
+                        llt.compute(V_damped);
+                        if (llt.info() != Eigen::Success) {
+                          failed.store(true, std::memory_order_relaxed);
+                          continue;
+                        }
+                        MapMatrix<DP, DP> V_inverse(v_inverse_.data() + pt_v_offset_[p], dp, dp);
+                        V_inverse.setIdentity(dp, dp);
+                        llt.solveInPlace(V_inverse);
+                        for (std::size_t e = pt_edge_begin_[p]; e < pt_edge_begin_[p + 1]; ++e) {
+                          const int dc = cam_dim_[at(edge_cam_[e])];
+                          MapMatrix<DC, DP>(y_.data() + edge_w_offset_[e], dc, dp).noalias() =
+                              ConstMapMatrix<DC, DP>(w_.data() + edge_w_offset_[e], dc, dp)
+                                  .lazyProduct(V_inverse);
+                        }
+                      }
+                    });
+  return !failed.load();
+}
+
+/// S = A + diag(damping) - sum over shared points of Y_i W_j^T, into the CSC values.
+template <int DC, int DP>
+void SchurSystem::form_reduced_system(const Eigen::VectorXd& damping) {
+  tbb::parallel_for(
+      tbb::blocked_range<std::size_t>(0, cam_dim_.size(), 1),
+      [&](const tbb::blocked_range<std::size_t>& range) {
+        Eigen::Matrix<double, DC, DC> S;
+        for (std::size_t j = range.begin(); j != range.end(); ++j) {
+          const int dj = cam_dim_[j];
+          for (std::size_t k = column_pair_begin_[j]; k < column_pair_begin_[j + 1]; ++k) {
+            const Pair& pair = pairs_[k];
+            const int di = cam_dim_[at(pair.row_cam)];
+            const bool diagonal = at(pair.row_cam) == j;
+            S = ConstMapMatrix<DC, DC>(a_.data() + pair.h_offset, di, dj);
+            if (diagonal) S.diagonal() += damping.segment(cam_offset_[j], dj);
+            for (std::size_t t = pair.term_begin; t < pair.term_end; ++t) {
+              const auto [ei, ej] = terms_[t];
+              const int dp = pt_dim_[at(edge_pt_[ei])];
+              S.noalias() -=
+                  ConstMapMatrix<DC, DP>(y_.data() + edge_w_offset_[ei], di, dp)
+                      .lazyProduct(ConstMapMatrix<DC, DP>(w_.data() + edge_w_offset_[ej], dj, dp)
+                                       .transpose());
+            }
+            for (int c = 0; c < dj; ++c) {
+              double* column = values_.data() + colptr_[at(cam_offset_[j] + c)];
+              if (diagonal) {
+                for (int r = c; r < dj; ++r) column[r - c] = S(r, c);
+              } else {
+                double* dst = column + (dj - c) + pair.row_in_column;
+                for (int r = 0; r < di; ++r) dst[r] = S(r, c);
+              }
+            }
+          }
+        }
+      });
+}
+
+bool SchurSystem::factorize(const Eigen::VectorXd& damping) {
+  const Stopwatch t0;
+  bool ok = false;
+  switch (kernel_) {
+    case 1:
+      ok = eliminate_points<9, 3>(damping);
+      if (ok) form_reduced_system<9, 3>(damping);
+      break;
+    case 2:
+      ok = eliminate_points<6, 3>(damping);
+      if (ok) form_reduced_system<6, 3>(damping);
+      break;
+    default:
+      ok = eliminate_points<Eigen::Dynamic, Eigen::Dynamic>(damping);
+      if (ok) form_reduced_system<Eigen::Dynamic, Eigen::Dynamic>(damping);
+      break;
+  }
+  elimination_s_ += t0.elapsed_s();
+  if (!ok) return false;
+  if (ns_ == 0) return true;
+  Impl& im = *impl_;
+  // As in SparseSystem::factorize: CHOLMOD's OpenMP regions run single-threaded.
+  const int saved_levels = omp_get_max_active_levels();
+  omp_set_max_active_levels(0);
+  const int factorized = cholmod_l_factorize(&im.A_storage, im.L, &im.common);
+  omp_set_max_active_levels(saved_levels);
+  return factorized && im.common.status == CHOLMOD_OK && im.L->minor == at(ns_);
+}
+
+/// reduced = rhs_cameras - sum over each camera's edges of Y_e rhs_point.
+template <int DC, int DP>
+void SchurSystem::reduce_rhs(const Eigen::VectorXd& rhs, double* reduced) const {
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, cam_dim_.size(), 4),
+                    [&](const tbb::blocked_range<std::size_t>& range) {
+                      for (std::size_t c = range.begin(); c != range.end(); ++c) {
+                        const int dc = cam_dim_[c];
+                        MapVector<DC> out(reduced + cam_offset_[c], dc);
+                        out = rhs.segment(cam_offset_[c], dc);
+                        for (std::size_t k = cam_edge_begin_[c]; k < cam_edge_begin_[c + 1]; ++k) {
+                          const std::size_t e = cam_edges_[k];
+                          const auto p = at(edge_pt_[e]);
+                          const int dp = pt_dim_[p];
+                          out.noalias() -=
+                              ConstMapMatrix<DC, DP>(y_.data() + edge_w_offset_[e], dc, dp)
+                                  .lazyProduct(rhs.segment(pt_offset_[p], dp));
+                        }
+                      }
+                    });
+}
+
+/// x_point = V^-1 rhs_point - sum over its edges of Y_e^T x_camera; x_cameras copied.
+template <int DC, int DP>
+void SchurSystem::back_substitute(const Eigen::VectorXd& rhs, const double* x_cameras,
+                                  double* x) const {
+  std::copy_n(x_cameras, ns_, x);
+  tbb::parallel_for(
+      tbb::blocked_range<std::size_t>(0, pt_dim_.size(), 256),
+      [&](const tbb::blocked_range<std::size_t>& range) {
+        for (std::size_t p = range.begin(); p != range.end(); ++p) {
+          const int dp = pt_dim_[p];
+          MapVector<DP> out(x + pt_offset_[p], dp);
+          out.noalias() = ConstMapMatrix<DP, DP>(v_inverse_.data() + pt_v_offset_[p], dp, dp)
+                              .lazyProduct(rhs.segment(pt_offset_[p], dp));
+          for (std::size_t e = pt_edge_begin_[p]; e < pt_edge_begin_[p + 1]; ++e) {
+            const auto c = at(edge_cam_[e]);
+            const int dc = cam_dim_[c];
+            out.noalias() -= ConstMapMatrix<DC, DP>(y_.data() + edge_w_offset_[e], dc, dp)
+                                 .transpose()
+                                 .lazyProduct(ConstMapVector<DC>(x_cameras + cam_offset_[c], dc));
+          }
+        }
+      });
+}
+
+void SchurSystem::solve(const Eigen::VectorXd& rhs, Eigen::VectorXd* x) {
+  Stopwatch t0;
+  Impl& im = *impl_;
+  Eigen::VectorXd reduced(ns_);
+  switch (kernel_) {
+    case 1:
+      reduce_rhs<9, 3>(rhs, reduced.data());
+      break;
+    case 2:
+      reduce_rhs<6, 3>(rhs, reduced.data());
+      break;
+    default:
+      reduce_rhs<Eigen::Dynamic, Eigen::Dynamic>(rhs, reduced.data());
+      break;
+  }
+  elimination_s_ += t0.elapsed_s();
+  const double* x_cameras = reduced.data();
+  if (ns_ > 0) {
+    std::copy_n(reduced.data(), ns_, static_cast<double*>(im.B->x));
+    if (!cholmod_l_solve2(CHOLMOD_A, im.L, im.B, nullptr, &im.X, nullptr, &im.Y, &im.E,
+                          &im.common)) {
+      throw Error("Schur complement: CHOLMOD solve failed (status " +
+                  std::to_string(im.common.status) + ")");
+    }
+    x_cameras = static_cast<const double*>(im.X->x);
+  }
+  t0.restart();
+  x->resize(n_);
+  switch (kernel_) {
+    case 1:
+      back_substitute<9, 3>(rhs, x_cameras, x->data());
+      break;
+    case 2:
+      back_substitute<6, 3>(rhs, x_cameras, x->data());
+      break;
+    default:
+      back_substitute<Eigen::Dynamic, Eigen::Dynamic>(rhs, x_cameras, x->data());
+      break;
+  }
+  elimination_s_ += t0.elapsed_s();
+}
+
+void SchurSystem::multiply(const Eigen::VectorXd& x, Eigen::VectorXd* y) const {
+  y->setZero(n_);
+  for (std::size_t j = 0; j < cam_dim_.size(); ++j) {
+    const int dj = cam_dim_[j];
+    for (std::size_t k = column_pair_begin_[j]; k < column_pair_begin_[j + 1]; ++k) {
+      const Pair& pair = pairs_[k];
+      const auto i = at(pair.row_cam);
+      const int di = cam_dim_[i];
+      const ConstMapMatrix<Eigen::Dynamic, Eigen::Dynamic> A(a_.data() + pair.h_offset, di, dj);
+      y->segment(cam_offset_[i], di).noalias() += A * x.segment(cam_offset_[j], dj);
+      if (i != j) {
+        y->segment(cam_offset_[j], dj).noalias() += A.transpose() * x.segment(cam_offset_[i], di);
+      }
+    }
+  }
+  for (std::size_t p = 0; p < pt_dim_.size(); ++p) {
+    const int dp = pt_dim_[p];
+    const ConstMapMatrix<Eigen::Dynamic, Eigen::Dynamic> V(v_.data() + pt_v_offset_[p], dp, dp);
+    y->segment(pt_offset_[p], dp).noalias() += V * x.segment(pt_offset_[p], dp);
+    for (std::size_t e = pt_edge_begin_[p]; e < pt_edge_begin_[p + 1]; ++e) {
+      const auto c = at(edge_cam_[e]);
+      const int dc = cam_dim_[c];
+      const ConstMapMatrix<Eigen::Dynamic, Eigen::Dynamic> W(w_.data() + edge_w_offset_[e], dc, dp);
+      y->segment(cam_offset_[c], dc).noalias() += W * x.segment(pt_offset_[p], dp);
+      y->segment(pt_offset_[p], dp).noalias() += W.transpose() * x.segment(cam_offset_[c], dc);
+    }
+  }
+}
+
+double SchurSystem::take_elimination_seconds() {
+  const double s = elimination_s_;
+  elimination_s_ = 0.0;
+  return s;
+}
+
+}  // namespace carat::internal

@@ -1,0 +1,110 @@
+#pragma once
+
+// Internal: the Schur complement. The free variables split into eliminated ones ("points": no
+// residual block connects two of them, so their part of H is block diagonal) and the rest
+// ("cameras"). With H = [A B; B^T C] and C block diagonal, each iteration forms the reduced
+// system S = A - B C^-1 B^T (damping added to A and C first, as on the whole system), factorizes
+// S with CHOLMOD (supernodal; symbolic analysis once) and recovers the points by
+// back-substitution. Every sum is gathered per destination in a fixed order, so results are
+// bit-identical for any number of threads.
+
+#include <Eigen/Core>
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "carat/solver/problem.hpp"
+#include "carat/solver/solver_options.hpp"
+#include "linear_system.hpp"
+
+namespace carat::internal {
+
+class SchurSystem final : public LinearSystem {
+ public:
+  /// eliminate[v] != 0 marks variable v for elimination (it must be free, and no block may
+  /// connect two marked variables; the constructor throws carat::Error otherwise).
+  SchurSystem(const Problem& problem, const std::vector<char>& eliminate, Ordering ordering);
+  ~SchurSystem() override;
+  SchurSystem(const SchurSystem&) = delete;
+  SchurSystem& operator=(const SchurSystem&) = delete;
+
+  std::size_t hessian_nonzeros() const override { return rows_.size(); }
+  std::size_t factor_nonzeros() const override { return factor_nnz_; }
+  void assemble(const BlockLinearizations& blocks, Eigen::VectorXd* gradient) override;
+  Eigen::VectorXd diagonal() const override;
+  bool factorize(const Eigen::VectorXd& damping) override;
+  void multiply(const Eigen::VectorXd& x, Eigen::VectorXd* y) const override;
+  void solve(const Eigen::VectorXd& rhs, Eigen::VectorXd* x) override;
+  double take_elimination_seconds() override;
+
+  /// Size of the reduced system (tangent dimensions of the variables not eliminated).
+  int reduced_size() const { return ns_; }
+  /// Number of eliminated variables.
+  int num_eliminated() const { return static_cast<int>(pt_dim_.size()); }
+
+ private:
+  template <int DC, int DP>
+  bool eliminate_points(const Eigen::VectorXd& damping);
+  template <int DC, int DP>
+  void form_reduced_system(const Eigen::VectorXd& damping);
+  template <int DC, int DP>
+  void reduce_rhs(const Eigen::VectorXd& rhs, double* reduced) const;
+  template <int DC, int DP>
+  void back_substitute(const Eigen::VectorXd& rhs, const double* x_cameras, double* x) const;
+
+  struct Impl;
+  int ns_ = 0;      // reduced size
+  int kernel_ = 0;  // 0: dynamic sizes, 1: cameras 9 / points 3, 2: 6 / 3
+  std::size_t factor_nnz_ = 0;
+  double elimination_s_ = 0.0;
+
+  // Cameras (variables kept): dimension, offset in the system.
+  std::vector<int> cam_dim_, cam_offset_;
+  // Points (eliminated): dimension, offset in the system, offset of V / V^-1 storage.
+  std::vector<int> pt_dim_, pt_offset_;
+  std::vector<std::size_t> pt_v_offset_;
+  // Edges (point, camera) in point-major order; each point's edges by camera index.
+  std::vector<std::size_t> pt_edge_begin_;
+  std::vector<int> edge_cam_, edge_pt_;
+  std::vector<std::size_t> edge_w_offset_;
+  // Each camera's edges, by point index (for the reduced right-hand side).
+  std::vector<std::size_t> cam_edge_begin_;
+  std::vector<std::size_t> cam_edges_;
+
+  // Camera pairs (row i >= column j) of S, grouped by column j, rows ascending.
+  struct Pair {
+    int row_cam;
+    std::int64_t row_in_column;  // offset of the row block below the diagonal block in the CSC
+    std::size_t h_offset;        // start of the undamped A block (di x dj, column-major)
+    std::size_t contrib_begin, contrib_end;  // A's contributions from blocks
+    std::size_t term_begin, term_end;        // (edge_i, edge_j) products of shared points
+  };
+  std::vector<std::size_t> column_pair_begin_;
+  std::vector<Pair> pairs_;
+  struct Contribution {
+    std::int32_t block;
+    std::int16_t row_local;
+    std::int16_t col_local;
+  };
+  std::vector<Contribution> pair_contribs_;
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> terms_;  // (edge of row, edge of column)
+  std::vector<std::size_t> edge_contrib_begin_;
+  std::vector<Contribution> edge_contribs_;  // row_local: camera, col_local: point
+  std::vector<std::size_t> pt_contrib_begin_;
+  std::vector<std::pair<std::int32_t, std::int16_t>> pt_contribs_;  // V and g of points
+  std::vector<std::size_t> cam_grad_begin_;
+  std::vector<std::pair<std::int32_t, std::int16_t>> cam_grad_;
+
+  // Values: undamped A blocks, W per edge (dc x dp), V per point; and the factorization's
+  // V^-1 and Y = W V^-1 (kept apart from the assembled values so that solve() may reuse an
+  // earlier factorization).
+  std::vector<double> a_, w_, v_, v_inverse_, y_;
+
+  // Reduced system: lower-triangular CSC in camera order (CHOLMOD orders it).
+  std::vector<std::int64_t> colptr_, rows_;
+  std::vector<double> values_;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace carat::internal

@@ -1,0 +1,328 @@
+// The Schur complement: the reduced system's step equals the whole system's, the solver reaches
+// the same optimum on bundle-adjustment problems through either path, the automatic choice,
+// bit-identical results for any number of threads, and the errors of a group that cannot be
+// eliminated.
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <memory>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "../solver/src/block_evaluator.hpp"
+#include "../solver/src/schur_system.hpp"
+#include "../solver/src/sparse_system.hpp"
+#include "carat/base/error.hpp"
+#include "carat/solver/autodiff_block.hpp"
+#include "carat/solver/lie_functions.hpp"
+#include "carat/solver/problem.hpp"
+#include "carat/solver/solve.hpp"
+#include "carat/solver/solver_options.hpp"
+#include "solver_test_blocks.hpp"
+
+namespace carat {
+namespace {
+
+/// Pixel reprojection of a point through a camera [angle-axis, t, (f), (k1, k2)]: 6, 7 or 9
+/// numbers (focal length 1 and no distortion when absent), minus-sign pinhole.
+template <int kCamera>
+struct Reprojection {
+  template <typename T>
+  bool operator()(const Eigen::Vector2d& observed, const T* camera, const T* point,
+                  T* residual) const {
+    T p[3];
+    lie::angle_axis_rotate(camera, point, p);
+    for (int k = 0; k < 3; ++k) p[k] += camera[3 + k];
+    const T x = -p[0] / p[2];
+    const T y = -p[1] / p[2];
+    T scale = T(1.0);
+    if constexpr (kCamera >= 7) scale = camera[6];
+    if constexpr (kCamera == 9) {
+      const T r2 = x * x + y * y;
+      scale = scale * (T(1.0) + camera[7] * r2 + camera[8] * r2 * r2);
+    }
+    residual[0] = scale * x - observed.x();
+    residual[1] = scale * y - observed.y();
+    return true;
+  }
+};
+
+/// A small bundle-adjustment problem: cameras on a ring looking at points near the centre,
+/// every point seen by `views` cameras, noisy observations, perturbed starting values.
+template <int kCamera>
+struct BundleProblem {
+  Problem problem;
+  std::vector<VariableId> cameras, points;
+};
+
+template <int kCamera>
+BundleProblem<kCamera> make_bundle(int num_cameras, int num_points, int views, unsigned seed,
+                                   bool mark_points) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> noise(0.0, 1.0);
+  std::uniform_real_distribution<double> uniform(-1.0, 1.0);
+  BundleProblem<kCamera> out;
+  std::vector<Eigen::Matrix<double, kCamera, 1>> truth_cameras;
+  for (int c = 0; c < num_cameras; ++c) {
+    // Camera c on a circle of radius 10, looking at the origin: its optical axis is -z.
+    const double angle = 2.0 * M_PI * c / num_cameras;
+    const Eigen::Vector3d centre(10.0 * std::cos(angle), 10.0 * std::sin(angle),
+                                 0.5 * uniform(rng));
+    const Eigen::Vector3d back = centre.normalized();  // camera +z points away from the origin
+    const Eigen::Vector3d right = Eigen::Vector3d::UnitZ().cross(back).normalized();
+    Eigen::Matrix3d R_world_camera;
+    R_world_camera << right, back.cross(right), back;
+    const Eigen::Matrix3d R_camera_world = R_world_camera.transpose();
+    const Eigen::AngleAxisd aa(R_camera_world);
+    Eigen::Matrix<double, kCamera, 1> camera;
+    camera.template head<3>() = aa.angle() * aa.axis();
+    camera.template segment<3>(3) = -R_camera_world * centre;
+    if constexpr (kCamera >= 7) camera[6] = 500.0;
+    if constexpr (kCamera == 9) camera.template tail<2>() << 1e-2, -1e-3;
+    truth_cameras.push_back(camera);
+  }
+  std::vector<Eigen::Vector3d> truth_points;
+  for (int p = 0; p < num_points; ++p)
+    truth_points.emplace_back(2.0 * uniform(rng), 2.0 * uniform(rng), 2.0 * uniform(rng));
+  for (const auto& camera : truth_cameras) {
+    Eigen::Matrix<double, kCamera, 1> start = camera;
+    for (int k = 0; k < 6; ++k) start[k] += 0.01 * noise(rng);
+    out.cameras.push_back(out.problem.add_euclidean(start));
+  }
+  for (const auto& point : truth_points) {
+    const Eigen::Vector3d start =
+        point + 0.05 * Eigen::Vector3d(noise(rng), noise(rng), noise(rng));
+    out.points.push_back(out.problem.add_euclidean(start));
+    if (mark_points) out.problem.set_eliminable(out.points.back());
+  }
+  const double pixel = kCamera >= 7 ? 1.0 : 1.0 / 500.0;
+  for (int p = 0; p < num_points; ++p) {
+    const int first = static_cast<int>(rng() % static_cast<unsigned>(num_cameras));
+    for (int v = 0; v < views; ++v) {
+      const int c = (first + v * 3) % num_cameras;
+      Eigen::Vector2d r;
+      Reprojection<kCamera>{}(Eigen::Vector2d::Zero(),
+                              truth_cameras[static_cast<std::size_t>(c)].data(),
+                              truth_points[static_cast<std::size_t>(p)].data(), r.data());
+      const Eigen::Vector2d observed = r + pixel * Eigen::Vector2d(noise(rng), noise(rng));
+      auto block = make_autodiff_block<2, VariableSize<kCamera>, VariableSize<3>>(
+          Reprojection<kCamera>{}, std::vector<Eigen::Vector2d>{observed});
+      out.problem.add_residual_block(block, {out.cameras[static_cast<std::size_t>(c)],
+                                             out.points[static_cast<std::size_t>(p)]});
+    }
+  }
+  return out;
+}
+
+/// The step of both systems for one damping, in variable order.
+template <int kCamera>
+void expect_same_step(int num_cameras, int num_points) {
+  BundleProblem<kCamera> ba = make_bundle<kCamera>(num_cameras, num_points, 4, 7, true);
+  ba.problem.set_constant(ba.cameras[0]);
+  internal::BlockEvaluator evaluator(ba.problem);
+  std::vector<double> values(ba.problem.all_values().begin(), ba.problem.all_values().end());
+  evaluator.bind(0, values.data());
+  internal::BlockLinearizations blocks;
+  evaluator.allocate(&blocks);
+  std::string error;
+  ASSERT_TRUE(evaluator.linearize(0, &blocks, &error)) << error;
+
+  std::vector<char> eliminate(static_cast<std::size_t>(ba.problem.num_variables()), 0);
+  for (VariableId p : ba.points) eliminate[static_cast<std::size_t>(p.index)] = 1;
+  internal::SchurSystem schur(ba.problem, eliminate, Ordering::kAuto);
+  internal::SparseSystem full(ba.problem, Ordering::kAuto);
+  ASSERT_EQ(schur.size(), full.size());
+  EXPECT_EQ(schur.num_eliminated(), num_points);
+  EXPECT_EQ(schur.reduced_size(), (num_cameras - 1) * kCamera);
+
+  Eigen::VectorXd g_schur, g_full;
+  schur.assemble(blocks, &g_schur);
+  full.assemble(blocks, &g_full);
+  // Both systems in variable order.
+  const auto to_variable_order = [&](const internal::LinearSystem& system,
+                                     const Eigen::VectorXd& x) {
+    Eigen::VectorXd out(x.size());
+    Eigen::Index offset = 0;
+    for (int v = 0; v < ba.problem.num_variables(); ++v) {
+      const int o = system.variable_offset()[static_cast<std::size_t>(v)];
+      if (o < 0) continue;
+      const int d = ba.problem.manifold(VariableId{v}).tangent_size();
+      out.segment(offset, d) = x.segment(o, d);
+      offset += d;
+    }
+    return out;
+  };
+  const auto from_variable_order = [&](const internal::LinearSystem& system,
+                                       const Eigen::VectorXd& x) {
+    Eigen::VectorXd out(x.size());
+    Eigen::Index offset = 0;
+    for (int v = 0; v < ba.problem.num_variables(); ++v) {
+      const int o = system.variable_offset()[static_cast<std::size_t>(v)];
+      if (o < 0) continue;
+      const int d = ba.problem.manifold(VariableId{v}).tangent_size();
+      out.segment(o, d) = x.segment(offset, d);
+      offset += d;
+    }
+    return out;
+  };
+  const Eigen::VectorXd g = to_variable_order(full, g_full);
+  EXPECT_LE((to_variable_order(schur, g_schur) - g).norm(), 1e-13 * g.norm());
+  const Eigen::VectorXd diagonal = to_variable_order(full, full.diagonal());
+  EXPECT_LE((to_variable_order(schur, schur.diagonal()) - diagonal).norm(),
+            1e-13 * diagonal.norm());
+
+  // H x agrees, and so does the damped step for a small and a large damping.
+  const Eigen::VectorXd x = Eigen::VectorXd::LinSpaced(g.size(), -1.0, 1.0);
+  Eigen::VectorXd y_schur, y_full;
+  schur.multiply(from_variable_order(schur, x), &y_schur);
+  full.multiply(from_variable_order(full, x), &y_full);
+  const Eigen::VectorXd y = to_variable_order(full, y_full);
+  EXPECT_LE((to_variable_order(schur, y_schur) - y).norm(), 1e-12 * y.norm());
+  for (const double lambda : {1e-6, 1e-1}) {
+    const Eigen::VectorXd damping = lambda * diagonal;
+    ASSERT_TRUE(schur.factorize(from_variable_order(schur, damping)));
+    ASSERT_TRUE(full.factorize(from_variable_order(full, damping)));
+    Eigen::VectorXd step_schur, step_full;
+    schur.solve(from_variable_order(schur, -g), &step_schur);
+    full.solve(from_variable_order(full, -g), &step_full);
+    const Eigen::VectorXd expected = to_variable_order(full, step_full);
+    EXPECT_LE((to_variable_order(schur, step_schur) - expected).norm(), 1e-8 * expected.norm())
+        << "damping " << lambda;
+  }
+}
+
+TEST(SchurSystemTest, StepEqualsWholeSystemStepWithNineParameterCameras) {
+  expect_same_step<9>(8, 120);
+}
+TEST(SchurSystemTest, StepEqualsWholeSystemStepWithSixParameterCameras) {
+  expect_same_step<6>(8, 120);
+}
+TEST(SchurSystemTest, StepEqualsWholeSystemStepWithOtherSizes) { expect_same_step<7>(8, 120); }
+
+TEST(SchurSystemTest, UnobservedPointIsNotPositiveDefiniteWithoutDamping) {
+  BundleProblem<6> ba = make_bundle<6>(6, 20, 3, 3, true);
+  ba.points.push_back(ba.problem.add_euclidean(Eigen::Vector3d(0.0, 0.0, 0.0)));
+  std::vector<char> eliminate(static_cast<std::size_t>(ba.problem.num_variables()), 0);
+  for (VariableId p : ba.points) eliminate[static_cast<std::size_t>(p.index)] = 1;
+  internal::SchurSystem schur(ba.problem, eliminate, Ordering::kAuto);
+  internal::BlockEvaluator evaluator(ba.problem);
+  std::vector<double> values(ba.problem.all_values().begin(), ba.problem.all_values().end());
+  evaluator.bind(0, values.data());
+  internal::BlockLinearizations blocks;
+  evaluator.allocate(&blocks);
+  std::string error;
+  ASSERT_TRUE(evaluator.linearize(0, &blocks, &error)) << error;
+  Eigen::VectorXd gradient;
+  schur.assemble(blocks, &gradient);
+  EXPECT_FALSE(schur.factorize(Eigen::VectorXd::Zero(schur.size())));
+  EXPECT_TRUE(schur.factorize(Eigen::VectorXd::Constant(schur.size(), 1.0)));
+}
+
+SolverOptions tight_options(LinearSolver linear_solver) {
+  SolverOptions options;
+  options.linear_solver = linear_solver;
+  options.function_tolerance = 1e-12;
+  options.gradient_tolerance = 1e-12;
+  options.parameter_tolerance = 1e-12;
+  options.max_iterations = 100;
+  return options;
+}
+
+TEST(SchurSolveTest, ReachesTheWholeSystemOptimum) {
+  for (const bool fix_gauge : {true, false}) {
+    BundleProblem<9> schur = make_bundle<9>(10, 300, 4, 11, true);
+    BundleProblem<9> full = make_bundle<9>(10, 300, 4, 11, false);
+    if (fix_gauge) {
+      schur.problem.set_constant(schur.cameras[0]);
+      full.problem.set_constant(full.cameras[0]);
+    }
+    const SolverSummary a = solve(tight_options(LinearSolver::kSchur), schur.problem);
+    const SolverSummary b = solve(tight_options(LinearSolver::kCholesky), full.problem);
+    ASSERT_TRUE(a.is_solution_usable()) << a.message;
+    ASSERT_TRUE(b.is_solution_usable()) << b.message;
+    EXPECT_NE(a.linear_solver.find("schur complement of 300 eliminated"), std::string::npos)
+        << a.linear_solver;
+    EXPECT_EQ(b.linear_solver.find("schur"), std::string::npos) << b.linear_solver;
+    // Unit pixel noise: at the optimum 1/2 sum r^2 is about (rows - parameters) / 2.
+    EXPECT_GT(a.initial_cost, 10.0 * a.final_cost);
+    EXPECT_LT(a.final_cost, 0.5 * static_cast<double>(a.num_residual_rows));
+    EXPECT_NEAR(a.final_cost, b.final_cost, 1e-9 * b.final_cost) << "gauge fixed: " << fix_gauge;
+    EXPECT_TRUE(std::isfinite(a.final_cost));
+    EXPECT_GT(a.time.schur_s, 0.0);
+    EXPECT_EQ(b.time.schur_s, 0.0);
+  }
+}
+
+TEST(SchurSolveTest, BitIdenticalForAnyNumberOfThreads) {
+  std::vector<double> first;
+  for (const int threads : {1, 2}) {
+    BundleProblem<9> ba = make_bundle<9>(12, 2000, 5, 5, true);
+    SolverOptions options = tight_options(LinearSolver::kSchur);
+    options.num_threads = threads;
+    options.max_iterations = 10;
+    const SolverSummary summary = solve(options, ba.problem);
+    ASSERT_TRUE(summary.is_solution_usable()) << summary.message;
+    const auto values = ba.problem.all_values();
+    if (first.empty()) {
+      first.assign(values.begin(), values.end());
+    } else {
+      ASSERT_EQ(first.size(), values.size());
+      for (std::size_t k = 0; k < first.size(); ++k) ASSERT_EQ(first[k], values[k]) << k;
+    }
+  }
+}
+
+TEST(SchurSolveTest, AutoEliminatesTheLargestIndependentGroup) {
+  BundleProblem<6> ba = make_bundle<6>(6, 50, 3, 2, false);  // nothing marked
+  const SolverSummary summary = solve(tight_options(LinearSolver::kAuto), ba.problem);
+  ASSERT_TRUE(summary.is_solution_usable()) << summary.message;
+  EXPECT_NE(summary.linear_solver.find("schur complement of 50 eliminated"), std::string::npos)
+      << summary.linear_solver;
+
+  // A chain of 2-D variables: every block connects two of them, nothing to eliminate.
+  Problem chain;
+  std::vector<VariableId> ids;
+  for (int k = 0; k < 5; ++k) ids.push_back(chain.add_euclidean(Eigen::Vector2d(k, -k)));
+  for (int k = 0; k + 1 < 5; ++k) {
+    chain.add_residual_block(
+        std::make_shared<test::LinearBlock>(
+            std::vector<Eigen::MatrixXd>{Eigen::Matrix2d::Identity(), -Eigen::Matrix2d::Identity()},
+            Eigen::Vector2d(1.0, 2.0)),
+        {ids[static_cast<std::size_t>(k)], ids[static_cast<std::size_t>(k) + 1]});
+  }
+  const SolverSummary full = solve(tight_options(LinearSolver::kAuto), chain);
+  EXPECT_EQ(full.linear_solver.find("schur"), std::string::npos) << full.linear_solver;
+  const SolverSummary forced = solve(tight_options(LinearSolver::kSchur), chain);
+  EXPECT_EQ(forced.termination, TerminationType::kFailure);
+  EXPECT_EQ(forced.message,
+            "linear solver schur: no variables to eliminate (mark them with "
+            "Problem::set_eliminable(); every group of free variables of one tangent size has a "
+            "residual block connecting two of its members)");
+
+  // Marking two variables that share a block names the block.
+  chain.set_eliminable(ids[1]);
+  chain.set_eliminable(ids[2]);
+  const SolverSummary bad = solve(tight_options(LinearSolver::kAuto), chain);
+  EXPECT_EQ(bad.termination, TerminationType::kFailure);
+  EXPECT_EQ(bad.message,
+            "Schur complement: residual block 1 connects two eliminable variables (1 and 2); the "
+            "eliminated variables must not share a block");
+}
+
+TEST(SchurSolveTest, ParseLinearSolver) {
+  EXPECT_EQ(parse_linear_solver("auto"), LinearSolver::kAuto);
+  EXPECT_EQ(parse_linear_solver("schur"), LinearSolver::kSchur);
+  EXPECT_EQ(parse_linear_solver("cholesky"), LinearSolver::kCholesky);
+  EXPECT_STREQ(to_string(LinearSolver::kSchur), "schur");
+  try {
+    parse_linear_solver("qr");
+    FAIL() << "no exception";
+  } catch (const Error& e) {
+    EXPECT_STREQ(e.what(), "unknown linear solver 'qr' (valid: auto, schur, cholesky)");
+  }
+}
+
+}  // namespace
+}  // namespace carat
