@@ -47,8 +47,18 @@ void remove_temporaries_for_exit() noexcept {
   Registry& r = registry();
   r.mutex.lock();  // never unlocked: the process ends next
   for (const auto& path : r.paths) {
+    // Another thread may still be writing files into a temporary folder. Renamed first, the
+    // folder gets no new entries (writers address it by its old path), so the removal that
+    // follows cannot be outrun by a file created while it runs.
     std::error_code ignored;
-    std::filesystem::remove_all(path, ignored);
+    std::filesystem::path doomed = path;
+    doomed += ".removing";
+    std::filesystem::rename(path, doomed, ignored);
+    if (ignored) doomed = path;
+    for (int attempt = 0; attempt < 3; ++attempt) {
+      std::filesystem::remove_all(doomed, ignored);
+      if (!ignored) break;
+    }
   }
   r.paths.clear();
 }

@@ -5,6 +5,7 @@
 
 #include <Eigen/Core>
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <exception>
 #include <string>
@@ -17,6 +18,7 @@ namespace {
 
 struct Scratch {
   Eigen::MatrixXd H_r;
+  Eigen::MatrixXd H;
   Eigen::VectorXd b_r;
   Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> A;
 };
@@ -93,7 +95,7 @@ void BlockEvaluator::allocate(BlockLinearizations* out) const {
     out->dim[i] = D;
     out->h_offset[i] = h;
     out->b_offset[i] = b;
-    h += static_cast<std::size_t>(D) * static_cast<std::size_t>(D);
+    h += static_cast<std::size_t>(D) * static_cast<std::size_t>(D + 1) / 2;
     b += static_cast<std::size_t>(D);
   }
   out->h.assign(h, 0.0);  // huge pages (see huge_pages.hpp)
@@ -104,6 +106,8 @@ bool BlockEvaluator::linearize(int which, BlockLinearizations* out, std::string*
   const auto blocks = problem_.blocks();
   const auto& ptrs = pointers_[which];
   tbb::enumerable_thread_specific<Scratch> scratch;
+  // The first block (lowest index) whose H, b or cost is not finite; none: blocks.size().
+  std::atomic<std::size_t> first_bad{blocks.size()};
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, blocks.size(), 8),
                     [&](const tbb::blocked_range<std::size_t>& range) {
                       Scratch& s = scratch.local();
@@ -117,17 +121,17 @@ bool BlockEvaluator::linearize(int which, BlockLinearizations* out, std::string*
                         s.H_r.setZero(r, r);
                         s.b_r.setZero(r);
                         const double sq = block.accumulate(params, s.H_r, s.b_r);
-                        Eigen::Map<Eigen::MatrixXd> H(out->h.data() + out->h_offset[i], D, D);
                         Eigen::Map<Eigen::VectorXd> b(out->b.data() + out->b_offset[i], D);
                         if (r == D) {
-                          H = s.H_r;
                           b = s.b_r;
                         } else {
                           s.A.resize(r, D);
                           block.reduced_map(params, s.A.data());
-                          H.noalias() = s.A.transpose() * s.H_r * s.A;
+                          s.H.noalias() = s.A.transpose() * s.H_r * s.A;
+                          s.H_r.swap(s.H);
                           b.noalias() = s.A.transpose() * s.b_r;
                         }
+                        Eigen::MatrixXd& H = s.H_r;  // D x D now
                         if (entry.loss) {
                           const LossValue lv = entry.loss->evaluate(sq);
                           const double second = lv.rho1 + 2.0 * sq * lv.rho2;
@@ -141,18 +145,31 @@ bool BlockEvaluator::linearize(int which, BlockLinearizations* out, std::string*
                         } else {
                           out->cost[i] = 0.5 * sq;
                         }
+                        // The lower triangle, packed by columns.
+                        double* packed = out->h.data() + out->h_offset[i];
+                        bool ok = std::isfinite(out->cost[i]) && b.allFinite();
+                        for (int c = 0; c < D; ++c) {
+                          const double* column =
+                              H.data() + static_cast<std::size_t>(c) * static_cast<std::size_t>(D);
+                          for (int row = c; row < D; ++row) {
+                            *packed++ = column[row];
+                            ok = ok && std::isfinite(column[row]);
+                          }
+                        }
+                        if (!ok) {
+                          std::size_t seen = first_bad.load(std::memory_order_relaxed);
+                          while (i < seen && !first_bad.compare_exchange_weak(seen, i)) {
+                          }
+                        }
                       }
                     });
-  for (std::size_t i = 0; i < blocks.size(); ++i) {
-    const auto D = static_cast<std::size_t>(out->dim[i]);
-    if (!std::isfinite(out->cost[i]) || !finite(out->b.data() + out->b_offset[i], D) ||
-        !finite(out->h.data() + out->h_offset[i], D * D)) {
-      const ParameterPointers params(ptrs.data() + param_begin_[i],
-                                     param_begin_[i + 1] - param_begin_[i]);
-      *error =
-          "residual block " + std::to_string(i) + ": " + first_bad_row(*blocks[i].block, params);
-      return false;
-    }
+  const std::size_t bad = first_bad.load();
+  if (bad < blocks.size()) {
+    const ParameterPointers params(ptrs.data() + param_begin_[bad],
+                                   param_begin_[bad + 1] - param_begin_[bad]);
+    *error =
+        "residual block " + std::to_string(bad) + ": " + first_bad_row(*blocks[bad].block, params);
+    return false;
   }
   return true;
 }

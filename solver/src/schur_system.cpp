@@ -378,13 +378,8 @@ void SchurSystem::assemble(const BlockLinearizations& blocks, Eigen::VectorXd* g
             for (std::size_t q = pair.contrib_begin; q < pair.contrib_end; ++q) {
               const Contribution& src = pair_contribs_[q];
               const auto bi = static_cast<std::size_t>(src.block);
-              const auto D = static_cast<std::size_t>(blocks.dim[bi]);
-              const double* H = blocks.h.data() + blocks.h_offset[bi];
-              for (int c = 0; c < dj; ++c) {
-                const double* col = H + (at(src.col_local) + at(c)) * D + at(src.row_local);
-                double* dst = out + at(c) * at(di);
-                for (int r = 0; r < di; ++r) dst[r] += col[r];
-              }
+              add_packed_block(blocks.h.data() + blocks.h_offset[bi], at(blocks.dim[bi]),
+                               at(src.row_local), at(src.col_local), di, dj, out, at(di));
             }
           }
           double* g = gradient->data() + cam_offset_[j];
@@ -408,12 +403,8 @@ void SchurSystem::assemble(const BlockLinearizations& blocks, Eigen::VectorXd* g
           for (std::size_t s = pt_contrib_begin_[p]; s < pt_contrib_begin_[p + 1]; ++s) {
             const auto [block, local] = pt_contribs_[s];
             const auto bi = static_cast<std::size_t>(block);
-            const auto D = static_cast<std::size_t>(blocks.dim[bi]);
-            const double* H = blocks.h.data() + blocks.h_offset[bi];
-            for (int c = 0; c < dp; ++c) {
-              const double* col = H + (at(local) + at(c)) * D + at(local);
-              for (int r = 0; r < dp; ++r) V[at(c) * at(dp) + at(r)] += col[r];
-            }
+            add_packed_block(blocks.h.data() + blocks.h_offset[bi], at(blocks.dim[bi]), at(local),
+                             at(local), dp, dp, V, at(dp));
             const double* b = blocks.b.data() + blocks.b_offset[bi] + local;
             for (int r = 0; r < dp; ++r) g[r] += b[r];
           }
@@ -424,12 +415,8 @@ void SchurSystem::assemble(const BlockLinearizations& blocks, Eigen::VectorXd* g
             for (std::size_t q = edge_contrib_begin_[e]; q < edge_contrib_begin_[e + 1]; ++q) {
               const Contribution& src = edge_contribs_[q];
               const auto bi = static_cast<std::size_t>(src.block);
-              const auto D = static_cast<std::size_t>(blocks.dim[bi]);
-              const double* H = blocks.h.data() + blocks.h_offset[bi];
-              for (int c = 0; c < dp; ++c) {
-                const double* col = H + (at(src.col_local) + at(c)) * D + at(src.row_local);
-                for (int r = 0; r < dc; ++r) W[at(c) * at(dc) + at(r)] += col[r];
-              }
+              add_packed_block(blocks.h.data() + blocks.h_offset[bi], at(blocks.dim[bi]),
+                               at(src.row_local), at(src.col_local), dc, dp, W, at(dc));
             }
           }
         }

@@ -321,15 +321,27 @@ void SparseSystem::assemble(const BlockLinearizations& blocks, Eigen::VectorXd* 
               const auto bi = static_cast<std::size_t>(src.block);
               const auto D = static_cast<std::size_t>(blocks.dim[bi]);
               const double* H = blocks.h.data() + blocks.h_offset[bi];
+              const auto row_local = static_cast<std::size_t>(src.row_local);
+              const auto col_local = static_cast<std::size_t>(src.col_local);
               for (int c = 0; c < dJ; ++c) {
                 double* column = values_.data() + colptr_[static_cast<std::size_t>(col0 + c)];
-                const double* src_col =
-                    H + static_cast<std::size_t>(src.col_local + c) * D + src.row_local;
+                const auto cc = static_cast<std::size_t>(c);
                 if (diagonal) {
-                  for (int r = c; r < dJ; ++r) column[r - c] += src_col[r];
+                  // H packed by columns: column col_local + c from its diagonal down.
+                  const double* src_col = H + packed_column(D, col_local + cc);
+                  for (int r = 0; r < dJ - c; ++r) column[r] += src_col[r];
+                } else if (row_local > col_local) {
+                  double* dst = column + (dJ - c) + pair.row_in_column;
+                  const double* src_col =
+                      H + packed_column(D, col_local + cc) + (row_local - col_local - cc);
+                  for (int r = 0; r < dI; ++r) dst[r] += src_col[r];
                 } else {
                   double* dst = column + (dJ - c) + pair.row_in_column;
-                  for (int r = 0; r < dI; ++r) dst[r] += src_col[r];
+                  for (int r = 0; r < dI; ++r) {
+                    const auto rr = static_cast<std::size_t>(r);
+                    dst[r] +=
+                        H[packed_column(D, row_local + rr) + (col_local + cc - row_local - rr)];
+                  }
                 }
               }
             }
