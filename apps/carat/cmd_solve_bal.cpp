@@ -1,0 +1,136 @@
+// carat solve-bal FILE [--out FILE] [--linear-solver auto|schur|cholesky] [--max-iterations N]
+//                      [--threads T] [--loss none|huber|cauchy] [--loss-scale S]
+//                      [--trust-region-growth G] [--factor-reuse] [--json]
+#include <cstdio>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "carat/base/atomic_file.hpp"
+#include "carat/base/error.hpp"
+#include "carat/base/stopwatch.hpp"
+#include "carat/residuals/bal_problem.hpp"
+#include "carat/residuals/io/bal_io.hpp"
+#include "carat/solver/loss_function.hpp"
+#include "carat/solver/solve.hpp"
+#include "carat/solver/solver_options.hpp"
+#include "cli_support.hpp"
+#include "commands.hpp"
+
+namespace carat::cli {
+namespace {
+
+struct SolveBalArgs {
+  std::string input;
+  std::string output;
+  std::string linear_solver = "auto";
+  int max_iterations = 50;
+  int threads = 1;
+  std::string loss = "none";
+  double loss_scale = 1.0;
+  double trust_region_growth = 3.0;
+  bool factor_reuse = false;
+  bool json = false;
+};
+
+int run_solve_bal(const CLI::App& command, const SolveBalArgs& args) {
+  const Stopwatch total;
+  const LossKind loss = parse_loss_kind(args.loss);
+  refuse_unused(command, "--loss-scale", loss != LossKind::kNone, "to --loss none (set --loss)");
+  if (!args.output.empty()) check_output_file("--out", args.output, {{"FILE", args.input}});
+
+  Stopwatch stage;
+  BalProblem bal = read_bal(args.input);
+  const double read_s = stage.elapsed_s();
+  const std::size_t behind = count_points_behind_cameras(bal);
+
+  stage.restart();
+  Problem problem;
+  const BalVariables variables = add_bal_problem(bal, &problem, make_loss(loss, args.loss_scale));
+  const double build_s = stage.elapsed_s();
+
+  SolverOptions options;
+  options.linear_solver = parse_linear_solver(args.linear_solver);
+  options.max_iterations = args.max_iterations;
+  options.num_threads = args.threads;
+  options.max_trust_region_growth = args.trust_region_growth;
+  options.reuse_factorization = args.factor_reuse;
+  const SolverSummary summary = solve(options, problem);
+  if (summary.termination == TerminationType::kFailure) {
+    throw Error(args.input + ": the solve failed: " + summary.message);
+  }
+
+  stage.restart();
+  std::unique_ptr<OutputFile> out;
+  if (!args.output.empty()) {
+    update_bal_problem(problem, variables, &bal);
+    out = std::make_unique<OutputFile>(args.output);
+    write_bal(out->stream(), bal);
+  }
+  const double write_s = stage.elapsed_s();
+
+  if (args.json) {
+    nlohmann::json j = nlohmann::json::parse(summary.to_json());
+    j["input"] = args.input;
+    j["cameras"] = bal.cameras.size();
+    j["points"] = bal.points.size();
+    j["observations"] = bal.observations.size();
+    j["points_behind_cameras"] = behind;
+    j["solve_time_s"] = summary.time.total_s;
+    j["time_breakdown"]["read_s"] = read_s;
+    j["time_breakdown"]["build_s"] = build_s;
+    j["time_breakdown"]["write_s"] = write_s;
+    j["time_s"] = total.elapsed_s();
+    if (!args.output.empty()) j["output"] = args.output;
+    std::printf("%s\n", j.dump(2).c_str());
+  } else {
+    std::printf("%s: %zu cameras, %zu points, %zu observations", args.input.c_str(),
+                bal.cameras.size(), bal.points.size(), bal.observations.size());
+    if (behind > 0) std::printf(" (%zu observations of points behind their camera)", behind);
+    std::printf("\n\n%s\n%s\n", summary.full_report().c_str(), summary.brief_report().c_str());
+    std::printf("read %.3f s, build %.3f s, solve %.3f s, total %.3f s\n", read_s, build_s,
+                summary.time.total_s, total.elapsed_s());
+    if (!args.output.empty()) std::printf("wrote %s\n", args.output.c_str());
+  }
+  flush_standard_output();  // the report is out: now the problem goes into place
+  if (out) out->commit();
+  return 0;
+}
+
+}  // namespace
+
+void register_solve_bal(CLI::App& app, CommandRegistry& registry) {
+  auto args = std::make_shared<SolveBalArgs>();
+  CLI::App* cmd = app.add_subcommand(
+      "solve-bal", "Bundle adjustment of a BAL problem (Snavely camera model, Schur complement)");
+  cmd->add_option("file", args->input, "BAL file to read")->check(path_value())->required();
+  cmd->add_option("--out", args->output, "write the solved problem here (BAL; never the input)")
+      ->check(path_value());
+  cmd->add_option("--linear-solver", args->linear_solver,
+                  "schur (eliminate the points), cholesky (whole system) or auto")
+      ->check(CLI::IsMember({"auto", "schur", "cholesky"}))
+      ->capture_default_str();
+  cmd->add_option("--max-iterations", args->max_iterations, "iteration limit")
+      ->check(integer_in(0, 1000000))
+      ->capture_default_str();
+  cmd->add_option("--threads", args->threads, "threads for linearization and elimination")
+      ->check(integer_in(1, 1024))
+      ->capture_default_str();
+  cmd->add_option("--loss", args->loss, "robust loss on every observation")
+      ->check(CLI::IsMember({"none", "huber", "cauchy"}))
+      ->capture_default_str();
+  cmd->add_option("--loss-scale", args->loss_scale, "scale of the robust loss (pixels)")
+      ->check(real_in(1e-6, 1e6))
+      ->capture_default_str();
+  cmd->add_option("--trust-region-growth", args->trust_region_growth,
+                  "most the LM radius grows after one step")
+      ->check(real_in(1.0, 1e6))
+      ->capture_default_str();
+  cmd->add_flag("--factor-reuse", args->factor_reuse,
+                "try steps on an earlier factorization in slow tails (off for BA: see "
+                "docs/benchmarks.md)");
+  cmd->add_flag("--json", args->json, "print one JSON object instead of the report");
+  registry.add(cmd, [args, cmd] { return run_solve_bal(*cmd, *args); });
+}
+
+}  // namespace carat::cli

@@ -1,0 +1,182 @@
+// Side-by-side: Ceres 2.1 and carat solve the same synthetic bundle-adjustment problems (BAL
+// format, Snavely camera model) in the same run.
+// Ceres gets its standard setup for BAL (as in its bundle_adjuster example): one 9-parameter
+// block per camera and one 3-parameter block per point, the reprojection error with automatic
+// differentiation, LM, SPARSE_SCHUR (SuiteSparse; the elimination ordering Ceres picks), 1 thread,
+// default tolerances and iteration limit. Its time is Solve()'s own total. carat's time is the
+// whole `carat solve-bal FILE --json` process, reading the file included (defaults, 1 thread).
+// Each Ceres solve runs in a child process, once with the BLAS Debian's Ceres links and once
+// with the system's (carat's) BLAS.
+//
+// Usage: bal_compare [--quick] [--keep DIR]
+//   --quick: only the smallest problem. --keep: write the generated BAL files into DIR.
+// Prints one JSON object per problem.
+#include <ceres/ceres.h>
+#include <ceres/rotation.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "carat/base/stopwatch.hpp"
+#include "carat/residuals/io/bal_io.hpp"
+#include "carat/sim/bal_scene.hpp"
+
+namespace {
+
+/// The BAL reprojection error: P = R(w) X + t, p = -P.xy / P.z, image = f (1 + k1 r^2 + k2 r^4) p.
+struct ReprojectionError {
+  double observed_x;
+  double observed_y;
+
+  template <typename T>
+  bool operator()(const T* camera, const T* point, T* residual) const {
+    T P[3];
+    ceres::AngleAxisRotatePoint(camera, point, P);
+    for (int k = 0; k < 3; ++k) P[k] += camera[3 + k];
+    const T x = -P[0] / P[2];
+    const T y = -P[1] / P[2];
+    const T r2 = x * x + y * y;
+    const T scale = camera[6] * (T(1.0) + r2 * (camera[7] + camera[8] * r2));
+    residual[0] = scale * x - observed_x;
+    residual[1] = scale * y - observed_y;
+    return true;
+  }
+};
+
+nlohmann::json run_ceres(const std::string& file) {
+  carat::BalProblem bal = carat::read_bal(file);
+  ceres::Problem problem;
+  for (const auto& o : bal.observations) {
+    auto* cost = new ceres::AutoDiffCostFunction<ReprojectionError, 2, 9, 3>(
+        new ReprojectionError{o.x, o.y});
+    problem.AddResidualBlock(cost, nullptr, bal.cameras[static_cast<std::size_t>(o.camera)].data(),
+                             bal.points[static_cast<std::size_t>(o.point)].data());
+  }
+  ceres::Solver::Options options;
+  options.linear_solver_type = ceres::SPARSE_SCHUR;
+  options.num_threads = 1;
+  options.minimizer_progress_to_stdout = false;
+  options.logging_type = ceres::SILENT;
+  ceres::Solver::Summary summary;
+  const carat::Stopwatch wall;
+  ceres::Solve(options, &problem, &summary);
+  const double wall_s = wall.elapsed_s();
+  return {{"initial_cost", summary.initial_cost},
+          {"final_cost", summary.final_cost},
+          {"iterations", summary.num_successful_steps + summary.num_unsuccessful_steps},
+          {"termination", ceres::TerminationTypeToString(summary.termination_type)},
+          {"time_s", summary.total_time_in_seconds},
+          {"wall_s", wall_s},
+          {"linear_solver_time_s", summary.linear_solver_time_in_seconds},
+          {"jacobian_time_s", summary.jacobian_evaluation_time_in_seconds}};
+}
+
+/// Runs `command`, returns its standard output; *wall_s: its wall time.
+std::string run(const std::string& command, double* wall_s, int* status) {
+  const carat::Stopwatch wall;
+  FILE* pipe = popen(command.c_str(), "r");
+  if (!pipe) {
+    *status = -1;
+    return {};
+  }
+  std::string out;
+  char buffer[4096];
+  while (std::fgets(buffer, sizeof(buffer), pipe)) out += buffer;
+  *status = pclose(pipe);
+  *wall_s = wall.elapsed_s();
+  return out;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  bool quick = false;
+  std::string solver, file, keep;
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    if (arg == "--quick") {
+      quick = true;
+    } else if (arg == "--keep" && i + 1 < argc) {
+      keep = argv[++i];
+    } else if (arg == "--solver" && i + 2 < argc) {
+      solver = argv[++i];
+      file = argv[++i];
+    } else {
+      std::fprintf(stderr, "usage: bal_compare [--quick] [--keep DIR]\n");
+      return 2;
+    }
+  }
+  if (!solver.empty()) {  // child: one Ceres solve, one JSON line
+    std::printf("%s\n", run_ceres(file).dump().c_str());
+    return 0;
+  }
+  struct Case {
+    const char* name;
+    carat::BalLayout layout;
+    int cameras, points, views;
+  };
+  std::vector<Case> cases = {{"ring-16x22106", carat::BalLayout::kRing, 16, 22106, 4},
+                             {"ring-100x20000", carat::BalLayout::kRing, 100, 20000, 8},
+                             {"street-500x60000", carat::BalLayout::kStreet, 500, 60000, 5}};
+  if (quick) cases.resize(1);
+  const std::filesystem::path folder =
+      keep.empty() ? std::filesystem::temp_directory_path() / "carat_bal_compare" : keep;
+  std::filesystem::create_directories(folder);
+  const std::string self = std::filesystem::read_symlink("/proc/self/exe").string();
+  const std::string system_blas = "libblas.so.3";  // see ceres_compare.cpp
+  int exit_code = 0;
+  for (const Case& c : cases) {
+    carat::BalSimulationOptions options;
+    options.layout = c.layout;
+    options.cameras = c.cameras;
+    options.points = c.points;
+    options.observations_per_point = c.views;
+    options.seed = 7;
+    const carat::BalScene scene = carat::simulate_bal(options);
+    const std::string path = (folder / (std::string(c.name) + ".bal")).string();
+    carat::write_bal(path, scene.problem);
+
+    nlohmann::json j;
+    j["problem"] = c.name;
+    j["cameras"] = c.cameras;
+    j["points"] = c.points;
+    j["observations"] = scene.problem.observations.size();
+    double wall_s = 0.0;
+    int status = 0;
+    const std::string ceres_out = run("'" + self + "' --solver ceres '" + path + "'", &wall_s, &status);
+    const std::string ceres_blas_out = run("LD_PRELOAD='" + system_blas + "' '" + self +
+                                               "' --solver ceres '" + path + "'",
+                                           &wall_s, &status);
+    const std::string carat_out =
+        run("'" + std::string(CARAT_CLI) + "' solve-bal '" + path + "' --json", &wall_s, &status);
+    if (status != 0 || ceres_out.empty() || ceres_blas_out.empty() || carat_out.empty()) {
+      j["error"] = "a solver failed";
+      std::printf("%s\n", j.dump().c_str());
+      exit_code = 1;
+      continue;
+    }
+    j["ceres"] = nlohmann::json::parse(ceres_out);
+    j["ceres_system_blas"] = nlohmann::json::parse(ceres_blas_out);
+    const nlohmann::json carat = nlohmann::json::parse(carat_out);
+    j["carat"] = {{"initial_cost", carat["initial_cost"]},
+                  {"final_cost", carat["final_cost"]},
+                  {"iterations", carat["iterations"]},
+                  {"termination", carat["termination"]},
+                  {"process_s", wall_s},
+                  {"time_s", carat["time_s"]},
+                  {"time_breakdown", carat["time_breakdown"]}};
+    const double ceres_time = std::min(j["ceres"]["time_s"].get<double>(),
+                                       j["ceres_system_blas"]["time_s"].get<double>());
+    const double ceres_cost = std::min(j["ceres"]["final_cost"].get<double>(),
+                                       j["ceres_system_blas"]["final_cost"].get<double>());
+    j["time_ratio_carat_process_over_ceres_solve"] = wall_s / ceres_time;
+    j["cost_ratio_carat_over_ceres"] = carat["final_cost"].get<double>() / ceres_cost;
+    std::printf("%s\n", j.dump().c_str());
+    std::fflush(stdout);
+    if (keep.empty()) std::filesystem::remove(path);
+  }
+  return exit_code;
+}
