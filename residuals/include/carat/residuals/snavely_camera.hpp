@@ -15,7 +15,8 @@ namespace carat {
 inline constexpr int kBalCameraSize = 9;
 
 /// Rotates `point` by the angle-axis vector `w` (radians): out = R(w) point by Rodrigues' formula
-///   R(w) x = x + a w x x + b w x (w x x),  a = sin(theta) / theta,  b = (1 - cos(theta)) / theta^2
+///   R(w) x = x + a cross(w, x) + b cross(w, cross(w, x)),
+///   a = sin(theta) / theta,  b = (1 - cos(theta)) / theta^2,
 /// with a and b from their Taylor series below an angle of 1e-3 rad (theta = |w|), where the
 /// closed forms lose precision. Templated for automatic differentiation; `out` must not alias
 /// the inputs.
