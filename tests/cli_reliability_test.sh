@@ -46,6 +46,16 @@ for cmd in "demo --seed" "simulate --out $scratch/never-sim --seed" "paper --out
     check "integer_option_${words[0]}_seed_${value}" 2 "--seed" -- "$CARAT" "${words[@]}" "$value"
   done
 done
+for value in -1 18446744073709551616 1e3 0x10 1.5 nan; do
+  check "integer_option_simulate_bal_seed_${value}" 2 "--seed" -- "$CARAT" simulate-bal --out "$scratch/never.bal" --seed "$value"
+done
+check simulate_bal_points_fraction 2 "--points" -- "$CARAT" simulate-bal --out "$scratch/never.bal" --points 100.5
+check simulate_bal_points_overflow 2 "--points * --observations-per-point is 2200000000 observations; the BAL format holds at most 2147483647" -- "$CARAT" simulate-bal --out "$scratch/never.bal" --points 100000000 --observations-per-point 22 --cameras 22
+# A failed simulate-bal leaves an existing output as it was.
+echo "keep" >"$scratch/keep.bal"
+check simulate_bal_truth_missing_folder 2 "--truth" -- "$CARAT" simulate-bal --out "$scratch/keep.bal" --truth "$scratch/no-such-folder/t.bal"
+[[ "$(cat "$scratch/keep.bal")" == "keep" ]] && pass=$((pass + 1)) || { echo "FAIL simulate-bal replaced --out on a usage error"; fail=$((fail + 1)); }
+check simulate_bal_out_unwritable 1 "" -- "$CARAT" simulate-bal --out /proc/carat-cannot-write.bal --cameras 4 --points 8
 check frames_hex 2 "--frames: must be an integer in [12, 100000], got '0x10'" -- "$CARAT" demo --frames 0x10
 check frames_fraction 2 "--frames" -- "$CARAT" simulate --out "$scratch/never-sim" --frames 10.5
 check threads_negative 2 "--threads" -- "$CARAT" map --frames "$seqdir" --poses "$seqdir/poses.txt" --threads -1

@@ -324,6 +324,30 @@ check map_missing_frames 1 "nowhere: not a folder of frames" -- "$CARAT" map --f
 check map_unknown_flag 2 "" -- "$CARAT" map --frames "$scratch/seq" --poses "$scratch/seq/poses.txt" --frobnicate
 check map_out_of_range 2 "" -- "$CARAT" map --frames "$scratch/seq" --poses "$scratch/seq/poses.txt" --residuals 5
 check simulate_bad_out 1 "" -- "$CARAT" simulate --out /proc/carat-cannot-write --frames 4
+
+# simulate-bal: a BAL problem and its truth, exact counts, the same bytes for the same seed.
+check simulate_bal 0 "" -- "$CARAT" simulate-bal --layout ring --cameras 8 --points 50 --observations-per-point 3 --out "$scratch/bal.txt" --truth "$scratch/bal_truth.txt"
+if [[ "$(head -1 "$scratch/bal.txt")" != "8 50 150" || $(wc -l <"$scratch/bal.txt") -ne $((1 + 150 + 72 + 150)) || "$(head -1 "$scratch/bal_truth.txt")" != "8 50 150" ]]; then
+  echo "FAIL simulate-bal: header '$(head -1 "$scratch/bal.txt")', $(wc -l <"$scratch/bal.txt") lines"; fail=$((fail + 1)); else pass=$((pass + 1)); fi
+grep -q "ring scene: 8 cameras, 50 points, 150 observations (0 outliers), seed 1" "$scratch/out" || { echo "FAIL simulate-bal report: $(head -c 300 "$scratch/out")"; fail=$((fail + 1)); }
+check simulate_bal_json 0 "" -- "$CARAT" simulate-bal --layout street --cameras 10 --points 200 --observations-per-point 4 --noise 0.5 --outliers 0.1 --seed 9 --out "$scratch/bal_street.txt" --json
+expect simulate_bal_json_fields "$(json_field "$scratch/out" "j['layout'] == 'street' and j['cameras'] == 10 and j['points'] == 200 and j['observations'] == 800 and j['outliers'] == 80 and j['seed'] == 9 and j['initial_cost'] > j['truth_cost'] > 0 and 'truth' not in j")"
+"$CARAT" simulate-bal --layout street --cameras 10 --points 200 --observations-per-point 4 --noise 0.5 --outliers 0.1 --seed 9 --out "$scratch/bal_street2.txt" >/dev/null
+"$CARAT" simulate-bal --layout street --cameras 10 --points 200 --observations-per-point 4 --noise 0.5 --outliers 0.1 --seed 10 --out "$scratch/bal_street3.txt" >/dev/null
+if cmp -s "$scratch/bal_street.txt" "$scratch/bal_street2.txt" && ! cmp -s "$scratch/bal_street.txt" "$scratch/bal_street3.txt"; then pass=$((pass + 1)); else
+  echo "FAIL simulate-bal: the same seed must give the same file, another seed another"; fail=$((fail + 1)); fi
+check simulate_bal_random 0 "" -- "$CARAT" simulate-bal --layout random --cameras 500 --points 1000 --observations-per-point 3 --out "$scratch/bal_random.txt" --json
+expect simulate_bal_random_counts "$(json_field "$scratch/out" "j['cameras'] == 500 and j['observations'] == 3000")"
+check simulate_bal_bad_layout 2 "--layout" -- "$CARAT" simulate-bal --layout circle --out "$scratch/never.bal"
+check simulate_bal_one_camera 2 "--cameras" -- "$CARAT" simulate-bal --cameras 1 --out "$scratch/never.bal"
+check simulate_bal_few_points 2 "--points 10 must be at least --cameras 16 (every camera observes a point)" -- "$CARAT" simulate-bal --points 10 --out "$scratch/never.bal"
+check simulate_bal_too_many_per_point 2 "--observations-per-point 17 must be at most --cameras 16" -- "$CARAT" simulate-bal --observations-per-point 17 --out "$scratch/never.bal"
+check simulate_bal_outliers 2 "--outliers" -- "$CARAT" simulate-bal --outliers 1.5 --out "$scratch/never.bal"
+check simulate_bal_noise_nan 2 "--noise" -- "$CARAT" simulate-bal --noise nan --out "$scratch/never.bal"
+check simulate_bal_no_out 2 "--out" -- "$CARAT" simulate-bal --cameras 4
+check simulate_bal_same_files 2 "--truth and --out name the same file" -- "$CARAT" simulate-bal --out "$scratch/never.bal" --truth "$scratch/never.bal"
+check simulate_bal_out_dir 2 "--out" -- "$CARAT" simulate-bal --out "$scratch"
+[[ ! -e "$scratch/never.bal" ]] && pass=$((pass + 1)) || { echo "FAIL simulate-bal wrote an output on a usage error"; fail=$((fail + 1)); }
 check simulate_out_of_range 2 "" -- "$CARAT" simulate --out "$scratch/x" --frames 1
 check paper_unknown_flag 2 "" -- "$CARAT" paper --fast
 check demo_out_of_range 2 "" -- "$CARAT" demo --residuals 10

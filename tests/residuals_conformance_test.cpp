@@ -14,6 +14,7 @@
 #include "carat/residuals/pose_prior_block.hpp"
 #include "carat/residuals/relative_pose_autodiff_block.hpp"
 #include "carat/residuals/relative_pose_block.hpp"
+#include "carat/residuals/snavely_block.hpp"
 #include "carat/solver/autodiff_block.hpp"
 #include "carat/solver/block_checker.hpp"
 #include "carat/solver/lie_functions.hpp"
@@ -226,6 +227,13 @@ const std::vector<std::pair<std::string, Factory>>& cases() {
          return Case{make_numeric_diff_block<1, VariableSize<2>>(ExpResidualDouble{}, curve(400)),
                      {euclidean_manifold(2)},
                      {{0.25, 0.2}}};
+       }},
+      {"SnavelyReprojectionBlock",
+       [] {
+         // A BAL camera [w, t, f, k1, k2] 10 m from a point in front of it.
+         return Case{std::make_shared<SnavelyReprojectionBlock>(31.5, -12.25),
+                     {euclidean_manifold(9), euclidean_manifold(3)},
+                     {{0.2, -0.4, 0.3, 0.5, -0.3, -10.0, 480.0, -0.05, 0.004}, {0.8, 1.2, -0.6}}};
        }},
       {"RelativePoseAutoDiffBlock",
        [] {

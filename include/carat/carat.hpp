@@ -37,7 +37,9 @@
 #include <carat/registration/pose_perturbation.hpp>
 #include <carat/registration/trajectory_error.hpp>
 #include <carat/registration/voxel_grid.hpp>
+#include <carat/residuals/bal_problem.hpp>
 #include <carat/residuals/gicp_block.hpp>
+#include <carat/residuals/io/bal_io.hpp>
 #include <carat/residuals/io/g2o_io.hpp>
 #include <carat/residuals/lossless_block.hpp>
 #include <carat/residuals/point_to_plane_block.hpp>
@@ -48,6 +50,9 @@
 #include <carat/residuals/registration_rows.hpp>
 #include <carat/residuals/relative_pose_autodiff_block.hpp>
 #include <carat/residuals/relative_pose_block.hpp>
+#include <carat/residuals/snavely_block.hpp>
+#include <carat/residuals/snavely_camera.hpp>
+#include <carat/sim/bal_scene.hpp>
 #include <carat/sim/circuit_options.hpp>
 #include <carat/sim/drift.hpp>
 #include <carat/sim/kitti_writer.hpp>

@@ -1,0 +1,75 @@
+#pragma once
+
+/// The camera model of the BAL data sets ("Bundle Adjustment in the Large", Agarwal et al.): nine
+/// parameters [w (3), t (3), f, k1, k2] with w the angle-axis rotation (radians) taking world
+/// points into the camera frame, t the translation (scene units), f the focal length (pixels) and
+/// k1, k2 radial distortion of the normalized image point. A world point X (scene units) maps to
+///   P = R(w) X + t,  p = -(P_x, P_y) / P_z,  d = 1 + k1 |p|^2 + k2 |p|^4,  image = f d p (pixels).
+/// The camera looks down its -z axis: a point is in front of it when P_z < 0.
+
+#include <cmath>
+
+namespace carat {
+
+/// Number of parameters of one BAL camera.
+inline constexpr int kBalCameraSize = 9;
+
+/// Rotates `point` by the angle-axis vector `w` (radians): out = R(w) point by Rodrigues' formula
+///   R(w) x = x + a cross(w, x) + b cross(w, cross(w, x)),
+///   a = sin(theta) / theta,  b = (1 - cos(theta)) / theta^2,
+/// with a and b from their Taylor series below an angle of 1e-3 rad (theta = |w|), where the
+/// closed forms lose precision. Templated for automatic differentiation; `out` must not alias
+/// the inputs.
+template <typename T>
+void angle_axis_rotate(const T* w, const T* point, T* out) {
+  using std::cos;
+  using std::sin;
+  using std::sqrt;
+  const T theta2 = w[0] * w[0] + w[1] * w[1] + w[2] * w[2];
+  T a, b;
+  if (theta2 > T(1e-6)) {
+    const T theta = sqrt(theta2);
+    a = sin(theta) / theta;
+    b = (T(1.0) - cos(theta)) / theta2;
+  } else {
+    a = T(1.0) - theta2 / T(6.0);
+    b = T(0.5) - theta2 / T(24.0);
+  }
+  const T wx[3] = {w[1] * point[2] - w[2] * point[1], w[2] * point[0] - w[0] * point[2],
+                   w[0] * point[1] - w[1] * point[0]};
+  const T wwx[3] = {w[1] * wx[2] - w[2] * wx[1], w[2] * wx[0] - w[0] * wx[2],
+                    w[0] * wx[1] - w[1] * wx[0]};
+  for (int i = 0; i < 3; ++i) out[i] = point[i] + a * wx[i] + b * wwx[i];
+}
+
+/// The point `camera` (9 parameters, see above) takes to the camera frame: P = R(w) X + t.
+template <typename T>
+void snavely_camera_point(const T* camera, const T* point, T* P) {
+  angle_axis_rotate(camera, point, P);
+  P[0] += camera[3];
+  P[1] += camera[4];
+  P[2] += camera[5];
+}
+
+/// Projects the world point `point` (3) with `camera` (9) to `image` (2, pixels). A point with
+/// P_z = 0 gives a non-finite image; one behind the camera (P_z > 0) is projected all the same.
+template <typename T>
+void snavely_project(const T* camera, const T* point, T* image) {
+  T P[3];
+  snavely_camera_point(camera, point, P);
+  const T px = -P[0] / P[2];
+  const T py = -P[1] / P[2];
+  const T r2 = px * px + py * py;
+  const T distortion = T(1.0) + r2 * (camera[7] + camera[8] * r2);
+  image[0] = camera[6] * distortion * px;
+  image[1] = camera[6] * distortion * py;
+}
+
+/// Whether `point` lies strictly in front of `camera` (P_z < 0 in the camera frame).
+inline bool in_front_of_camera(const double* camera, const double* point) {
+  double P[3];
+  snavely_camera_point(camera, point, P);
+  return P[2] < 0.0;
+}
+
+}  // namespace carat

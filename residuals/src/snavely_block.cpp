@@ -1,0 +1,113 @@
+#include "carat/residuals/snavely_block.hpp"
+
+#include <cmath>
+#include <string>
+
+#include "carat/base/error.hpp"
+#include "carat/residuals/snavely_camera.hpp"
+
+namespace carat {
+namespace {
+
+/// [v]x, the cross-product matrix.
+Eigen::Matrix3d cross_matrix(const Eigen::Vector3d& v) {
+  Eigen::Matrix3d m;
+  m << 0.0, -v.z(), v.y(), v.z(), 0.0, -v.x(), -v.y(), v.x(), 0.0;
+  return m;
+}
+
+}  // namespace
+
+SnavelyReprojectionBlock::SnavelyReprojectionBlock(double observed_x, double observed_y)
+    : observed_(observed_x, observed_y) {
+  if (!std::isfinite(observed_x) || !std::isfinite(observed_y)) {
+    throw Error("SnavelyReprojectionBlock: observation (" + message_number(observed_x) + ", " +
+                message_number(observed_y) + ") is not finite");
+  }
+}
+
+Eigen::Vector2d SnavelyReprojectionBlock::evaluate(const double* camera, const double* point,
+                                                   Jacobian* jacobian) const {
+  const Eigen::Map<const Eigen::Vector3d> w(camera);
+  const Eigen::Map<const Eigen::Vector3d> t(camera + 3);
+  const Eigen::Map<const Eigen::Vector3d> X(point);
+  const double f = camera[6], k1 = camera[7], k2 = camera[8];
+
+  // R = I + a W + b W^2 and the right Jacobian J_r = I - b W + c W^2 of SO(3), with
+  // a = sin(theta)/theta, b = (1 - cos(theta))/theta^2, c = (theta - sin(theta))/theta^3
+  // (Taylor series below 1e-3 rad, as angle_axis_rotate()).
+  const double theta2 = w.squaredNorm();
+  double a, b, c;
+  if (theta2 > 1e-6) {
+    const double theta = std::sqrt(theta2);
+    const double s = std::sin(theta);
+    a = s / theta;
+    b = (1.0 - std::cos(theta)) / theta2;
+    c = (theta - s) / (theta2 * theta);
+  } else {
+    a = 1.0 - theta2 / 6.0;
+    b = 0.5 - theta2 / 24.0;
+    c = 1.0 / 6.0 - theta2 / 120.0;
+  }
+  const Eigen::Matrix3d W = cross_matrix(w);
+  const Eigen::Matrix3d W2 = W * W;
+  const Eigen::Matrix3d R = Eigen::Matrix3d::Identity() + a * W + b * W2;
+  const Eigen::Vector3d P = R * X + t;
+
+  const double inverse_z = 1.0 / P.z();
+  const Eigen::Vector2d p(-P.x() * inverse_z, -P.y() * inverse_z);
+  const double r2 = p.squaredNorm();
+  const double distortion = 1.0 + r2 * (k1 + k2 * r2);
+  const Eigen::Vector2d residual = f * distortion * p - observed_;
+  if (jacobian == nullptr) return residual;
+
+  // d image / d p = f (d I + 2 (k1 + 2 k2 r2) p p^T);  d p / d P = -1/P_z [I | p].
+  const Eigen::Matrix2d d_image_d_p = f * (distortion * Eigen::Matrix2d::Identity() +
+                                           (2.0 * (k1 + 2.0 * k2 * r2)) * p * p.transpose());
+  Eigen::Matrix<double, 2, 3> d_p_d_P;
+  d_p_d_P << 1.0, 0.0, p.x(), 0.0, 1.0, p.y();
+  d_p_d_P *= -inverse_z;
+  const Eigen::Matrix<double, 2, 3> d_image_d_P = d_image_d_p * d_p_d_P;
+  const Eigen::Matrix<double, 2, 3> d_image_d_X = d_image_d_P * R;
+  // d (R(w) X) / d w = -R [X]x J_r(w).
+  const Eigen::Matrix3d J_r = Eigen::Matrix3d::Identity() - b * W + c * W2;
+  jacobian->block<2, 3>(0, 0).noalias() = -(d_image_d_X * cross_matrix(X)) * J_r;
+  jacobian->block<2, 3>(0, 3) = d_image_d_P;
+  jacobian->col(6) = distortion * p;
+  jacobian->col(7) = (f * r2) * p;
+  jacobian->col(8) = (f * r2 * r2) * p;
+  jacobian->block<2, 3>(0, 9) = d_image_d_X;
+  return residual;
+}
+
+void SnavelyReprojectionBlock::evaluate_rows(ParameterPointers params, std::span<const int> rows,
+                                             double* residuals, double* jacobian) const {
+  Jacobian J;
+  const Eigen::Vector2d r = evaluate(params[0], params[1], jacobian ? &J : nullptr);
+  for (std::size_t k = 0; k < rows.size(); ++k) {
+    const int row = rows[k];
+    residuals[k] = r[row];
+    if (jacobian) {
+      for (int col = 0; col < 12; ++col)
+        jacobian[12 * k + static_cast<std::size_t>(col)] = J(row, col);
+    }
+  }
+}
+
+double SnavelyReprojectionBlock::accumulate(ParameterPointers params,
+                                            Eigen::Ref<Eigen::MatrixXd> H_r,
+                                            Eigen::Ref<Eigen::VectorXd> b_r) const {
+  Jacobian J;
+  const Eigen::Vector2d r = evaluate(params[0], params[1], &J);
+  const Eigen::Matrix<double, 12, 12> H = J.transpose() * J;
+  const Eigen::Matrix<double, 12, 1> b = J.transpose() * r;
+  H_r += H;
+  b_r += b;
+  return r.squaredNorm();
+}
+
+double SnavelyReprojectionBlock::squared_norm(ParameterPointers params) const {
+  return evaluate(params[0], params[1], nullptr).squaredNorm();
+}
+
+}  // namespace carat

@@ -1,0 +1,187 @@
+// The synthetic BAL scene: exact counts, determinism, every observed point in front of its
+// camera, zero cost at the noise-free truth, exact outlier count, and a small scene solved from
+// its perturbed start down to the noise floor.
+#include <gtest/gtest.h>
+
+#include <cstring>
+
+#include "carat/residuals/bal_problem.hpp"
+#include "carat/sim/bal_scene.hpp"
+#include "carat/solver/solve.hpp"
+#include "test_support.hpp"
+
+namespace carat {
+namespace {
+
+/// Whether two problems hold the same bits.
+bool identical(const BalProblem& a, const BalProblem& b) {
+  if (a.cameras.size() != b.cameras.size() || a.points.size() != b.points.size() ||
+      a.observations.size() != b.observations.size()) {
+    return false;
+  }
+  for (std::size_t i = 0; i < a.cameras.size(); ++i) {
+    if (std::memcmp(a.cameras[i].data(), b.cameras[i].data(), 9 * sizeof(double)) != 0)
+      return false;
+  }
+  for (std::size_t i = 0; i < a.points.size(); ++i) {
+    if (std::memcmp(a.points[i].data(), b.points[i].data(), 3 * sizeof(double)) != 0) return false;
+  }
+  for (std::size_t k = 0; k < a.observations.size(); ++k) {
+    const BalObservation &p = a.observations[k], &q = b.observations[k];
+    if (p.camera != q.camera || p.point != q.point || std::memcmp(&p.x, &q.x, sizeof(double)) ||
+        std::memcmp(&p.y, &q.y, sizeof(double))) {
+      return false;
+    }
+  }
+  return true;
+}
+
+struct SizeCase {
+  BalLayout layout;
+  int cameras, points, per_point;
+};
+
+class BalSceneSizeTest : public ::testing::TestWithParam<SizeCase> {};
+
+TEST_P(BalSceneSizeTest, HasExactlyTheCountsAskedForAndEveryPointInFront) {
+  BalSimulationOptions options;
+  options.layout = GetParam().layout;
+  options.cameras = GetParam().cameras;
+  options.points = GetParam().points;
+  options.observations_per_point = GetParam().per_point;
+  options.outlier_fraction = 0.1;
+  const BalScene scene = simulate_bal(options);
+  for (const BalProblem* p : {&scene.truth, &scene.problem}) {
+    EXPECT_EQ(p->cameras.size(), static_cast<std::size_t>(options.cameras));
+    EXPECT_EQ(p->points.size(), static_cast<std::size_t>(options.points));
+    EXPECT_EQ(p->observations.size(),
+              static_cast<std::size_t>(options.points) * options.observations_per_point);
+    EXPECT_NO_THROW(check_bal_problem(*p));  // every camera observes, every point is observed
+  }
+  EXPECT_EQ(count_points_behind_cameras(scene.truth), 0u);
+  EXPECT_EQ(count_points_behind_cameras(scene.problem), 0u);
+  // Each point is observed by distinct cameras, exactly observations_per_point of them.
+  for (int j = 0; j < options.points; ++j) {
+    std::vector<int> cameras;
+    for (int i = 0; i < options.observations_per_point; ++i) {
+      const BalObservation& o =
+          scene.truth
+              .observations[static_cast<std::size_t>(j * options.observations_per_point + i)];
+      ASSERT_EQ(o.point, j);
+      cameras.push_back(o.camera);
+    }
+    std::sort(cameras.begin(), cameras.end());
+    ASSERT_EQ(std::adjacent_find(cameras.begin(), cameras.end()), cameras.end()) << "point " << j;
+  }
+  const auto outliers =
+      static_cast<std::size_t>(std::count(scene.outlier.begin(), scene.outlier.end(), char{1}));
+  EXPECT_EQ(outliers, static_cast<std::size_t>(std::llround(
+                          0.1 * static_cast<double>(scene.truth.observations.size()))));
+  EXPECT_LE(bal_cost(scene.truth), 1e-20);
+}
+
+INSTANTIATE_TEST_SUITE_P(Layouts, BalSceneSizeTest,
+                         ::testing::Values(SizeCase{BalLayout::kRing, 16, 22106, 4},
+                                           SizeCase{BalLayout::kStreet, 100, 20000, 8},
+                                           SizeCase{BalLayout::kRandom, 500, 2000, 3},
+                                           SizeCase{BalLayout::kRing, 600, 600, 2},
+                                           SizeCase{BalLayout::kStreet, 5, 5, 5}),
+                         [](const ::testing::TestParamInfo<SizeCase>& param_info) {
+                           return std::string(to_string(param_info.param.layout)) +
+                                  std::to_string(param_info.param.cameras) + "x" +
+                                  std::to_string(param_info.param.points);
+                         });
+
+TEST(BalSceneTest, SameSeedSameSceneOtherSeedOtherScene) {
+  for (BalLayout layout : {BalLayout::kRing, BalLayout::kStreet, BalLayout::kRandom}) {
+    BalSimulationOptions options;
+    options.layout = layout;
+    options.cameras = 12;
+    options.points = 300;
+    options.outlier_fraction = 0.05;
+    options.seed = 42;
+    const BalScene a = simulate_bal(options), b = simulate_bal(options);
+    EXPECT_TRUE(identical(a.truth, b.truth));
+    EXPECT_TRUE(identical(a.problem, b.problem));
+    EXPECT_EQ(a.outlier, b.outlier);
+    options.seed = 43;
+    EXPECT_FALSE(identical(a.problem, simulate_bal(options).problem));
+  }
+}
+
+TEST(BalSceneTest, NoiseFreeTruthHasZeroCostThroughTheProblem) {
+  BalSimulationOptions options;
+  options.pixel_noise_sigma = 0.0;
+  options.cameras = 10;
+  options.points = 400;
+  const BalScene scene = simulate_bal(options);
+  EXPECT_LE(bal_cost(scene.truth), 1e-20);
+  Problem problem;
+  add_bal_problem(scene.truth, &problem);
+  EXPECT_LE(problem.evaluate_cost(), 1e-20);
+  // Without noise the observations are the truth's; the start alone costs something.
+  for (std::size_t k = 0; k < scene.truth.observations.size(); ++k) {
+    EXPECT_EQ(scene.problem.observations[k].x, scene.truth.observations[k].x);
+  }
+  EXPECT_GT(bal_cost(scene.problem), 100.0);
+}
+
+TEST(BalSceneTest, SolvingASmallSceneReachesTheNoiseFloor) {
+  BalSimulationOptions options;
+  options.cameras = 8;
+  options.points = 500;
+  options.observations_per_point = 4;
+  options.pixel_noise_sigma = 1.0;
+  options.seed = 7;
+  const BalScene scene = simulate_bal(options);
+  // The truth with the noisy observations: the noise floor a solution must reach (or beat).
+  BalProblem noisy_truth = scene.truth;
+  noisy_truth.observations = scene.problem.observations;
+  const double floor = bal_cost(noisy_truth);
+  const std::size_t rows = 2 * scene.problem.observations.size();
+  EXPECT_NEAR(floor, 0.5 * static_cast<double>(rows), 0.1 * static_cast<double>(rows));
+
+  Problem problem;
+  const BalVariables variables = add_bal_problem(scene.problem, &problem);
+  const double initial = problem.evaluate_cost();
+  EXPECT_GT(initial, 20.0 * floor);
+  const SolverSummary summary = solve(SolverOptions{}, problem);
+  ASSERT_TRUE(summary.is_solution_usable()) << summary.brief_report();
+  // Least squares fits part of the noise: the optimum lies below the floor, by about
+  // 1/2 sigma^2 (parameters - 7 gauge freedoms) in expectation.
+  EXPECT_LE(summary.final_cost, floor);
+  const double parameters = 9.0 * options.cameras + 3.0 * options.points - 7.0;
+  EXPECT_GE(summary.final_cost, 0.8 * (floor - 0.5 * parameters));
+  BalProblem solved = scene.problem;
+  update_bal_problem(problem, variables, &solved);
+  EXPECT_NEAR(bal_cost(solved), summary.final_cost, 1e-9 * summary.final_cost);
+  EXPECT_EQ(count_points_behind_cameras(solved), 0u);
+}
+
+TEST(BalSceneTest, LayoutNamesAndOptionErrors) {
+  for (BalLayout layout : {BalLayout::kRing, BalLayout::kStreet, BalLayout::kRandom}) {
+    EXPECT_EQ(parse_bal_layout(to_string(layout)), layout);
+  }
+  EXPECT_EQ(test::error_of([] { (void)parse_bal_layout("circle"); }),
+            "unknown BAL layout 'circle' (valid: ring, street, random)");
+  BalSimulationOptions options;
+  options.points = 10;
+  EXPECT_EQ(test::error_of([&] { (void)simulate_bal(options); }),
+            "simulate_bal: points must be >= cameras (16) so that every camera observes one, got "
+            "10");
+  options = {};
+  options.observations_per_point = 17;
+  EXPECT_EQ(test::error_of([&] { (void)simulate_bal(options); }),
+            "simulate_bal: observations_per_point must be in [2, cameras = 16], got 17");
+  options = {};
+  options.outlier_fraction = 1.5;
+  EXPECT_EQ(test::error_of([&] { (void)simulate_bal(options); }),
+            "simulate_bal: outlier_fraction must be in [0, 1], got 1.5");
+  options = {};
+  options.pixel_noise_sigma = -1.0;
+  EXPECT_EQ(test::error_of([&] { (void)simulate_bal(options); }),
+            "simulate_bal: pixel_noise_sigma must be finite and >= 0, got -1");
+}
+
+}  // namespace
+}  // namespace carat
