@@ -43,6 +43,8 @@ void register_map(CLI::App& app, CommandRegistry& registry);
 void register_simulate(CLI::App& app, CommandRegistry& registry);
 /// `carat simulate-bal`: write a synthetic bundle-adjustment problem in the BAL format.
 void register_simulate_bal(CLI::App& app, CommandRegistry& registry);
+/// `carat solve-bal`: bundle adjustment of a BAL problem.
+void register_solve_bal(CLI::App& app, CommandRegistry& registry);
 /// `carat paper`: regenerate the paper's tables and figures.
 void register_paper(CLI::App& app, CommandRegistry& registry);
 

@@ -39,6 +39,7 @@ int main(int argc, char** argv) {
   carat::cli::register_map(app, registry);
   carat::cli::register_simulate(app, registry);
   carat::cli::register_simulate_bal(app, registry);
+  carat::cli::register_solve_bal(app, registry);
   carat::cli::register_paper(app, registry);
   if (argc > 1 && argv[1][0] != '-') {
     bool known = false;

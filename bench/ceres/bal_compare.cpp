@@ -123,7 +123,8 @@ int main(int argc, char** argv) {
                              {"street-500x60000", carat::BalLayout::kStreet, 500, 60000, 5}};
   if (quick) cases.resize(1);
   const std::filesystem::path folder =
-      keep.empty() ? std::filesystem::temp_directory_path() / "carat_bal_compare" : keep;
+      keep.empty() ? std::filesystem::temp_directory_path() / "carat_bal_compare"
+                   : std::filesystem::path(keep);
   std::filesystem::create_directories(folder);
   const std::string self = std::filesystem::read_symlink("/proc/self/exe").string();
   const std::string system_blas = "libblas.so.3";  // see ceres_compare.cpp
@@ -146,10 +147,11 @@ int main(int argc, char** argv) {
     j["observations"] = scene.problem.observations.size();
     double wall_s = 0.0;
     int status = 0;
-    const std::string ceres_out = run("'" + self + "' --solver ceres '" + path + "'", &wall_s, &status);
-    const std::string ceres_blas_out = run("LD_PRELOAD='" + system_blas + "' '" + self +
-                                               "' --solver ceres '" + path + "'",
-                                           &wall_s, &status);
+    const std::string ceres_out =
+        run("'" + self + "' --solver ceres '" + path + "'", &wall_s, &status);
+    const std::string ceres_blas_out =
+        run("LD_PRELOAD='" + system_blas + "' '" + self + "' --solver ceres '" + path + "'",
+            &wall_s, &status);
     const std::string carat_out =
         run("'" + std::string(CARAT_CLI) + "' solve-bal '" + path + "' --json", &wall_s, &status);
     if (status != 0 || ceres_out.empty() || ceres_blas_out.empty() || carat_out.empty()) {

@@ -16,13 +16,6 @@
 namespace carat::internal {
 namespace {
 
-struct Scratch {
-  Eigen::MatrixXd H_r;
-  Eigen::MatrixXd H;
-  Eigen::VectorXd b_r;
-  Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> A;
-};
-
 bool finite(const double* x, std::size_t n) {
   for (std::size_t i = 0; i < n; ++i) {
     if (!std::isfinite(x[i])) return false;
@@ -65,8 +58,15 @@ std::string first_bad_row(const ResidualBlock& block, ParameterPointers params) 
 
 }  // namespace
 
+void record_bad_block(std::atomic<std::size_t>& first_bad, std::size_t i) {
+  std::size_t seen = first_bad.load(std::memory_order_relaxed);
+  while (i < seen && !first_bad.compare_exchange_weak(seen, i)) {
+  }
+}
+
 BlockEvaluator::BlockEvaluator(const Problem& problem) : problem_(problem) {
   const auto blocks = problem.blocks();
+  for (const auto& entry : blocks) dims_.push_back(entry.block->tangent_dim());
   param_begin_.reserve(blocks.size() + 1);
   param_begin_.push_back(0);
   for (const auto& entry : blocks) {
@@ -102,73 +102,80 @@ void BlockEvaluator::allocate(BlockLinearizations* out) const {
   out->b.assign(b, 0.0);
 }
 
-bool BlockEvaluator::linearize(int which, BlockLinearizations* out, std::string* error) const {
-  const auto blocks = problem_.blocks();
+bool BlockEvaluator::evaluate_block(std::size_t i, int which, BlockScratch& s, double* packed_h,
+                                    double* b_out, double* cost) const {
+  const auto& entry = problem_.blocks()[i];
+  const ResidualBlock& block = *entry.block;
   const auto& ptrs = pointers_[which];
-  tbb::enumerable_thread_specific<Scratch> scratch;
-  // The first block (lowest index) whose H, b or cost is not finite; none: blocks.size().
-  std::atomic<std::size_t> first_bad{blocks.size()};
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, blocks.size(), 8),
+  const ParameterPointers params(ptrs.data() + param_begin_[i],
+                                 param_begin_[i + 1] - param_begin_[i]);
+  const int D = dims_[i];
+  const int r = block.reduced_dim();
+  s.H_r.setZero(r, r);
+  s.b_r.setZero(r);
+  const double sq = block.accumulate(params, s.H_r, s.b_r);
+  Eigen::Map<Eigen::VectorXd> b(b_out, D);
+  if (r == D) {
+    b = s.b_r;
+  } else {
+    s.A.resize(r, D);
+    block.reduced_map(params, s.A.data());
+    s.H.noalias() = s.A.transpose() * s.H_r * s.A;
+    s.H_r.swap(s.H);
+    b.noalias() = s.A.transpose() * s.b_r;
+  }
+  Eigen::MatrixXd& H = s.H_r;  // D x D now
+  if (entry.loss) {
+    const LossValue lv = entry.loss->evaluate(sq);
+    const double second = lv.rho1 + 2.0 * sq * lv.rho2;
+    if (lv.rho2 != 0.0 && second > 0.0) {
+      H = lv.rho1 * H + (2.0 * lv.rho2) * (b * b.transpose());
+    } else {
+      H *= lv.rho1;
+    }
+    b *= lv.rho1;
+    *cost = 0.5 * lv.rho;
+  } else {
+    *cost = 0.5 * sq;
+  }
+  // The lower triangle, packed by columns.
+  bool ok = std::isfinite(*cost) && b.allFinite();
+  for (int c = 0; c < D; ++c) {
+    const double* column = H.data() + static_cast<std::size_t>(c) * static_cast<std::size_t>(D);
+    for (int row = c; row < D; ++row) {
+      *packed_h++ = column[row];
+      ok = ok && std::isfinite(column[row]);
+    }
+  }
+  return ok;
+}
+
+std::string BlockEvaluator::describe_bad_block(std::size_t i, int which) const {
+  const auto& ptrs = pointers_[which];
+  const ParameterPointers params(ptrs.data() + param_begin_[i],
+                                 param_begin_[i + 1] - param_begin_[i]);
+  return "residual block " + std::to_string(i) + ": " +
+         first_bad_row(*problem_.blocks()[i].block, params);
+}
+
+bool BlockEvaluator::linearize(int which, BlockLinearizations* out, std::string* error) const {
+  const std::size_t num_blocks = problem_.blocks().size();
+  tbb::enumerable_thread_specific<BlockScratch> scratch;
+  // The first block (lowest index) whose H, b or cost is not finite; none: num_blocks.
+  std::atomic<std::size_t> first_bad{num_blocks};
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, num_blocks, 8),
                     [&](const tbb::blocked_range<std::size_t>& range) {
-                      Scratch& s = scratch.local();
+                      BlockScratch& s = scratch.local();
                       for (std::size_t i = range.begin(); i != range.end(); ++i) {
-                        const auto& entry = blocks[i];
-                        const ResidualBlock& block = *entry.block;
-                        const ParameterPointers params(ptrs.data() + param_begin_[i],
-                                                       param_begin_[i + 1] - param_begin_[i]);
-                        const int D = out->dim[i];
-                        const int r = block.reduced_dim();
-                        s.H_r.setZero(r, r);
-                        s.b_r.setZero(r);
-                        const double sq = block.accumulate(params, s.H_r, s.b_r);
-                        Eigen::Map<Eigen::VectorXd> b(out->b.data() + out->b_offset[i], D);
-                        if (r == D) {
-                          b = s.b_r;
-                        } else {
-                          s.A.resize(r, D);
-                          block.reduced_map(params, s.A.data());
-                          s.H.noalias() = s.A.transpose() * s.H_r * s.A;
-                          s.H_r.swap(s.H);
-                          b.noalias() = s.A.transpose() * s.b_r;
-                        }
-                        Eigen::MatrixXd& H = s.H_r;  // D x D now
-                        if (entry.loss) {
-                          const LossValue lv = entry.loss->evaluate(sq);
-                          const double second = lv.rho1 + 2.0 * sq * lv.rho2;
-                          if (lv.rho2 != 0.0 && second > 0.0) {
-                            H = lv.rho1 * H + (2.0 * lv.rho2) * (b * b.transpose());
-                          } else {
-                            H *= lv.rho1;
-                          }
-                          b *= lv.rho1;
-                          out->cost[i] = 0.5 * lv.rho;
-                        } else {
-                          out->cost[i] = 0.5 * sq;
-                        }
-                        // The lower triangle, packed by columns.
-                        double* packed = out->h.data() + out->h_offset[i];
-                        bool ok = std::isfinite(out->cost[i]) && b.allFinite();
-                        for (int c = 0; c < D; ++c) {
-                          const double* column =
-                              H.data() + static_cast<std::size_t>(c) * static_cast<std::size_t>(D);
-                          for (int row = c; row < D; ++row) {
-                            *packed++ = column[row];
-                            ok = ok && std::isfinite(column[row]);
-                          }
-                        }
-                        if (!ok) {
-                          std::size_t seen = first_bad.load(std::memory_order_relaxed);
-                          while (i < seen && !first_bad.compare_exchange_weak(seen, i)) {
-                          }
+                        if (!evaluate_block(i, which, s, out->h.data() + out->h_offset[i],
+                                            out->b.data() + out->b_offset[i], &out->cost[i])) {
+                          record_bad_block(first_bad, i);
                         }
                       }
                     });
   const std::size_t bad = first_bad.load();
-  if (bad < blocks.size()) {
-    const ParameterPointers params(ptrs.data() + param_begin_[bad],
-                                   param_begin_[bad + 1] - param_begin_[bad]);
-    *error =
-        "residual block " + std::to_string(bad) + ": " + first_bad_row(*blocks[bad].block, params);
+  if (bad < num_blocks) {
+    *error = describe_bad_block(bad, which);
     return false;
   }
   return true;

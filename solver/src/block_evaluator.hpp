@@ -3,14 +3,27 @@
 // Internal: evaluates every residual block of a Problem, in parallel and deterministically,
 // at one of two value buffers (the current iterate and a trial point).
 
+#include <Eigen/Core>
+#include <atomic>
 #include <cstddef>
 #include <string>
 #include <vector>
 
+#include "block_linearizations.hpp"
 #include "carat/solver/problem.hpp"
-#include "sparse_system.hpp"
 
 namespace carat::internal {
+
+/// Per-thread scratch of evaluate_block().
+struct BlockScratch {
+  Eigen::MatrixXd H_r;  ///< the block's reduced H, then its full H
+  Eigen::MatrixXd H;    ///< scratch for the lift of a reduced block
+  Eigen::VectorXd b_r;  ///< the block's reduced b
+  Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> A;  ///< reduced map
+};
+
+/// Lowers first_bad to i if i is smaller (thread-safe): the lowest bad block wins.
+void record_bad_block(std::atomic<std::size_t>& first_bad, std::size_t i);
 
 class BlockEvaluator {
  public:
@@ -24,6 +37,15 @@ class BlockEvaluator {
   /// not finite.
   bool linearize(int which, BlockLinearizations* out, std::string* error) const;
 
+  /// Linearizes block i at buffer `which`: its H lifted to the full tangent space with the loss
+  /// applied, as a lower triangle packed by columns into packed_h (D (D + 1) / 2), b into b (D)
+  /// and 1/2 rho into *cost. False if any of them is not finite.
+  bool evaluate_block(std::size_t i, int which, BlockScratch& scratch, double* packed_h, double* b,
+                      double* cost) const;
+
+  /// "residual block i: <which row is not finite>" at buffer `which`.
+  std::string describe_bad_block(std::size_t i, int which) const;
+
   /// Cost 1/2 sum rho at buffer `which` (per-block parallel, summed in block order).
   double cost(int which) const;
 
@@ -32,6 +54,7 @@ class BlockEvaluator {
 
  private:
   const Problem& problem_;
+  std::vector<int> dims_;                   // D per block
   std::vector<std::size_t> param_begin_;    // per block, into param_offsets_
   std::vector<std::size_t> param_offsets_;  // value offsets of each block's variables
   std::vector<const double*> pointers_[2];  // resolved pointers per buffer

@@ -4,6 +4,7 @@
 #include <string>
 
 #include "carat/base/error.hpp"
+#include "carat/base/stopwatch.hpp"
 #include "schur_system.hpp"
 #include "sparse_system.hpp"
 
@@ -70,6 +71,24 @@ std::vector<char> detected_group(const Problem& problem, int* group_dims) {
 }
 
 }  // namespace
+
+bool LinearSystem::linearize(const BlockEvaluator& evaluator, int which, Eigen::VectorXd* gradient,
+                             double* cost, double* linearize_s, double* assembly_s,
+                             std::string* error) {
+  Stopwatch t0;
+  if (storage_.dim.empty()) evaluator.allocate(&storage_);
+  if (!evaluator.linearize(which, &storage_, error)) {
+    *linearize_s += t0.elapsed_s();
+    return false;
+  }
+  *linearize_s += t0.elapsed_s();
+  t0.restart();
+  assemble(storage_, gradient);
+  *assembly_s += t0.elapsed_s();
+  *cost = 0.0;
+  for (const double c : storage_.cost) *cost += c;
+  return true;
+}
 
 std::unique_ptr<LinearSystem> make_linear_system(const Problem& problem,
                                                  const SolverOptions& options) {

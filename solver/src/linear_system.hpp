@@ -10,54 +10,12 @@
 #include <string>
 #include <vector>
 
+#include "block_evaluator.hpp"
+#include "block_linearizations.hpp"
 #include "carat/solver/problem.hpp"
 #include "carat/solver/solver_options.hpp"
-#include "huge_pages.hpp"
 
 namespace carat::internal {
-
-/// Per-block linearization storage for every block: H (D x D, symmetric; its lower triangle
-/// packed by columns, column c holding rows c..D-1: D (D + 1) / 2 numbers) and b (D).
-struct BlockLinearizations {
-  std::vector<std::size_t> h_offset;  ///< start of block i's packed H in h
-  std::vector<std::size_t> b_offset;  ///< start of block i's b in b
-  std::vector<int> dim;               ///< D of block i
-  HugeVector<double> h;               ///< all blocks' H
-  HugeVector<double> b;               ///< all blocks' b
-  std::vector<double> cost;           ///< 1/2 rho(s) per block
-};
-
-/// Offset of column c in a D x D lower triangle packed by columns.
-inline std::size_t packed_column(std::size_t D, std::size_t c) { return c * (2 * D - c + 1) / 2; }
-
-/// out(r, c) += H(row0 + r, col0 + c) for r < rows, c < cols (out column-major, leading
-/// dimension ld), H packed as above; the row and column ranges are the same variable's
-/// (the whole block is added) or two different variables' (disjoint ranges).
-inline void add_packed_block(const double* H, std::size_t D, std::size_t row0, std::size_t col0,
-                             int rows, int cols, double* out, std::size_t ld) {
-  const auto R = static_cast<std::size_t>(rows);
-  const auto C = static_cast<std::size_t>(cols);
-  if (row0 > col0) {  // below the diagonal: each column is contiguous
-    for (std::size_t c = 0; c < C; ++c) {
-      const double* src = H + packed_column(D, col0 + c) + (row0 - col0 - c);
-      for (std::size_t r = 0; r < R; ++r) out[c * ld + r] += src[r];
-    }
-  } else if (row0 < col0) {  // above: H(i, j) = H(j, i), rows of the lower triangle
-    for (std::size_t r = 0; r < R; ++r) {
-      const double* src = H + packed_column(D, row0 + r) + (col0 - row0 - r);
-      for (std::size_t c = 0; c < C; ++c) out[c * ld + r] += src[c];
-    }
-  } else {  // a diagonal block, both triangles
-    for (std::size_t c = 0; c < C; ++c) {
-      const double* src = H + packed_column(D, col0 + c);
-      out[c * ld + c] += src[0];
-      for (std::size_t r = c + 1; r < R; ++r) {
-        out[c * ld + r] += src[r - c];
-        out[r * ld + c] += src[r - c];
-      }
-    }
-  }
-}
 
 class LinearSystem {
  public:
@@ -76,6 +34,13 @@ class LinearSystem {
 
   /// Gathers blocks' H and b into the undamped system and the gradient (deterministic).
   virtual void assemble(const BlockLinearizations& blocks, Eigen::VectorXd* gradient) = 0;
+
+  /// Linearizes every block at the evaluator's buffer `which` and assembles the system and the
+  /// gradient; *cost: 1/2 sum rho. Adds the time spent to *linearize_s and *assembly_s. False,
+  /// with the block and row named in *error, if something is not finite. The default evaluates
+  /// into per-block storage, then assembles.
+  virtual bool linearize(const BlockEvaluator& evaluator, int which, Eigen::VectorXd* gradient,
+                         double* cost, double* linearize_s, double* assembly_s, std::string* error);
 
   /// Undamped diagonal of H.
   virtual Eigen::VectorXd diagonal() const = 0;
@@ -97,6 +62,7 @@ class LinearSystem {
  protected:
   int n_ = 0;
   std::vector<int> var_offset_;
+  BlockLinearizations storage_;  ///< per-block H and b of the default linearize()
   std::string description_;
 };
 

@@ -2,6 +2,7 @@
 
 #include <cholmod.h>
 #include <omp.h>
+#include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
 #include <Eigen/Cholesky>
@@ -112,6 +113,9 @@ SchurSystem::SchurSystem(const Problem& problem, const std::vector<char>& elimin
   std::vector<std::tuple<int, std::int32_t, std::int16_t>> raw_pt, raw_cam;
   const auto blocks = problem.blocks();
   std::vector<std::pair<int, int>> cams;  // (camera, local) of one block
+  std::vector<char> block_has_point(blocks.size(), 0);
+  for (const auto& entry : blocks) block_dims_.push_back(entry.block->tangent_dim());
+  fused_ = true;
   for (std::size_t bi = 0; bi < blocks.size(); ++bi) {
     cams.clear();
     int point = -1;
@@ -144,7 +148,20 @@ SchurSystem::SchurSystem(const Problem& problem, const std::vector<char>& elimin
                              static_cast<std::int16_t>(point_local)});
       }
     }
-    if (point >= 0) raw_pt.emplace_back(point, block, static_cast<std::int16_t>(point_local));
+    if (point >= 0) {
+      raw_pt.emplace_back(point, block, static_cast<std::int16_t>(point_local));
+      block_has_point[bi] = 1;
+      if (cams.size() > 1) fused_ = false;
+    }
+  }
+  // Fused: the kept-variable part of a block with a point is one diagonal block (of its one
+  // camera), summed per chunk of points (slots below) rather than gathered per camera.
+  if (fused_) {
+    const auto has_point = [&](std::int32_t block) {
+      return block_has_point[static_cast<std::size_t>(block)] != 0;
+    };
+    std::erase_if(raw_cam, [&](const auto& entry) { return has_point(std::get<1>(entry)); });
+    std::erase_if(raw_pairs, [&](const RawPair& pair) { return has_point(pair.block); });
   }
 
   // Edges, point-major, and their contributions.
@@ -190,6 +207,16 @@ SchurSystem::SchurSystem(const Problem& problem, const std::vector<char>& elimin
     ++pt_contrib_begin_[at(p) + 1];
   }
   for (std::size_t p = 0; p < np; ++p) pt_contrib_begin_[p + 1] += pt_contrib_begin_[p];
+  // Where each block with a point sits in pt_contribs_ (its source index).
+  std::vector<std::uint32_t> block_source(blocks.size(), 0);
+  for (std::size_t k = 0; k < pt_contribs_.size(); ++k) {
+    block_source[static_cast<std::size_t>(pt_contribs_[k].first)] = static_cast<std::uint32_t>(k);
+  }
+  edge_contrib_source_.resize(edge_contribs_.size());
+  for (std::size_t q = 0; q < edge_contribs_.size(); ++q) {
+    edge_contrib_source_[q] = block_source[static_cast<std::size_t>(edge_contribs_[q].block)];
+  }
+  if (fused_) plan_chunks(problem);
   std::sort(raw_cam.begin(), raw_cam.end());
   cam_grad_begin_.assign(nc + 1, 0);
   for (const auto& [c, block, local] : raw_cam) {
@@ -361,13 +388,125 @@ SchurSystem::SchurSystem(const Problem& problem, const std::vector<char>& elimin
                  std::to_string(ns_) + ", " + ordering_name + " ordering)";
 }
 
-void SchurSystem::assemble(const BlockLinearizations& blocks, Eigen::VectorXd* gradient) {
-  gradient->setZero(n_);
-  const std::size_t nc = cam_dim_.size();
+void SchurSystem::plan_chunks(const Problem& problem) {
   const std::size_t np = pt_dim_.size();
-  // Cameras: their A blocks (column j) and gradients.
+  const std::size_t nc = cam_dim_.size();
+  const auto blocks = problem.blocks();
+  const std::size_t num_chunks = (np + kChunkPoints - 1) / kChunkPoints;
+  // Slots: per chunk, one partial diagonal block (dc x dc) and gradient (dc) per camera the
+  // chunk's points are seen by, laid out chunk after chunk.
+  edge_slot_.assign(edge_cam_.size(), 0);
+  std::vector<std::vector<std::size_t>> slots_of_camera(nc);
+  std::vector<std::size_t> slot_of_camera(nc, 0);
+  std::vector<int> seen_in_chunk(nc, -1);
+  std::size_t slot_size = 0;
+  chunk_h_size_ = 0;
+  chunk_b_size_ = 0;
+  pt_contrib_h_local_.assign(pt_contribs_.size(), 0);
+  pt_contrib_b_local_.assign(pt_contribs_.size(), 0);
+  for (std::size_t k = 0; k < num_chunks; ++k) {
+    const std::size_t p0 = k * kChunkPoints;
+    const std::size_t p1 = std::min(np, p0 + kChunkPoints);
+    for (std::size_t e = pt_edge_begin_[p0]; e < pt_edge_begin_[p1]; ++e) {
+      const auto c = at(edge_cam_[e]);
+      if (seen_in_chunk[c] != static_cast<int>(k)) {
+        seen_in_chunk[c] = static_cast<int>(k);
+        slot_of_camera[c] = slot_size;
+        slots_of_camera[c].push_back(slot_size);
+        slot_size += at(cam_dim_[c]) * at(cam_dim_[c] + 1);
+      }
+      edge_slot_[e] = slot_of_camera[c];
+    }
+    std::size_t h = 0, b = 0;
+    for (std::size_t q = pt_contrib_begin_[p0]; q < pt_contrib_begin_[p1]; ++q) {
+      const auto D =
+          at(blocks[static_cast<std::size_t>(pt_contribs_[q].first)].block->tangent_dim());
+      pt_contrib_h_local_[q] = h;
+      pt_contrib_b_local_[q] = b;
+      h += D * (D + 1) / 2;
+      b += D;
+    }
+    chunk_h_size_ = std::max(chunk_h_size_, h);
+    chunk_b_size_ = std::max(chunk_b_size_, b);
+  }
+  slots_.assign(slot_size, 0.0);
+  cam_slot_begin_.assign(nc + 1, 0);
+  cam_slots_.clear();
+  for (std::size_t c = 0; c < nc; ++c) {
+    cam_slots_.insert(cam_slots_.end(), slots_of_camera[c].begin(), slots_of_camera[c].end());
+    cam_slot_begin_[c + 1] = cam_slots_.size();
+  }
+  // Blocks without a point: linearized into storage_ of their own.
+  std::vector<char> has_point(blocks.size(), 0);
+  for (const auto& [block, local] : pt_contribs_) has_point[static_cast<std::size_t>(block)] = 1;
+  storage_.dim.assign(blocks.size(), 0);
+  storage_.h_offset.assign(blocks.size(), 0);
+  storage_.b_offset.assign(blocks.size(), 0);
+  storage_.cost.assign(blocks.size(), 0.0);
+  std::size_t h = 0, b = 0;
+  for (std::size_t i = 0; i < blocks.size(); ++i) {
+    const int D = blocks[i].block->tangent_dim();
+    storage_.dim[i] = D;
+    if (has_point[i]) continue;
+    other_blocks_.push_back(i);
+    storage_.h_offset[i] = h;
+    storage_.b_offset[i] = b;
+    h += at(D) * at(D + 1) / 2;
+    b += at(D);
+  }
+  storage_.h.assign(h, 0.0);
+  storage_.b.assign(b, 0.0);
+}
+
+/// The points of chunk k: V, their gradients, W per edge and, fused, the chunk's slots.
+/// h_of(q) / b_of(q): packed H and b of the block of pt_contribs_[q].
+template <typename HOf, typename BOf>
+void SchurSystem::scatter_chunk(std::size_t k, double* gradient, const HOf& h_of, const BOf& b_of) {
+  const std::size_t p0 = k * kChunkPoints;
+  const std::size_t p1 = std::min(pt_dim_.size(), p0 + kChunkPoints);
+  if (fused_) {
+    for (std::size_t e = pt_edge_begin_[p0]; e < pt_edge_begin_[p1]; ++e) {
+      const int dc = cam_dim_[at(edge_cam_[e])];
+      std::fill_n(slots_.data() + edge_slot_[e], at(dc) * at(dc + 1), 0.0);
+    }
+  }
+  for (std::size_t p = p0; p < p1; ++p) {
+    const int dp = pt_dim_[p];
+    double* V = v_.data() + pt_v_offset_[p];
+    std::fill_n(V, at(dp) * at(dp), 0.0);
+    double* g = gradient + pt_offset_[p];
+    for (std::size_t q = pt_contrib_begin_[p]; q < pt_contrib_begin_[p + 1]; ++q) {
+      const auto [block, local] = pt_contribs_[q];
+      add_packed_block(h_of(q), at(block_dim(block)), at(local), at(local), dp, dp, V, at(dp));
+      const double* b = b_of(q) + local;
+      for (int r = 0; r < dp; ++r) g[r] += b[r];
+    }
+    for (std::size_t e = pt_edge_begin_[p]; e < pt_edge_begin_[p + 1]; ++e) {
+      const int dc = cam_dim_[at(edge_cam_[e])];
+      double* W = w_.data() + edge_w_offset_[e];
+      std::fill_n(W, at(dc) * at(dp), 0.0);
+      for (std::size_t q = edge_contrib_begin_[e]; q < edge_contrib_begin_[e + 1]; ++q) {
+        const Contribution& src = edge_contribs_[q];
+        const double* H = h_of(edge_contrib_source_[q]);
+        const auto D = at(block_dim(src.block));
+        add_packed_block(H, D, at(src.row_local), at(src.col_local), dc, dp, W, at(dc));
+        if (!fused_) continue;
+        double* slot = slots_.data() + edge_slot_[e];
+        add_packed_block(H, D, at(src.row_local), at(src.row_local), dc, dc, slot, at(dc));
+        const double* b = b_of(edge_contrib_source_[q]) + src.row_local;
+        double* slot_g = slot + at(dc) * at(dc);
+        for (int r = 0; r < dc; ++r) slot_g[r] += b[r];
+      }
+    }
+  }
+}
+
+/// The kept variables: A's blocks (pairs, from `blocks`), their gradients and, fused, the sums
+/// of their slots in chunk order.
+void SchurSystem::gather_cameras(const BlockLinearizations& blocks, double* gradient) {
   tbb::parallel_for(
-      tbb::blocked_range<std::size_t>(0, nc, 4), [&](const tbb::blocked_range<std::size_t>& range) {
+      tbb::blocked_range<std::size_t>(0, cam_dim_.size(), 4),
+      [&](const tbb::blocked_range<std::size_t>& range) {
         for (std::size_t j = range.begin(); j != range.end(); ++j) {
           const int dj = cam_dim_[j];
           for (std::size_t k = column_pair_begin_[j]; k < column_pair_begin_[j + 1]; ++k) {
@@ -382,45 +521,134 @@ void SchurSystem::assemble(const BlockLinearizations& blocks, Eigen::VectorXd* g
                                at(src.row_local), at(src.col_local), di, dj, out, at(di));
             }
           }
-          double* g = gradient->data() + cam_offset_[j];
+          double* g = gradient + cam_offset_[j];
           for (std::size_t s = cam_grad_begin_[j]; s < cam_grad_begin_[j + 1]; ++s) {
             const auto [block, local] = cam_grad_[s];
             const double* b =
                 blocks.b.data() + blocks.b_offset[static_cast<std::size_t>(block)] + local;
             for (int r = 0; r < dj; ++r) g[r] += b[r];
           }
+          if (!fused_) continue;
+          double* A = a_.data() + pairs_[column_pair_begin_[j]].h_offset;  // the diagonal block
+          const std::size_t dd = at(dj) * at(dj);
+          for (std::size_t s = cam_slot_begin_[j]; s < cam_slot_begin_[j + 1]; ++s) {
+            const double* slot = slots_.data() + cam_slots_[s];
+            for (std::size_t t = 0; t < dd; ++t) A[t] += slot[t];
+            for (int r = 0; r < dj; ++r) g[r] += slot[dd + at(r)];
+          }
         }
       });
-  // Points: V, gradient and the W block of each edge.
+}
+
+void SchurSystem::assemble(const BlockLinearizations& blocks, Eigen::VectorXd* gradient) {
+  gradient->setZero(n_);
+  double* g = gradient->data();
+  const auto h_of = [&](std::size_t q) {
+    return blocks.h.data() + blocks.h_offset[static_cast<std::size_t>(pt_contribs_[q].first)];
+  };
+  const auto b_of = [&](std::size_t q) {
+    return blocks.b.data() + blocks.b_offset[static_cast<std::size_t>(pt_contribs_[q].first)];
+  };
+  const std::size_t num_chunks = (pt_dim_.size() + kChunkPoints - 1) / kChunkPoints;
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, num_chunks, 1),
+                    [&](const tbb::blocked_range<std::size_t>& range) {
+                      for (std::size_t k = range.begin(); k != range.end(); ++k) {
+                        scatter_chunk(k, g, h_of, b_of);
+                      }
+                    });
+  gather_cameras(blocks, g);
+}
+
+bool SchurSystem::linearize(const BlockEvaluator& evaluator, int which, Eigen::VectorXd* gradient,
+                            double* cost, double* linearize_s, double* assembly_s,
+                            std::string* error) {
+  if (!fused_) {
+    return LinearSystem::linearize(evaluator, which, gradient, cost, linearize_s, assembly_s,
+                                   error);
+  }
+  Stopwatch wall;
+  gradient->setZero(n_);
+  double* g = gradient->data();
+  const std::size_t num_blocks = storage_.dim.size();
+  std::atomic<std::size_t> first_bad{num_blocks};
+  const std::size_t num_chunks = (pt_dim_.size() + kChunkPoints - 1) / kChunkPoints;
+  chunk_cost_.assign(num_chunks, 0.0);
+  std::vector<double> evaluate_cpu(num_chunks, 0.0), scatter_cpu(num_chunks, 0.0);
+  struct ChunkScratch {
+    BlockScratch block;
+    std::vector<double> h, b;
+  };
+  tbb::enumerable_thread_specific<ChunkScratch> scratch;
+  // Points, a chunk at a time: evaluate the chunk's blocks into a small buffer that stays in
+  // cache, then scatter them; no per-block storage for the whole problem.
   tbb::parallel_for(
-      tbb::blocked_range<std::size_t>(0, np, 256),
+      tbb::blocked_range<std::size_t>(0, num_chunks, 1),
       [&](const tbb::blocked_range<std::size_t>& range) {
-        for (std::size_t p = range.begin(); p != range.end(); ++p) {
-          const int dp = pt_dim_[p];
-          double* V = v_.data() + pt_v_offset_[p];
-          std::fill_n(V, at(dp) * at(dp), 0.0);
-          double* g = gradient->data() + pt_offset_[p];
-          for (std::size_t s = pt_contrib_begin_[p]; s < pt_contrib_begin_[p + 1]; ++s) {
-            const auto [block, local] = pt_contribs_[s];
-            const auto bi = static_cast<std::size_t>(block);
-            add_packed_block(blocks.h.data() + blocks.h_offset[bi], at(blocks.dim[bi]), at(local),
-                             at(local), dp, dp, V, at(dp));
-            const double* b = blocks.b.data() + blocks.b_offset[bi] + local;
-            for (int r = 0; r < dp; ++r) g[r] += b[r];
-          }
-          for (std::size_t e = pt_edge_begin_[p]; e < pt_edge_begin_[p + 1]; ++e) {
-            const int dc = cam_dim_[at(edge_cam_[e])];
-            double* W = w_.data() + edge_w_offset_[e];
-            std::fill_n(W, at(dc) * at(dp), 0.0);
-            for (std::size_t q = edge_contrib_begin_[e]; q < edge_contrib_begin_[e + 1]; ++q) {
-              const Contribution& src = edge_contribs_[q];
-              const auto bi = static_cast<std::size_t>(src.block);
-              add_packed_block(blocks.h.data() + blocks.h_offset[bi], at(blocks.dim[bi]),
-                               at(src.row_local), at(src.col_local), dc, dp, W, at(dc));
+        ChunkScratch& local = scratch.local();
+        local.h.resize(chunk_h_size_);
+        local.b.resize(chunk_b_size_);
+        for (std::size_t k = range.begin(); k != range.end(); ++k) {
+          Stopwatch t0;
+          const std::size_t p0 = k * kChunkPoints;
+          const std::size_t p1 = std::min(pt_dim_.size(), p0 + kChunkPoints);
+          double sum = 0.0;
+          for (std::size_t q = pt_contrib_begin_[p0]; q < pt_contrib_begin_[p1]; ++q) {
+            const auto block = static_cast<std::size_t>(pt_contribs_[q].first);
+            double c = 0.0;
+            if (!evaluator.evaluate_block(block, which, local.block,
+                                          local.h.data() + pt_contrib_h_local_[q],
+                                          local.b.data() + pt_contrib_b_local_[q], &c)) {
+              record_bad_block(first_bad, block);
             }
+            sum += c;
           }
+          chunk_cost_[k] = sum;
+          evaluate_cpu[k] = t0.elapsed_s();
+          t0.restart();
+          scatter_chunk(
+              k, g, [&](std::size_t q) { return local.h.data() + pt_contrib_h_local_[q]; },
+              [&](std::size_t q) { return local.b.data() + pt_contrib_b_local_[q]; });
+          scatter_cpu[k] = t0.elapsed_s();
         }
       });
+  // Blocks without a point.
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, other_blocks_.size(), 8),
+                    [&](const tbb::blocked_range<std::size_t>& range) {
+                      BlockScratch& local = scratch.local().block;
+                      for (std::size_t k = range.begin(); k != range.end(); ++k) {
+                        const std::size_t i = other_blocks_[k];
+                        if (!evaluator.evaluate_block(
+                                i, which, local, storage_.h.data() + storage_.h_offset[i],
+                                storage_.b.data() + storage_.b_offset[i], &storage_.cost[i])) {
+                          record_bad_block(first_bad, i);
+                        }
+                      }
+                    });
+  const double evaluated_s = wall.elapsed_s();
+  const std::size_t bad = first_bad.load();
+  if (bad < num_blocks) {
+    *linearize_s += evaluated_s;
+    *error = evaluator.describe_bad_block(bad, which);
+    return false;
+  }
+  wall.restart();
+  gather_cameras(storage_, g);
+  const double gathered_s = wall.elapsed_s();
+  // The chunk pass did both; split its wall time by the CPU time of each part.
+  double evaluate_total = 0.0, scatter_total = 0.0;
+  for (std::size_t k = 0; k < num_chunks; ++k) {
+    evaluate_total += evaluate_cpu[k];
+    scatter_total += scatter_cpu[k];
+  }
+  const double scatter_share =
+      evaluate_total + scatter_total > 0.0 ? scatter_total / (evaluate_total + scatter_total) : 0.0;
+  *linearize_s += evaluated_s * (1.0 - scatter_share);
+  *assembly_s += evaluated_s * scatter_share + gathered_s;
+  double total = 0.0;
+  for (const double c : chunk_cost_) total += c;
+  for (const std::size_t i : other_blocks_) total += storage_.cost[i];
+  *cost = total;
+  return true;
 }
 
 Eigen::VectorXd SchurSystem::diagonal() const {

@@ -12,6 +12,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "carat/solver/problem.hpp"
@@ -32,6 +33,12 @@ class SchurSystem final : public LinearSystem {
   std::size_t hessian_nonzeros() const override { return rows_.size(); }
   std::size_t factor_nonzeros() const override { return factor_nnz_; }
   void assemble(const BlockLinearizations& blocks, Eigen::VectorXd* gradient) override;
+  /// Fused (every block with an eliminated variable touches at most one kept variable): the
+  /// blocks with a point are evaluated a chunk of points at a time and scattered while in
+  /// cache, without per-block storage; otherwise as LinearSystem::linearize().
+  bool linearize(const BlockEvaluator& evaluator, int which, Eigen::VectorXd* gradient,
+                 double* cost, double* linearize_s, double* assembly_s,
+                 std::string* error) override;
   Eigen::VectorXd diagonal() const override;
   bool factorize(const Eigen::VectorXd& damping) override;
   void multiply(const Eigen::VectorXd& x, Eigen::VectorXd* y) const override;
@@ -42,6 +49,8 @@ class SchurSystem final : public LinearSystem {
   int reduced_size() const { return ns_; }
   /// Number of eliminated variables.
   int num_eliminated() const { return static_cast<int>(pt_dim_.size()); }
+  /// Whether linearize() evaluates and scatters in one pass (see above).
+  bool fused() const { return fused_; }
 
  private:
   template <int DC, int DP>
@@ -53,9 +62,19 @@ class SchurSystem final : public LinearSystem {
   template <int DC, int DP>
   void back_substitute(const Eigen::VectorXd& rhs, const double* x_cameras, double* x) const;
 
+  void plan_chunks(const Problem& problem);
+  template <typename HOf, typename BOf>
+  void scatter_chunk(std::size_t k, double* gradient, const HOf& h_of, const BOf& b_of);
+  void gather_cameras(const BlockLinearizations& blocks, double* gradient);
+  int block_dim(std::int32_t block) const { return block_dims_[static_cast<std::size_t>(block)]; }
+
+  static constexpr std::size_t kChunkPoints = 256;  // points per chunk (fixed: deterministic)
+
   struct Impl;
-  int ns_ = 0;      // reduced size
-  int kernel_ = 0;  // 0: dynamic sizes, 1: cameras 9 / points 3, 2: 6 / 3
+  int ns_ = 0;
+  bool fused_ = true;
+  std::vector<int> block_dims_;  // D per residual block      // reduced size
+  int kernel_ = 0;               // 0: dynamic sizes, 1: cameras 9 / points 3, 2: 6 / 3
   std::size_t factor_nnz_ = 0;
   double elimination_s_ = 0.0;
 
@@ -90,11 +109,23 @@ class SchurSystem final : public LinearSystem {
   std::vector<Contribution> pair_contribs_;
   std::vector<std::pair<std::uint32_t, std::uint32_t>> terms_;  // (edge of row, edge of column)
   std::vector<std::size_t> edge_contrib_begin_;
-  std::vector<Contribution> edge_contribs_;  // row_local: camera, col_local: point
+  std::vector<Contribution> edge_contribs_;         // row_local: camera, col_local: point
+  std::vector<std::uint32_t> edge_contrib_source_;  // its block's index in pt_contribs_
   std::vector<std::size_t> pt_contrib_begin_;
   std::vector<std::pair<std::int32_t, std::int16_t>> pt_contribs_;  // V and g of points
   std::vector<std::size_t> cam_grad_begin_;
   std::vector<std::pair<std::int32_t, std::int16_t>> cam_grad_;
+
+  // Fused: per chunk of points, one slot (dc x dc diagonal block, then dc gradient) per camera
+  // its points are seen by; each edge's slot; each camera's slots in chunk order; where each
+  // block with a point goes in a chunk's buffer; the blocks without a point.
+  std::vector<std::size_t> edge_slot_;
+  std::vector<std::size_t> cam_slot_begin_, cam_slots_;
+  std::vector<double> slots_;
+  std::vector<std::size_t> pt_contrib_h_local_, pt_contrib_b_local_;
+  std::size_t chunk_h_size_ = 0, chunk_b_size_ = 0;
+  std::vector<std::size_t> other_blocks_;
+  std::vector<double> chunk_cost_;
 
   // Values: undamped A blocks, W per edge (dc x dp), V per point; and the factorization's
   // V^-1 and Y = W V^-1 (kept apart from the assembled values so that solve() may reuse an

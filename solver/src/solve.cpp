@@ -96,7 +96,6 @@ class Solver {
   Stopwatch solve_time_;  ///< since the solver was made
   std::unique_ptr<internal::LinearSystem> system_;
   std::unique_ptr<internal::BlockEvaluator> evaluator_;
-  internal::BlockLinearizations lin_;
   std::vector<double> buffers_[2];
   int current_ = 0;
   double cost_ = 0.0;
@@ -121,18 +120,11 @@ void Solver::record(IterationSummary row, const Stopwatch& iteration_time) {
 }
 
 bool Solver::linearize() {
-  Stopwatch t0;
   std::string error;
-  if (!evaluator_->linearize(current_, &lin_, &error)) {
-    summary_.time.linearize_s += t0.elapsed_s();
+  if (!system_->linearize(*evaluator_, current_, &gradient_, &cost_, &summary_.time.linearize_s,
+                          &summary_.time.assembly_s, &error)) {
     return finish(TerminationType::kFailure, error), false;
   }
-  summary_.time.linearize_s += t0.elapsed_s();
-  t0.restart();
-  system_->assemble(lin_, &gradient_);
-  summary_.time.assembly_s += t0.elapsed_s();
-  cost_ = 0.0;
-  for (double c : lin_.cost) cost_ += c;
   return true;
 }
 
@@ -433,7 +425,6 @@ bool Solver::initialize() {
   buffers_[1] = buffers_[0];
   evaluator_ = std::make_unique<internal::BlockEvaluator>(problem_);
   for (int k = 0; k < 2; ++k) evaluator_->bind(k, buffers_[k].data());
-  evaluator_->allocate(&lin_);
 
   const Stopwatch iteration0;
   if (!linearize()) return false;
