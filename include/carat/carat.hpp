@@ -44,10 +44,12 @@
 #include <carat/residuals/point_to_point_block.hpp>
 #include <carat/residuals/pose_gram.hpp>
 #include <carat/residuals/pose_graph.hpp>
+#include <carat/residuals/pose_graph_se2.hpp>
 #include <carat/residuals/pose_prior_block.hpp>
 #include <carat/residuals/registration_rows.hpp>
 #include <carat/residuals/relative_pose_autodiff_block.hpp>
 #include <carat/residuals/relative_pose_block.hpp>
+#include <carat/residuals/relative_pose_se2_block.hpp>
 #include <carat/sim/circuit_options.hpp>
 #include <carat/sim/drift.hpp>
 #include <carat/sim/kitti_writer.hpp>
@@ -67,6 +69,7 @@
 #include <carat/solver/numeric_diff_block.hpp>
 #include <carat/solver/problem.hpp>
 #include <carat/solver/residual_block.hpp>
+#include <carat/solver/se2.hpp>
 #include <carat/solver/se3.hpp>
 #include <carat/solver/so3.hpp>
 #include <carat/solver/solve.hpp>
