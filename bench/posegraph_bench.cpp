@@ -1,5 +1,5 @@
-// Solves the public 3D pose graphs in ../shared/data/posegraph with carat (LM, 1 thread) and
-// the synthetic city-block graph (always available). Real files are skipped when absent;
+// Solves the public 3D and 2D pose graphs in ../shared/data/posegraph with carat (LM, 1 thread)
+// and the synthetic city-block graph (always available). Real files are skipped when absent;
 // cubicle's indefinite information matrices are repaired (nearest positive definite).
 //
 //   ./build/bench/posegraph_bench [--benchmark_filter=sphere]
@@ -8,6 +8,7 @@
 
 #include <filesystem>
 #include <string>
+#include <variant>
 
 #include "carat/residuals/io/g2o_io.hpp"
 #include "carat/residuals/pose_graph.hpp"
@@ -16,7 +17,8 @@
 
 namespace {
 
-void solve_graph(benchmark::State& state, const carat::PoseGraph& graph, carat::Ordering ordering) {
+template <typename Graph>
+void solve_graph(benchmark::State& state, const Graph& graph, carat::Ordering ordering) {
   carat::SolverSummary summary;
   for (auto _ : state) {
     state.PauseTiming();
@@ -37,14 +39,15 @@ void register_file(const std::string& name, const carat::G2oReadOptions& read_op
   const std::filesystem::path path =
       std::filesystem::path(CARAT_DATA_DIR) / "posegraph" / (name + ".g2o");
   if (!std::filesystem::exists(path)) return;  // real data absent: skip cleanly
-  const auto graph = std::make_shared<carat::PoseGraph>(carat::read_g2o(path, read_options));
+  const auto graph = std::make_shared<carat::G2oGraph>(carat::read_g2o_any(path, read_options));
   for (const auto& [label, ordering] :
        {std::pair{"auto", carat::Ordering::kAuto}, std::pair{"amd", carat::Ordering::kAmd},
         std::pair{"metis", carat::Ordering::kMetis}}) {
-    benchmark::RegisterBenchmark(("posegraph/" + name + "/" + label).c_str(),
-                                 [graph, ordering = ordering](benchmark::State& state) {
-                                   solve_graph(state, *graph, ordering);
-                                 })
+    benchmark::RegisterBenchmark(
+        ("posegraph/" + name + "/" + label).c_str(),
+        [graph, ordering = ordering](benchmark::State& state) {
+          std::visit([&](const auto& g) { solve_graph(state, g, ordering); }, *graph);
+        })
         ->Unit(benchmark::kMillisecond)
         ->UseRealTime();
   }
@@ -63,7 +66,9 @@ int main(int argc, char** argv) {
                                })
       ->Unit(benchmark::kMillisecond)
       ->UseRealTime();
-  for (const char* name : {"sphere2500", "parking-garage", "torus3D"}) register_file(name);
+  for (const char* name : {"sphere2500", "parking-garage", "torus3D", "intel", "manhattan"}) {
+    register_file(name);
+  }
   // cubicle.g2o carries indefinite information blocks (e.g. line 5753): solved with each
   // replaced by the nearest positive-definite matrix, as `solve-g2o --repair-information` does.
   carat::G2oReadOptions repair;

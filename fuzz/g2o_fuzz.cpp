@@ -1,9 +1,10 @@
-// Fuzzes the g2o reader in memory (rejecting and repairing indefinite information) and the
-// pose-graph builder: any input must either parse or throw carat::Error, never crash, hang or
-// leak. Run with fuzz/g2o.dict (record names and boundary numbers).
+// Fuzzes the g2o reader (3D and 2D records) in memory (rejecting and repairing indefinite
+// information) and the pose-graph builder: any input must either parse or throw carat::Error, never
+// crash, hang or leak. Run with fuzz/g2o.dict (record names and boundary numbers).
 #include <cstddef>
 #include <cstdint>
 #include <string_view>
+#include <variant>
 
 #include "carat/base/error.hpp"
 #include "carat/residuals/io/g2o_io.hpp"
@@ -17,10 +18,14 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     carat::G2oReadOptions options;
     options.information = repair;
     try {
-      const carat::PoseGraph graph = carat::parse_g2o(text, "fuzz.g2o", options);
-      if (graph.vertices.size() < 64 && graph.edges.size() < 256) {
-        (void)carat::build_pose_graph_problem(graph);
-      }
+      const carat::G2oGraph any = carat::parse_g2o_any(text, "fuzz.g2o", options);
+      std::visit(
+          [](const auto& graph) {
+            if (graph.vertices.size() < 64 && graph.edges.size() < 256) {
+              (void)carat::build_pose_graph_problem(graph);
+            }
+          },
+          any);
     } catch (const carat::Error&) {
     }
   }

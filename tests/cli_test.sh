@@ -69,6 +69,29 @@ if ! awk '$1 == "VERTEX_SE3:QUAT" && $2 == 2 { exit !(($3 - 2) ^ 2 < 1e-12) }' "
   echo "FAIL --out did not write the solved graph"; fail=$((fail + 1))
 else pass=$((pass + 1)); fi
 
+# solve-g2o on a 2D graph: a square of four unit odometry steps and quarter turns, the second
+# vertex off by 0.3 m; --out writes VERTEX_SE2 records at the solution.
+cat >"$scratch/square2d.g2o" <<'G2O'
+VERTEX_SE2 0 0 0 0
+VERTEX_SE2 1 1.3 0 1.5707963267948966
+VERTEX_SE2 2 1 1 3.141592653589793
+VERTEX_SE2 3 0 1 -1.5707963267948966
+EDGE_SE2 0 1 1 0 1.5707963267948966 1 0 0 1 0 1
+EDGE_SE2 1 2 1 0 1.5707963267948966 1 0 0 1 0 1
+EDGE_SE2 2 3 1 0 1.5707963267948966 1 0 0 1 0 1
+EDGE_SE2 3 0 1 0 1.5707963267948966 1 0 0 1 0 1
+G2O
+check solve_g2o_2d 0 "" -- "$CARAT" solve-g2o "$scratch/square2d.g2o" --json --out "$scratch/square2d_solved.g2o"
+cp "$scratch/out" "$scratch/square2d.json"
+if [[ $(json_field "$scratch/square2d.json" "j['dimension'] == 2 and j['vertices'] == 4 and j['edges'] == 4 and j['final_cost'] < 1e-12 < j['initial_cost']") != "True" ]]; then
+  echo "FAIL solve-g2o did not solve the 2D square"; fail=$((fail + 1))
+else pass=$((pass + 1)); fi
+if ! awk '$1 == "VERTEX_SE2" && $2 == 1 { exit !(($3 - 1) ^ 2 < 1e-12 && $4 ^ 2 < 1e-12) }' "$scratch/square2d_solved.g2o"; then
+  echo "FAIL --out did not write the solved 2D graph"; fail=$((fail + 1))
+else pass=$((pass + 1)); fi
+printf 'VERTEX_SE2 0 0 0 0\nVERTEX_SE3:QUAT 1 0 0 0 0 0 0 1\n' >"$scratch/mixed.g2o"
+check mixed_dimensions 1 "mixed.g2o:2: 3D record VERTEX_SE3:QUAT in a 2D graph (line 1 holds VERTEX_SE2)" -- "$CARAT" solve-g2o "$scratch/mixed.g2o"
+
 # Bad input: one-line message naming the input, exit 1, no output file left behind.
 check missing_file 1 "missing.g2o: no such file" -- "$CARAT" solve-g2o "$scratch/missing.g2o" --out "$scratch/o1.g2o"
 : >"$scratch/empty.g2o"
@@ -138,6 +161,12 @@ if [[ -f "${CARAT_DATA_DIR:-}/posegraph/sphere2500.g2o" ]]; then
   cp "$scratch/out" "$scratch/align.json"
   if [[ $(json_field "$scratch/align.json" "j['converged'] and abs(j['T_target_source'][0][3] - 0.690) < 0.01") != "True" ]]; then
     echo "FAIL align on kitti00_pair"; fail=$((fail + 1))
+  else pass=$((pass + 1)); fi
+  # 2D: manhattan has no vertices (initial poses composed from odometry), intel has them.
+  check manhattan 0 "" -- "$CARAT" solve-g2o "$CARAT_DATA_DIR/posegraph/manhattan.g2o" --json
+  cp "$scratch/out" "$scratch/manhattan.json"
+  if [[ $(json_field "$scratch/manhattan.json" "abs(j['final_cost'] - 1774.52) < 1e-2 and j['vertices'] == 3500 and j['termination'] == 'CONVERGENCE'") != "True" ]]; then
+    echo "FAIL manhattan final cost $(json_field "$scratch/manhattan.json" "j['final_cost']")"; fail=$((fail + 1))
   else pass=$((pass + 1)); fi
   check cubicle_indefinite 1 "cubicle.g2o:5753: information matrix" -- "$CARAT" solve-g2o "$CARAT_DATA_DIR/posegraph/cubicle.g2o"
   check cubicle_repaired 0 "" -- "$CARAT" solve-g2o "$CARAT_DATA_DIR/posegraph/cubicle.g2o" --repair-information --json

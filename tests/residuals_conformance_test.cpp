@@ -14,11 +14,13 @@
 #include "carat/residuals/pose_prior_block.hpp"
 #include "carat/residuals/relative_pose_autodiff_block.hpp"
 #include "carat/residuals/relative_pose_block.hpp"
+#include "carat/residuals/relative_pose_se2_block.hpp"
 #include "carat/residuals/snavely_block.hpp"
 #include "carat/solver/autodiff_block.hpp"
 #include "carat/solver/block_checker.hpp"
 #include "carat/solver/lie_functions.hpp"
 #include "carat/solver/numeric_diff_block.hpp"
+#include "carat/solver/se2.hpp"
 #include "carat/solver/se3.hpp"
 
 namespace carat {
@@ -140,6 +142,20 @@ const std::vector<std::pair<std::string, Factory>>& cases() {
              std::make_shared<RelativePoseBlock>(random_pose(rng, 0.1, 0.1), information(rng)),
              {se3_manifold(), se3_manifold()},
              {storage(Ti), storage(Tj)}};
+       }},
+      {"RelativePoseSE2Block",
+       [] {
+         std::mt19937_64 rng(12);
+         std::normal_distribution<double> n;
+         std::vector<double> xi(3), xj(3);
+         se2::to_storage(se2::make(2.0 * n(rng), 2.0 * n(rng), n(rng)), xi.data());
+         se2::to_storage(se2::make(2.0 * n(rng), 2.0 * n(rng), n(rng)), xj.data());
+         Eigen::Matrix3d A;
+         for (int i = 0; i < 9; ++i) A.data()[i] = n(rng);
+         return Case{std::make_shared<RelativePoseSE2Block>(
+                         se2::make(1.0, 0.5, 0.3), A * A.transpose() + Eigen::Matrix3d::Identity()),
+                     {se2_manifold(), se2_manifold()},
+                     {xi, xj}};
        }},
       {"PosePriorBlock",
        [] {

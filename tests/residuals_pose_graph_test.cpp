@@ -128,8 +128,7 @@ TEST(G2oTest, MalformedFilesNameTheLineAndTheProblem) {
   expect_parse_error(v0 + "PARAMS_SE3OFFSET 0 0 0 0 0 0 0 1\n",
                      "graph.g2o:2: unknown record 'PARAMS_SE3OFFSET'");
   expect_parse_error("VERTEX_SE2 0 0 0 0\n",
-                     "graph.g2o:1: 2D records (VERTEX_SE2) are not supported; carat reads 3D "
-                     "graphs (VERTEX_SE3:QUAT / EDGE_SE3:QUAT)");
+                     "graph.g2o:1: 2D record VERTEX_SE2 where a 3D graph is expected");
   expect_parse_error(v0 + v1 + edge_line("1 1", kIdentityInfo),
                      "graph.g2o:3: edge joins vertex 1 to itself");
   expect_parse_error(v0 + "FIX 3\n", "graph.g2o: FIX names vertex 3, which is not defined");

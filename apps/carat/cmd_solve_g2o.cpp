@@ -5,11 +5,14 @@
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <type_traits>
+#include <variant>
 
 #include "carat/base/atomic_file.hpp"
 #include "carat/base/error.hpp"
 #include "carat/residuals/io/g2o_io.hpp"
 #include "carat/residuals/pose_graph.hpp"
+#include "carat/residuals/pose_graph_se2.hpp"
 #include "carat/solver/loss_function.hpp"
 #include "carat/solver/solve.hpp"
 #include "carat/solver/solver_options.hpp"
@@ -34,18 +37,12 @@ struct SolveG2oArgs {
   bool json = false;
 };
 
-int run_solve_g2o(const CLI::App& command, const SolveG2oArgs& args) {
-  const Method method = parse_method(args.method);
-  const LossKind loss = parse_loss_kind(args.loss);
-  refuse_unused(command, "--loss-scale", loss != LossKind::kNone, "to --loss none (set --loss)");
-  const bool lm = method == Method::kLevenbergMarquardt;
-  refuse_unused(command, "--trust-region-growth", lm, "to --method gn");
-  refuse_unused(command, "--no-factor-reuse", lm, "to --method gn");
-  if (!args.output.empty()) check_output_file("--out", args.output, {{"FILE", args.input}});
-  G2oReadOptions read_options;
-  if (args.repair_information) read_options.information = InformationRepair::kNearest;
-  G2oReadReport read_report;
-  PoseGraph graph = read_g2o(args.input, read_options, &read_report);
+/// Solves a graph of either dimension (PoseGraph or PoseGraphSE2), prints the report and writes
+/// --out.
+template <typename Graph>
+int solve_graph(const SolveG2oArgs& args, Method method, LossKind loss,
+                const G2oReadReport& read_report, Graph& graph) {
+  constexpr int kDimension = std::is_same_v<Graph, PoseGraphSE2> ? 2 : 3;
   PoseGraphProblemOptions problem_options;
   problem_options.loss = make_loss(loss, args.loss_scale);
   PoseGraphProblem built;
@@ -77,12 +74,13 @@ int run_solve_g2o(const CLI::App& command, const SolveG2oArgs& args) {
     j["input"] = args.input;
     j["vertices"] = graph.vertices.size();
     j["edges"] = graph.edges.size();
+    j["dimension"] = kDimension;
     j["repaired_information"] = read_report.repaired_lines.size();
     if (!args.output.empty()) j["output"] = args.output;
     std::printf("%s\n", j.dump(2).c_str());
   } else {
-    std::printf("%s: %zu vertices, %zu edges", args.input.c_str(), graph.vertices.size(),
-                graph.edges.size());
+    std::printf("%s: %dD graph, %zu vertices, %zu edges", args.input.c_str(), kDimension,
+                graph.vertices.size(), graph.edges.size());
     if (!read_report.repaired_lines.empty()) {
       std::printf(" (%zu information matrices replaced by the nearest positive-definite one)",
                   read_report.repaired_lines.size());
@@ -96,12 +94,30 @@ int run_solve_g2o(const CLI::App& command, const SolveG2oArgs& args) {
   return 0;
 }
 
+int run_solve_g2o(const CLI::App& command, const SolveG2oArgs& args) {
+  const Method method = parse_method(args.method);
+  const LossKind loss = parse_loss_kind(args.loss);
+  refuse_unused(command, "--loss-scale", loss != LossKind::kNone, "to --loss none (set --loss)");
+  const bool lm = method == Method::kLevenbergMarquardt;
+  refuse_unused(command, "--trust-region-growth", lm, "to --method gn");
+  refuse_unused(command, "--no-factor-reuse", lm, "to --method gn");
+  if (!args.output.empty()) check_output_file("--out", args.output, {{"FILE", args.input}});
+  G2oReadOptions read_options;
+  if (args.repair_information) read_options.information = InformationRepair::kNearest;
+  G2oReadReport read_report;
+  G2oGraph any = read_g2o_any(args.input, read_options, &read_report);
+  return std::visit(
+      [&](auto& graph) { return solve_graph(args, method, loss, read_report, graph); }, any);
+}
+
 }  // namespace
 
 void register_solve_g2o(CLI::App& app, CommandRegistry& registry) {
   auto args = std::make_shared<SolveG2oArgs>();
   CLI::App* cmd = app.add_subcommand(
-      "solve-g2o", "Optimize a 3D g2o pose graph (VERTEX_SE3:QUAT / EDGE_SE3:QUAT)");
+      "solve-g2o",
+      "Optimize a 3D or 2D g2o pose graph (VERTEX_SE3:QUAT / EDGE_SE3:QUAT or VERTEX_SE2 / "
+      "EDGE_SE2)");
   cmd->add_option("file", args->input, "g2o file to read")->check(path_value())->required();
   cmd->add_option("--out", args->output, "write the optimized graph here (g2o; never the input)")
       ->check(path_value());

@@ -5,8 +5,16 @@
 // relative-pose cost with the square-root information (autodiff), LM,
 // SPARSE_NORMAL_CHOLESKY with SuiteSparse, 1 thread, default tolerances, 200 iterations.
 // carat solves the identical cost function (RelativePoseBlock), 1 thread, same limits.
+// 2D graphs (VERTEX_SE2 / EDGE_SE2, e.g. intel and manhattan) get Ceres's pose_graph_2d setup:
+// x, y and yaw parameter blocks, the yaw on a manifold that normalizes the angle to [-pi, pi),
+// the residual [R_a^T (p_b - p_a) - p_ab; normalize(yaw_b - yaw_a - yaw_ab)] whitened by the
+// upper-triangular U with U^T U = information (autodiff), the same solver settings. carat solves
+// its RelativePoseSE2Block (whitened Log(Z^-1 T_a^-1 T_b)), which agrees with Ceres's residual
+// to first order but is not the same function, so each solution is also evaluated under the
+// other's cost ("cost_of_solution_under_*").
 //
 // Usage: ceres_compare [--repeat N] [FILE.g2o...]  (one JSON object per file and repeat)
+#include <ceres/autodiff_manifold.h>
 #include <ceres/ceres.h>
 #include <ceres/manifold.h>
 #include <ceres/product_manifold.h>
@@ -15,10 +23,13 @@
 #include <filesystem>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <variant>
 #include <vector>
 
 #include "carat/residuals/io/g2o_io.hpp"
 #include "carat/residuals/pose_graph.hpp"
+#include "carat/residuals/pose_graph_se2.hpp"
+#include "carat/solver/se2.hpp"
 #include "carat/solver/solve.hpp"
 
 namespace {
@@ -107,6 +118,140 @@ nlohmann::json run_carat(const carat::PoseGraph& graph) {
            summary.time.numeric_s + summary.time.solve_s + summary.time.symbolic_s}};
 }
 
+/// The angle (radians) in [-pi, pi), as Ceres's pose_graph_2d normalizes it.
+template <typename T>
+T normalize_angle(const T& angle) {
+  const T two_pi(2.0 * EIGEN_PI);
+  return angle - two_pi * ceres::floor((angle + T(EIGEN_PI)) / two_pi);
+}
+
+/// Ceres's yaw manifold: plus and minus through normalize_angle.
+struct AngleManifold {
+  template <typename T>
+  bool Plus(const T* x, const T* delta, T* x_plus_delta) const {
+    *x_plus_delta = normalize_angle(*x + *delta);
+    return true;
+  }
+  template <typename T>
+  bool Minus(const T* y, const T* x, T* y_minus_x) const {
+    *y_minus_x = normalize_angle(*y) - normalize_angle(*x);
+    return true;
+  }
+};
+
+/// Ceres's planar pose-graph residual [R_a^T (p_b - p_a) - p_ab; normalize(yaw_b - yaw_a -
+/// yaw_ab)], whitened.
+struct PoseGraph2dError {
+  PoseGraph2dError(const Eigen::Vector2d& p_ab, double yaw_ab,
+                   const Eigen::Matrix3d& sqrt_information)
+      : p_ab_(p_ab), yaw_ab_(yaw_ab), sqrt_information_(sqrt_information) {}
+
+  template <typename T>
+  bool operator()(const T* x_a, const T* y_a, const T* yaw_a, const T* x_b, const T* y_b,
+                  const T* yaw_b, T* residuals) const {
+    const Eigen::Matrix<T, 2, 1> p_a(*x_a, *y_a);
+    const Eigen::Matrix<T, 2, 1> p_b(*x_b, *y_b);
+    const T c = ceres::cos(*yaw_a), s = ceres::sin(*yaw_a);
+    Eigen::Matrix<T, 2, 2> R_a;
+    R_a << c, -s, s, c;
+    Eigen::Map<Eigen::Matrix<T, 3, 1>> r(residuals);
+    r.template head<2>() = R_a.transpose() * (p_b - p_a) - p_ab_.template cast<T>();
+    r(2) = normalize_angle((*yaw_b - *yaw_a) - T(yaw_ab_));
+    r.applyOnTheLeft(sqrt_information_.template cast<T>());
+    return true;
+  }
+
+  Eigen::Vector2d p_ab_;
+  double yaw_ab_;
+  Eigen::Matrix3d sqrt_information_;
+};
+
+/// 1/2 sum |r|^2 of Ceres's planar residuals at the given poses (x, y, yaw per vertex).
+double ceres_cost_se2(const carat::PoseGraphSE2& graph,
+                      const std::vector<std::array<double, 3>>& poses) {
+  double cost = 0.0;
+  for (const auto& edge : graph.edges) {
+    const auto& a = poses[static_cast<std::size_t>(graph.index_of(edge.from))];
+    const auto& b = poses[static_cast<std::size_t>(graph.index_of(edge.to))];
+    const PoseGraph2dError error(edge.T_from_to.translation(), carat::se2::angle(edge.T_from_to),
+                                 edge.information.llt().matrixU());
+    double r[3];
+    error(&a[0], &a[1], &a[2], &b[0], &b[1], &b[2], r);
+    cost += 0.5 * (r[0] * r[0] + r[1] * r[1] + r[2] * r[2]);
+  }
+  return cost;
+}
+
+/// 1/2 sum |r|^2 of carat's RelativePoseSE2Block residuals at the given poses.
+double carat_cost_se2(carat::PoseGraphSE2 graph, const std::vector<std::array<double, 3>>& poses) {
+  for (std::size_t i = 0; i < graph.vertices.size(); ++i) {
+    graph.vertices[i].T_world_vertex = carat::se2::make(poses[i][0], poses[i][1], poses[i][2]);
+  }
+  return carat::build_pose_graph_problem(graph).problem.evaluate_cost();
+}
+
+nlohmann::json run_ceres(const carat::PoseGraphSE2& graph) {
+  std::vector<std::array<double, 3>> poses(graph.vertices.size());
+  for (std::size_t i = 0; i < graph.vertices.size(); ++i) {
+    carat::se2::to_storage(graph.vertices[i].T_world_vertex, poses[i].data());
+  }
+  ceres::Problem::Options problem_options;
+  ceres::Problem problem(problem_options);
+  for (const auto& edge : graph.edges) {
+    auto& a = poses[static_cast<std::size_t>(graph.index_of(edge.from))];
+    auto& b = poses[static_cast<std::size_t>(graph.index_of(edge.to))];
+    const Eigen::Matrix3d sqrt_info = edge.information.llt().matrixU();
+    auto* cost =
+        new ceres::AutoDiffCostFunction<PoseGraph2dError, 3, 1, 1, 1, 1, 1, 1>(new PoseGraph2dError(
+            edge.T_from_to.translation(), carat::se2::angle(edge.T_from_to), sqrt_info));
+    problem.AddResidualBlock(cost, nullptr, &a[0], &a[1], &a[2], &b[0], &b[1], &b[2]);
+  }
+  for (auto& pose : poses) {
+    if (problem.HasParameterBlock(&pose[2])) {
+      problem.SetManifold(&pose[2], new ceres::AutoDiffManifold<AngleManifold, 1, 1>);
+    }
+  }
+  for (double& value : poses.front()) problem.SetParameterBlockConstant(&value);
+
+  ceres::Solver::Options options;
+  options.max_num_iterations = 200;
+  options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
+  options.sparse_linear_algebra_library_type = ceres::SUITE_SPARSE;
+  options.minimizer_type = ceres::TRUST_REGION;
+  options.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
+  options.num_threads = 1;
+  ceres::Solver::Summary summary;
+  ceres::Solve(options, &problem, &summary);
+  return {{"initial_cost", summary.initial_cost},
+          {"final_cost", summary.final_cost},
+          {"cost_of_solution_under_carat", carat_cost_se2(graph, poses)},
+          {"iterations", summary.iterations.size() - 1},
+          {"termination", ceres::TerminationTypeToString(summary.termination_type)},
+          {"time_s", summary.total_time_in_seconds},
+          {"linear_solver_time_s", summary.linear_solver_time_in_seconds},
+          {"jacobian_evaluation_time_s", summary.jacobian_evaluation_time_in_seconds}};
+}
+
+nlohmann::json run_carat(const carat::PoseGraphSE2& graph) {
+  carat::PoseGraphProblem built = carat::build_pose_graph_problem(graph);
+  carat::SolverOptions options;
+  options.max_iterations = 200;
+  options.num_threads = 1;
+  const carat::SolverSummary summary = carat::solve(options, built.problem);
+  std::vector<std::array<double, 3>> poses(graph.vertices.size());
+  for (std::size_t i = 0; i < poses.size(); ++i) {
+    carat::se2::to_storage(built.problem.se2(built.vertex_variables[i]), poses[i].data());
+  }
+  return {{"initial_cost", summary.initial_cost},
+          {"final_cost", summary.final_cost},
+          {"cost_of_solution_under_ceres", ceres_cost_se2(graph, poses)},
+          {"iterations", summary.num_iterations},
+          {"termination", carat::to_string(summary.termination)},
+          {"time_s", summary.time.total_s},
+          {"linear_solver_time_s",
+           summary.time.numeric_s + summary.time.solve_s + summary.time.symbolic_s}};
+}
+
 }  // namespace
 
 /// Runs one solver in a child process (this program with --solver) and returns its JSON line.
@@ -142,13 +287,15 @@ int main(int argc, char** argv) {
     }
   }
   if (files.empty()) {
-    for (const char* name : {"sphere2500", "parking-garage", "torus3D"}) {
+    for (const char* name : {"sphere2500", "parking-garage", "torus3D", "intel", "manhattan"}) {
       files.push_back(std::string(CARAT_DATA_DIR) + "/posegraph/" + name + ".g2o");
     }
   }
   if (!solver.empty()) {  // child: solve one file with one solver, print one JSON line
-    const carat::PoseGraph graph = carat::read_g2o(files.front());
-    const nlohmann::json j = solver == "carat" ? run_carat(graph) : run_ceres(graph);
+    const carat::G2oGraph any = carat::read_g2o_any(files.front());
+    const nlohmann::json j = std::visit(
+        [&](const auto& graph) { return solver == "carat" ? run_carat(graph) : run_ceres(graph); },
+        any);
     std::printf("%s\n", j.dump().c_str());
     return 0;
   }
@@ -162,12 +309,16 @@ int main(int argc, char** argv) {
       std::fprintf(stderr, "ceres_compare: skipping %s: not found\n", file.c_str());
       continue;
     }
-    const carat::PoseGraph graph = carat::read_g2o(file);
+    const carat::G2oGraph any = carat::read_g2o_any(file);
+    const auto [vertices, edges] = std::visit(
+        [](const auto& graph) { return std::pair(graph.vertices.size(), graph.edges.size()); },
+        any);
     for (int r = 0; r < repeat; ++r) {
       nlohmann::json j;
       j["file"] = file;
-      j["vertices"] = graph.vertices.size();
-      j["edges"] = graph.edges.size();
+      j["dimension"] = any.index() == 1 ? 2 : 3;
+      j["vertices"] = vertices;
+      j["edges"] = edges;
       j["ceres"] = run_child(self, "ceres", file, "");                       // as Debian ships it
       j["ceres_system_blas"] = run_child(self, "ceres", file, system_blas);  // same BLAS as carat
       j["carat"] = run_child(self, "carat", file, system_blas);

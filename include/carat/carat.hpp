@@ -46,10 +46,12 @@
 #include <carat/residuals/point_to_point_block.hpp>
 #include <carat/residuals/pose_gram.hpp>
 #include <carat/residuals/pose_graph.hpp>
+#include <carat/residuals/pose_graph_se2.hpp>
 #include <carat/residuals/pose_prior_block.hpp>
 #include <carat/residuals/registration_rows.hpp>
 #include <carat/residuals/relative_pose_autodiff_block.hpp>
 #include <carat/residuals/relative_pose_block.hpp>
+#include <carat/residuals/relative_pose_se2_block.hpp>
 #include <carat/residuals/snavely_block.hpp>
 #include <carat/residuals/snavely_camera.hpp>
 #include <carat/sim/bal_scene.hpp>
@@ -72,6 +74,7 @@
 #include <carat/solver/numeric_diff_block.hpp>
 #include <carat/solver/problem.hpp>
 #include <carat/solver/residual_block.hpp>
+#include <carat/solver/se2.hpp>
 #include <carat/solver/se3.hpp>
 #include <carat/solver/so3.hpp>
 #include <carat/solver/solve.hpp>

@@ -8,7 +8,10 @@
 
 namespace carat {
 
-se3::Matrix6d sqrt_information(const se3::Matrix6d& information, const char* what) {
+namespace {
+
+template <typename Matrix>
+Matrix upper_square_root(const Matrix& information, const char* what) {
   if (!information.allFinite()) {
     throw Error(std::string(what) + ": information matrix has non-finite entries");
   }
@@ -16,12 +19,22 @@ se3::Matrix6d sqrt_information(const se3::Matrix6d& information, const char* wha
   if ((information - information.transpose()).cwiseAbs().maxCoeff() > 1e-9 * scale) {
     throw Error(std::string(what) + ": information matrix is not symmetric");
   }
-  const Eigen::LLT<se3::Matrix6d> llt(information);
+  const Eigen::LLT<Matrix> llt(information);
   if (llt.info() != Eigen::Success ||
       !(llt.matrixL().toDenseMatrix().diagonal().minCoeff() > 0.0)) {
     throw Error(std::string(what) + ": information matrix is not positive definite");
   }
   return llt.matrixU();
+}
+
+}  // namespace
+
+se3::Matrix6d sqrt_information(const se3::Matrix6d& information, const char* what) {
+  return upper_square_root(information, what);
+}
+
+Eigen::Matrix3d sqrt_information(const Eigen::Matrix3d& information, const char* what) {
+  return upper_square_root(information, what);
 }
 
 PosePriorBlock::PosePriorBlock(const Eigen::Isometry3d& T_world_prior,

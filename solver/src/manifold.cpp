@@ -4,10 +4,12 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <string>
 #include <vector>
 
 #include "carat/base/error.hpp"
+#include "carat/solver/se2.hpp"
 #include "carat/solver/se3.hpp"
 #include "carat/solver/so3.hpp"
 
@@ -129,6 +131,41 @@ void SE3Manifold::plus_jacobian(const double* x, double* jacobian) const {
 }
 
 bool SE3Manifold::is_valid(const double* x) const { return all_finite(x, 7) && unit_quaternion(x); }
+
+void SE2Manifold::plus(const double* x, const double* delta, double* out) const {
+  // [t; theta] [+] [w; v] = [t + R(theta) V(w) v; theta + w]: the heading is summed directly so
+  // that it does not pass through a rotation matrix.
+  const Eigen::Vector2d step = se2::exp(Eigen::Map<const Eigen::Vector3d>(delta)).translation();
+  const double c = std::cos(x[2]), s = std::sin(x[2]);
+  const double theta = se2::wrap_angle(x[2] + delta[0]);
+  out[0] = x[0] + c * step.x() - s * step.y();
+  out[1] = x[1] + s * step.x() + c * step.y();
+  out[2] = theta;
+}
+
+void SE2Manifold::minus(const double* y, const double* x, double* delta) const {
+  const Eigen::Vector3d xi = se2::log(se2::from_storage(x).inverse() * se2::from_storage(y));
+  Eigen::Map<Eigen::Vector3d> out(delta);
+  out = xi;
+}
+
+void SE2Manifold::plus_jacobian(const double* x, double* jacobian) const {
+  // At 0: d theta / d w = 1, d t / d v = R(theta).
+  const double c = std::cos(x[2]), s = std::sin(x[2]);
+  const double rows[3][3] = {{0.0, c, -s}, {0.0, s, c}, {1.0, 0.0, 0.0}};
+  for (int r = 0; r < 3; ++r) {
+    for (int k = 0; k < 3; ++k) jacobian[r * 3 + k] = rows[r][k];
+  }
+}
+
+bool SE2Manifold::is_valid(const double* x) const {
+  return all_finite(x, 3) && x[2] > -std::numbers::pi && x[2] <= std::numbers::pi;
+}
+
+std::shared_ptr<const Manifold> se2_manifold() {
+  static const auto instance = std::make_shared<const SE2Manifold>();
+  return instance;
+}
 
 std::shared_ptr<const Manifold> se3_manifold() {
   static const auto instance = std::make_shared<const SE3Manifold>();

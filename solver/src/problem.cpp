@@ -4,6 +4,7 @@
 #include <string>
 
 #include "carat/base/error.hpp"
+#include "carat/solver/se2.hpp"
 #include "carat/solver/se3.hpp"
 
 namespace carat {
@@ -33,6 +34,12 @@ VariableId Problem::add_se3(const Eigen::Isometry3d& T_world_body) {
   double storage[7];
   se3::to_storage(T_world_body, storage);
   return add_variable(se3_manifold(), storage);
+}
+
+VariableId Problem::add_se2(const Eigen::Isometry2d& T_world_body) {
+  double storage[3];
+  se2::to_storage(T_world_body, storage);
+  return add_variable(se2_manifold(), storage);
 }
 
 VariableId Problem::add_euclidean(const Eigen::VectorXd& initial) {
@@ -169,6 +176,21 @@ void Problem::set_se3(VariableId id, const Eigen::Isometry3d& T_world_body) {
                 " is not an SE(3) variable");
   }
   se3::to_storage(T_world_body, v.data());
+}
+
+Eigen::Isometry2d Problem::se2(VariableId id) const {
+  if (dynamic_cast<const SE2Manifold*>(&manifold(id)) == nullptr) {
+    throw Error("Problem::se2: variable " + std::to_string(id.index) + " is not an SE(2) variable");
+  }
+  return se2::from_storage(value(id).data());
+}
+
+void Problem::set_se2(VariableId id, const Eigen::Isometry2d& T_world_body) {
+  if (dynamic_cast<const SE2Manifold*>(&manifold(id)) == nullptr) {
+    throw Error("Problem::set_se2: variable " + std::to_string(id.index) +
+                " is not an SE(2) variable");
+  }
+  se2::to_storage(T_world_body, mutable_value(id).data());
 }
 
 const Problem::BlockEntry& Problem::block(ResidualBlockId id) const {

@@ -40,4 +40,7 @@ class PosePriorBlock final : public ResidualBlock {
 /// matrix is not finite, symmetric and positive definite.
 se3::Matrix6d sqrt_information(const se3::Matrix6d& information, const char* what);
 
+/// The same for a 3x3 information matrix (planar poses, x, y, theta order).
+Eigen::Matrix3d sqrt_information(const Eigen::Matrix3d& information, const char* what);
+
 }  // namespace carat

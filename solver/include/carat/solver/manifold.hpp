@@ -25,7 +25,7 @@ class Manifold {
   virtual void plus_jacobian(const double* x, double* jacobian) const;
   /// Checks a stored value (finite, normalized where required); false with no side effects.
   virtual bool is_valid(const double* x) const = 0;
-  /// Short name for reports ("euclidean(3)", "so3", "se3").
+  /// Short name for reports ("euclidean(3)", "so3", "se3", "se2").
   virtual const char* name() const = 0;
 };
 
@@ -70,8 +70,23 @@ class SE3Manifold final : public Manifold {
   const char* name() const override { return "se3"; }
 };
 
+/// SE(2) stored as [x, y, theta] (metres, radians; theta in (-pi, pi]); plus(T, xi) =
+/// T * Exp(xi), xi = [omega, vx, vy] (see se2.hpp).
+class SE2Manifold final : public Manifold {
+ public:
+  int ambient_size() const override { return 3; }
+  int tangent_size() const override { return 3; }
+  void plus(const double* x, const double* delta, double* x_plus_delta) const override;
+  void minus(const double* y, const double* x, double* delta) const override;
+  void plus_jacobian(const double* x, double* jacobian) const override;
+  bool is_valid(const double* x) const override;
+  const char* name() const override { return "se2"; }
+};
+
 /// Shared SE(3) manifold instance (manifolds are stateless).
 std::shared_ptr<const Manifold> se3_manifold();
+/// Shared SE(2) manifold instance.
+std::shared_ptr<const Manifold> se2_manifold();
 /// Shared SO(3) manifold instance.
 std::shared_ptr<const Manifold> so3_manifold();
 /// A Euclidean manifold of the given size.

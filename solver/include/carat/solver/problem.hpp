@@ -35,6 +35,9 @@ class Problem {
   /// Adds an SE(3) variable T_world_body (see se3.hpp for the storage).
   VariableId add_se3(const Eigen::Isometry3d& T_world_body);
 
+  /// Adds an SE(2) variable T_world_body (see se2.hpp for the storage [x, y, theta]).
+  VariableId add_se2(const Eigen::Isometry2d& T_world_body);
+
   /// Adds a Euclidean variable.
   VariableId add_euclidean(const Eigen::VectorXd& initial);
 
@@ -83,6 +86,11 @@ class Problem {
   Eigen::Isometry3d se3(VariableId id) const;
   /// Sets an SE(3) variable.
   void set_se3(VariableId id, const Eigen::Isometry3d& T_world_body);
+
+  /// The stored value of an SE(2) variable as a planar transform. Throws if it is not SE(2).
+  Eigen::Isometry2d se2(VariableId id) const;
+  /// Sets an SE(2) variable. Throws if it is not SE(2).
+  void set_se2(VariableId id, const Eigen::Isometry2d& T_world_body);
 
   /// A residual block and its attachments.
   const BlockEntry& block(ResidualBlockId id) const;
