@@ -1,20 +1,11 @@
 #pragma once
 
-// Internal: runtime dispatch of hot loops to builds of the same code for wider vector units
-// (x86-64 only). Clones are chosen by CPU features (x86-64-v3: AVX2, FMA, BMI2; x86-64-v4:
-// AVX-512), not by CPU model, so AMD and Intel machines alike get them; the default clone is what
-// the baseline compiler flags produce. Each machine always runs the same clone, so results are
-// reproducible on it.
+// Internal: the coreset's vector types and the AVX-512 check; the multiversioning macros are in
+// carat/base/multiversion.hpp.
 
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && \
-    !defined(__SANITIZE_ADDRESS__)
-#define CARAT_MULTIVERSION __attribute__((target_clones("arch=x86-64-v3", "default")))
-/// For loops written with 8-wide vectors: one AVX-512 register each on x86-64-v4.
-#define CARAT_MULTIVERSION_WIDE \
-  __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
-/// An AVX-512 build of a function (call it only when cpu_has_avx512()).
-#define CARAT_TARGET_AVX512 __attribute__((target("arch=x86-64-v4")))
-#define CARAT_HAVE_AVX512_PATH 1
+#include "carat/base/multiversion.hpp"
+
+#if CARAT_HAVE_AVX512_PATH
 #include <cstdlib>
 namespace carat::internal {
 /// Whether this CPU runs x86-64-v4 code (AVX-512 F, BW, CD, DQ, VL) and the environment does
@@ -25,10 +16,6 @@ inline bool cpu_has_avx512() {
   return has;
 }
 }  // namespace carat::internal
-#else
-#define CARAT_MULTIVERSION
-#define CARAT_MULTIVERSION_WIDE
-#define CARAT_HAVE_AVX512_PATH 0
 #endif
 
 namespace carat::internal {

@@ -12,6 +12,7 @@
 #include <tuple>
 
 #include "carat/base/error.hpp"
+#include "carat/base/multiversion.hpp"
 #include "carat/base/stopwatch.hpp"
 
 namespace carat::internal {
@@ -282,27 +283,13 @@ SchurSystem::SchurSystem(const Problem& problem, const std::vector<char>& elimin
     }
   }
   raw_pairs = {};
-  {
-    std::vector<std::size_t> term_pair;
-    std::vector<std::pair<std::uint32_t, std::uint32_t>> raw_terms;
-    std::vector<std::size_t> count(keys.size() + 1, 0);
-    for (std::size_t p = 0; p < np; ++p) {
-      for (std::size_t a = pt_edge_begin_[p]; a < pt_edge_begin_[p + 1]; ++a) {
-        for (std::size_t b = pt_edge_begin_[p]; b <= a; ++b) {
-          const std::size_t k = pair_index(edge_cam_[b], edge_cam_[a]);
-          term_pair.push_back(k);
-          raw_terms.emplace_back(static_cast<std::uint32_t>(a), static_cast<std::uint32_t>(b));
-          ++count[k + 1];
-        }
-      }
+  // Each column's largest block of S rows (the scratch of form_reduced_system()).
+  for (std::size_t j = 0; j < nc; ++j) {
+    std::size_t rows = 0;
+    for (std::size_t k = column_pair_begin_[j]; k < column_pair_begin_[j + 1]; ++k) {
+      rows += at(cam_dim_[at(pairs_[k].row_cam)]);
     }
-    for (std::size_t k = 0; k < keys.size(); ++k) count[k + 1] += count[k];
-    for (std::size_t k = 0; k < keys.size(); ++k) {
-      pairs_[k].term_begin = count[k];
-      pairs_[k].term_end = count[k + 1];
-    }
-    terms_.resize(raw_terms.size());
-    for (std::size_t t = 0; t < raw_terms.size(); ++t) terms_[count[term_pair[t]]++] = raw_terms[t];
+    max_column_values_ = std::max(max_column_values_, rows * at(cam_dim_[j]));
   }
 
   // Lower-triangular CSC of S in camera order: per scalar column of camera j, the diagonal
@@ -339,7 +326,8 @@ SchurSystem::SchurSystem(const Problem& problem, const std::vector<char>& elimin
   w_.assign(w_size, 0.0);
   y_.assign(w_size, 0.0);
   v_.assign(v_size, 0.0);
-  v_inverse_.assign(v_size, 0.0);
+  l_inverse_.assign(v_size, 0.0);
+  z_.assign(at(n_ - ns_), 0.0);
 
   Impl& im = *impl_;
   cholmod_l_start(&im.common);
@@ -666,8 +654,8 @@ Eigen::VectorXd SchurSystem::diagonal() const {
   return d;
 }
 
-/// V^-1 of every point (damped) and Y = W V^-1 of every edge; false if a V is not positive
-/// definite.
+/// Per point: V + damping = L L^T, L^-1 kept, and Y = W L^-T per edge, so that
+/// W V^-1 W^T = Y Y^T. False if a V is not positive definite.
 template <int DC, int DP>
 bool SchurSystem::eliminate_points(const Eigen::VectorXd& damping) {
   std::atomic<bool> failed{false};
@@ -685,50 +673,143 @@ bool SchurSystem::eliminate_points(const Eigen::VectorXd& damping) {
                           failed.store(true, std::memory_order_relaxed);
                           continue;
                         }
-                        MapMatrix<DP, DP> V_inverse(v_inverse_.data() + pt_v_offset_[p], dp, dp);
-                        V_inverse.setIdentity(dp, dp);
-                        llt.solveInPlace(V_inverse);
+                        MapMatrix<DP, DP> L_inverse(l_inverse_.data() + pt_v_offset_[p], dp, dp);
+                        L_inverse.setIdentity(dp, dp);
+                        llt.matrixL().solveInPlace(L_inverse);
                         for (std::size_t e = pt_edge_begin_[p]; e < pt_edge_begin_[p + 1]; ++e) {
                           const int dc = cam_dim_[at(edge_cam_[e])];
                           MapMatrix<DC, DP>(y_.data() + edge_w_offset_[e], dc, dp).noalias() =
                               ConstMapMatrix<DC, DP>(w_.data() + edge_w_offset_[e], dc, dp)
-                                  .lazyProduct(V_inverse);
+                                  .lazyProduct(L_inverse.transpose());
                         }
                       }
                     });
   return !failed.load();
 }
 
-/// S = A + diag(damping) - sum over shared points of Y_i W_j^T, into the CSC values.
+namespace {
+
+/// What one column of S needs from the system (see SchurSystem::form_reduced_system()).
+struct ColumnInput {
+  const std::size_t* edges_begin;  // the column camera's edges, in point order
+  const std::size_t* edges_end;
+  const int* edge_pt;
+  const int* edge_cam;
+  const std::size_t* edge_y_offset;
+  const std::size_t* pt_edge_begin;
+  const int* cam_dim;
+  const int* pt_dim;
+  const double* y;
+  const std::size_t* row_offset;  // per camera: its rows' offset in `column`
+  int dj;
+  double* column;  // the column's blocks of S, stacked (rows x dj, column-major per block)
+};
+
+/// S (di x dj, column-major) -= Y1 (di x dp) Y2^T (dj x dp).
+template <int DC, int DP>
+__attribute__((always_inline)) inline void subtract_product(double* __restrict S,
+                                                            const double* __restrict Y1,
+                                                            const double* __restrict Y2, int di,
+                                                            int dj, int dp) {
+  const int DI = DC == Eigen::Dynamic ? di : DC;
+  const int DJ = DC == Eigen::Dynamic ? dj : DC;
+  const int DPP = DP == Eigen::Dynamic ? dp : DP;
+  for (int c = 0; c < DJ; ++c) {
+    double* out = S + c * DI;
+    for (int k = 0; k < DPP; ++k) {
+      const double w = Y2[k * DJ + c];
+      const double* in = Y1 + k * DI;
+      for (int r = 0; r < DI; ++r) out[r] -= in[r] * w;
+    }
+  }
+}
+
+/// For every point the column camera sees, in point order: S_ij -= Y_ip Y_jp^T for each camera
+/// i >= j that sees it too (the point's edges from the column's own one on, by camera).
+template <int DC, int DP>
+__attribute__((always_inline)) inline void reduce_column_body(const ColumnInput& in) {
+  for (const std::size_t* it = in.edges_begin; it != in.edges_end; ++it) {
+    const std::size_t e = *it;
+    const auto p = static_cast<std::size_t>(in.edge_pt[e]);
+    const int dp = in.pt_dim[p];
+    const double* Yj = in.y + in.edge_y_offset[e];
+    for (std::size_t f = e; f < in.pt_edge_begin[p + 1]; ++f) {
+      const auto i = static_cast<std::size_t>(in.edge_cam[f]);
+      subtract_product<DC, DP>(in.column + in.row_offset[i], in.y + in.edge_y_offset[f], Yj,
+                               in.cam_dim[i], in.dj, dp);
+    }
+  }
+}
+
+CARAT_MULTIVERSION void reduce_column_9_3(const ColumnInput& in) { reduce_column_body<9, 3>(in); }
+CARAT_MULTIVERSION void reduce_column_6_3(const ColumnInput& in) { reduce_column_body<6, 3>(in); }
+CARAT_MULTIVERSION void reduce_column_any(const ColumnInput& in) {
+  reduce_column_body<Eigen::Dynamic, Eigen::Dynamic>(in);
+}
+
+}  // namespace
+
+/// S = A + diag(damping) - sum over shared points of Y_i Y_j^T, into the CSC values; a column of
+/// camera blocks per task, each block's sum in point order.
 template <int DC, int DP>
 void SchurSystem::form_reduced_system(const Eigen::VectorXd& damping) {
+  struct ColumnScratch {
+    std::vector<double> column;
+    std::vector<std::size_t> row_offset;
+  };
+  tbb::enumerable_thread_specific<ColumnScratch> scratch;
   tbb::parallel_for(
       tbb::blocked_range<std::size_t>(0, cam_dim_.size(), 1),
       [&](const tbb::blocked_range<std::size_t>& range) {
-        Eigen::Matrix<double, DC, DC> S;
+        ColumnScratch& local = scratch.local();
+        local.column.resize(max_column_values_);
+        local.row_offset.resize(cam_dim_.size());
         for (std::size_t j = range.begin(); j != range.end(); ++j) {
           const int dj = cam_dim_[j];
+          // The column's blocks, stacked, start as A (+ damping on the diagonal block).
+          std::size_t offset = 0;
+          for (std::size_t k = column_pair_begin_[j]; k < column_pair_begin_[j + 1]; ++k) {
+            const Pair& pair = pairs_[k];
+            const std::size_t size = at(cam_dim_[at(pair.row_cam)]) * at(dj);
+            local.row_offset[at(pair.row_cam)] = offset;
+            std::copy_n(a_.data() + pair.h_offset, size, local.column.data() + offset);
+            offset += size;
+          }
+          for (int r = 0; r < dj; ++r) {
+            local.column[at(r) * at(dj) + at(r)] += damping[cam_offset_[j] + r];
+          }
+          const ColumnInput in{cam_edges_.data() + cam_edge_begin_[j],
+                               cam_edges_.data() + cam_edge_begin_[j + 1],
+                               edge_pt_.data(),
+                               edge_cam_.data(),
+                               edge_w_offset_.data(),
+                               pt_edge_begin_.data(),
+                               cam_dim_.data(),
+                               pt_dim_.data(),
+                               y_.data(),
+                               local.row_offset.data(),
+                               dj,
+                               local.column.data()};
+          if constexpr (DC == 9 && DP == 3) {
+            reduce_column_9_3(in);
+          } else if constexpr (DC == 6 && DP == 3) {
+            reduce_column_6_3(in);
+          } else {
+            reduce_column_any(in);
+          }
           for (std::size_t k = column_pair_begin_[j]; k < column_pair_begin_[j + 1]; ++k) {
             const Pair& pair = pairs_[k];
             const int di = cam_dim_[at(pair.row_cam)];
+            const double* S = local.column.data() + local.row_offset[at(pair.row_cam)];
             const bool diagonal = at(pair.row_cam) == j;
-            S = ConstMapMatrix<DC, DC>(a_.data() + pair.h_offset, di, dj);
-            if (diagonal) S.diagonal() += damping.segment(cam_offset_[j], dj);
-            for (std::size_t t = pair.term_begin; t < pair.term_end; ++t) {
-              const auto [ei, ej] = terms_[t];
-              const int dp = pt_dim_[at(edge_pt_[ei])];
-              S.noalias() -=
-                  ConstMapMatrix<DC, DP>(y_.data() + edge_w_offset_[ei], di, dp)
-                      .lazyProduct(ConstMapMatrix<DC, DP>(w_.data() + edge_w_offset_[ej], dj, dp)
-                                       .transpose());
-            }
             for (int c = 0; c < dj; ++c) {
               double* column = values_.data() + colptr_[at(cam_offset_[j] + c)];
+              const double* src = S + at(c) * at(di);
               if (diagonal) {
-                for (int r = c; r < dj; ++r) column[r - c] = S(r, c);
+                for (int r = c; r < dj; ++r) column[r - c] = src[r];
               } else {
                 double* dst = column + (dj - c) + pair.row_in_column;
-                for (int r = 0; r < di; ++r) dst[r] = S(r, c);
+                for (int r = 0; r < di; ++r) dst[r] = src[r];
               }
             }
           }
@@ -765,49 +846,64 @@ bool SchurSystem::factorize(const Eigen::VectorXd& damping) {
   return factorized && im.common.status == CHOLMOD_OK && im.L->minor == at(ns_);
 }
 
-/// reduced = rhs_cameras - sum over each camera's edges of Y_e rhs_point.
+/// z = L^-1 rhs_point per point, then reduced = rhs_cameras - sum over each camera's edges of
+/// Y_e z_point.
 template <int DC, int DP>
-void SchurSystem::reduce_rhs(const Eigen::VectorXd& rhs, double* reduced) const {
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, cam_dim_.size(), 4),
+void SchurSystem::reduce_rhs(const Eigen::VectorXd& rhs, double* reduced) {
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, pt_dim_.size(), 512),
                     [&](const tbb::blocked_range<std::size_t>& range) {
-                      for (std::size_t c = range.begin(); c != range.end(); ++c) {
-                        const int dc = cam_dim_[c];
-                        MapVector<DC> out(reduced + cam_offset_[c], dc);
-                        out = rhs.segment(cam_offset_[c], dc);
-                        for (std::size_t k = cam_edge_begin_[c]; k < cam_edge_begin_[c + 1]; ++k) {
-                          const std::size_t e = cam_edges_[k];
-                          const auto p = at(edge_pt_[e]);
-                          const int dp = pt_dim_[p];
-                          out.noalias() -=
-                              ConstMapMatrix<DC, DP>(y_.data() + edge_w_offset_[e], dc, dp)
-                                  .lazyProduct(rhs.segment(pt_offset_[p], dp));
-                        }
+                      for (std::size_t p = range.begin(); p != range.end(); ++p) {
+                        const int dp = pt_dim_[p];
+                        MapVector<DP>(z_.data() + (pt_offset_[p] - ns_), dp).noalias() =
+                            ConstMapMatrix<DP, DP>(l_inverse_.data() + pt_v_offset_[p], dp, dp)
+                                .template triangularView<Eigen::Lower>() *
+                            rhs.segment(pt_offset_[p], dp);
                       }
                     });
-}
-
-/// x_point = V^-1 rhs_point - sum over its edges of Y_e^T x_camera; x_cameras copied.
-template <int DC, int DP>
-void SchurSystem::back_substitute(const Eigen::VectorXd& rhs, const double* x_cameras,
-                                  double* x) const {
-  std::copy_n(x_cameras, ns_, x);
   tbb::parallel_for(
-      tbb::blocked_range<std::size_t>(0, pt_dim_.size(), 256),
+      tbb::blocked_range<std::size_t>(0, cam_dim_.size(), 4),
       [&](const tbb::blocked_range<std::size_t>& range) {
-        for (std::size_t p = range.begin(); p != range.end(); ++p) {
-          const int dp = pt_dim_[p];
-          MapVector<DP> out(x + pt_offset_[p], dp);
-          out.noalias() = ConstMapMatrix<DP, DP>(v_inverse_.data() + pt_v_offset_[p], dp, dp)
-                              .lazyProduct(rhs.segment(pt_offset_[p], dp));
-          for (std::size_t e = pt_edge_begin_[p]; e < pt_edge_begin_[p + 1]; ++e) {
-            const auto c = at(edge_cam_[e]);
-            const int dc = cam_dim_[c];
-            out.noalias() -= ConstMapMatrix<DC, DP>(y_.data() + edge_w_offset_[e], dc, dp)
-                                 .transpose()
-                                 .lazyProduct(ConstMapVector<DC>(x_cameras + cam_offset_[c], dc));
+        for (std::size_t c = range.begin(); c != range.end(); ++c) {
+          const int dc = cam_dim_[c];
+          MapVector<DC> out(reduced + cam_offset_[c], dc);
+          out = rhs.segment(cam_offset_[c], dc);
+          for (std::size_t k = cam_edge_begin_[c]; k < cam_edge_begin_[c + 1]; ++k) {
+            const std::size_t e = cam_edges_[k];
+            const auto p = at(edge_pt_[e]);
+            const int dp = pt_dim_[p];
+            out.noalias() -=
+                ConstMapMatrix<DC, DP>(y_.data() + edge_w_offset_[e], dc, dp)
+                    .lazyProduct(ConstMapVector<DP>(z_.data() + (pt_offset_[p] - ns_), dp));
           }
         }
       });
+}
+
+/// x_point = L^-T (z_point - sum over its edges of Y_e^T x_camera); x_cameras copied.
+template <int DC, int DP>
+void SchurSystem::back_substitute(const double* x_cameras, double* x) const {
+  std::copy_n(x_cameras, ns_, x);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, pt_dim_.size(), 256),
+                    [&](const tbb::blocked_range<std::size_t>& range) {
+                      Eigen::Matrix<double, DP, 1> t;
+                      for (std::size_t p = range.begin(); p != range.end(); ++p) {
+                        const int dp = pt_dim_[p];
+                        t = ConstMapVector<DP>(z_.data() + (pt_offset_[p] - ns_), dp);
+                        for (std::size_t e = pt_edge_begin_[p]; e < pt_edge_begin_[p + 1]; ++e) {
+                          const auto c = at(edge_cam_[e]);
+                          const int dc = cam_dim_[c];
+                          t.noalias() -=
+                              ConstMapMatrix<DC, DP>(y_.data() + edge_w_offset_[e], dc, dp)
+                                  .transpose()
+                                  .lazyProduct(ConstMapVector<DC>(x_cameras + cam_offset_[c], dc));
+                        }
+                        MapVector<DP>(x + pt_offset_[p], dp).noalias() =
+              ConstMapMatrix<DP, DP>(l_inverse_.data() + pt_v_offset_[p], dp, dp)
+                  .transpose()
+                  .template triangularView<Eigen::Upper>() *
+              t;
+                      }
+                    });
 }
 
 void SchurSystem::solve(const Eigen::VectorXd& rhs, Eigen::VectorXd* x) {
@@ -840,13 +936,13 @@ void SchurSystem::solve(const Eigen::VectorXd& rhs, Eigen::VectorXd* x) {
   x->resize(n_);
   switch (kernel_) {
     case 1:
-      back_substitute<9, 3>(rhs, x_cameras, x->data());
+      back_substitute<9, 3>(x_cameras, x->data());
       break;
     case 2:
-      back_substitute<6, 3>(rhs, x_cameras, x->data());
+      back_substitute<6, 3>(x_cameras, x->data());
       break;
     default:
-      back_substitute<Eigen::Dynamic, Eigen::Dynamic>(rhs, x_cameras, x->data());
+      back_substitute<Eigen::Dynamic, Eigen::Dynamic>(x_cameras, x->data());
       break;
   }
   elimination_s_ += t0.elapsed_s();

@@ -58,9 +58,9 @@ class SchurSystem final : public LinearSystem {
   template <int DC, int DP>
   void form_reduced_system(const Eigen::VectorXd& damping);
   template <int DC, int DP>
-  void reduce_rhs(const Eigen::VectorXd& rhs, double* reduced) const;
+  void reduce_rhs(const Eigen::VectorXd& rhs, double* reduced);
   template <int DC, int DP>
-  void back_substitute(const Eigen::VectorXd& rhs, const double* x_cameras, double* x) const;
+  void back_substitute(const double* x_cameras, double* x) const;
 
   void plan_chunks(const Problem& problem);
   template <typename HOf, typename BOf>
@@ -97,7 +97,6 @@ class SchurSystem final : public LinearSystem {
     std::int64_t row_in_column;  // offset of the row block below the diagonal block in the CSC
     std::size_t h_offset;        // start of the undamped A block (di x dj, column-major)
     std::size_t contrib_begin, contrib_end;  // A's contributions from blocks
-    std::size_t term_begin, term_end;        // (edge_i, edge_j) products of shared points
   };
   std::vector<std::size_t> column_pair_begin_;
   std::vector<Pair> pairs_;
@@ -107,7 +106,7 @@ class SchurSystem final : public LinearSystem {
     std::int16_t col_local;
   };
   std::vector<Contribution> pair_contribs_;
-  std::vector<std::pair<std::uint32_t, std::uint32_t>> terms_;  // (edge of row, edge of column)
+  std::size_t max_column_values_ = 0;  // largest column of S blocks (values)
   std::vector<std::size_t> edge_contrib_begin_;
   std::vector<Contribution> edge_contribs_;         // row_local: camera, col_local: point
   std::vector<std::uint32_t> edge_contrib_source_;  // its block's index in pt_contribs_
@@ -128,9 +127,9 @@ class SchurSystem final : public LinearSystem {
   std::vector<double> chunk_cost_;
 
   // Values: undamped A blocks, W per edge (dc x dp), V per point; and the factorization's
-  // V^-1 and Y = W V^-1 (kept apart from the assembled values so that solve() may reuse an
-  // earlier factorization).
-  std::vector<double> a_, w_, v_, v_inverse_, y_;
+  // L^-1 (V + damping = L L^T) and Y = W L^-T (kept apart from the assembled values so that
+  // solve() may reuse an earlier factorization); z = L^-1 rhs of the last solve.
+  std::vector<double> a_, w_, v_, l_inverse_, y_, z_;
 
   // Reduced system: lower-triangular CSC in camera order (CHOLMOD orders it).
   std::vector<std::int64_t> colptr_, rows_;
