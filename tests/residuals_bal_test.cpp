@@ -3,11 +3,13 @@
 // of malformed input, the exact write/read round trip, and the cost of a BAL problem directly and
 // through a carat Problem.
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 
 #include <cstring>
 #include <fstream>
 #include <random>
 #include <sstream>
+#include <thread>
 
 #include "carat/residuals/bal_problem.hpp"
 #include "carat/residuals/io/bal_io.hpp"
@@ -314,6 +316,33 @@ TEST(BalIoTest, RefusesDirectoriesAndMissingFiles) {
   EXPECT_EQ(test::error_of([&] { write_bal(dir / "out.txt", p); }),
             "write_bal: point 1 is observed by no camera");
   EXPECT_FALSE(std::filesystem::exists(dir / "out.txt"));
+}
+
+/// read_bal() of `text` written into a FIFO by another thread (an input of unknown size).
+std::string read_through_fifo(const std::string& text, BalProblem* out) {
+  const auto dir = test::scratch_dir("bal_fifo");
+  const auto fifo = dir / "in.bal";
+  if (mkfifo(fifo.c_str(), 0600) != 0) return "(no fifo)";
+  std::thread writer([&] { std::ofstream(fifo) << text; });
+  std::string message = test::error_of([&] { *out = read_bal(fifo); });
+  writer.join();
+  return message;
+}
+
+TEST(BalIoTest, ReadsAStreamOfUnknownSize) {
+  BalProblem p;
+  EXPECT_EQ(read_through_fifo(kValid, &p), "(no error)");
+  EXPECT_EQ(p.cameras.size(), 2u);
+  EXPECT_EQ(p.points[1].z(), 6.0);
+  const std::string fifo = (test::scratch_dir("bal_fifo") / "in.bal").string();
+  EXPECT_EQ(read_through_fifo(valid_with("1 1 -1 2", "1 0 -1 2"), &p),
+            fifo +
+                ":8: point 1 is observed by no camera (every camera and point must take part "
+                "in an observation)");
+  EXPECT_EQ(read_through_fifo("3 2 3\n" + kObservations + kCameras + "1 2 3 4 5 -6 7 8 9\n", &p),
+            fifo +
+                ":7: camera 2 observes no point (every camera and point must take part in an "
+                "observation)");
 }
 
 TEST(BalProblemTest, CostDirectAndThroughTheProblemAgreeAndSolvedValuesComeBack) {

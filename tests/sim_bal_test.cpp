@@ -152,6 +152,11 @@ TEST(BalSceneTest, SolvingASmallSceneReachesTheNoiseFloor) {
   EXPECT_LE(summary.final_cost, floor);
   const double parameters = 9.0 * options.cameras + 3.0 * options.points - 7.0;
   EXPECT_GE(summary.final_cost, 0.8 * (floor - 0.5 * parameters));
+  // Kept in the XML report (--gtest_output=xml): start, noise floor, optimum, iterations.
+  RecordProperty("initial_cost", std::to_string(initial));
+  RecordProperty("noise_floor", std::to_string(floor));
+  RecordProperty("final_cost", std::to_string(summary.final_cost));
+  RecordProperty("iterations", std::to_string(summary.num_iterations));
   BalProblem solved = scene.problem;
   update_bal_problem(problem, variables, &solved);
   EXPECT_NEAR(bal_cost(solved), summary.final_cost, 1e-9 * summary.final_cost);

@@ -99,10 +99,17 @@ double SnavelyReprojectionBlock::accumulate(ParameterPointers params,
                                             Eigen::Ref<Eigen::VectorXd> b_r) const {
   Jacobian J;
   const Eigen::Vector2d r = evaluate(params[0], params[1], &J);
-  const Eigen::Matrix<double, 12, 12> H = J.transpose() * J;
-  const Eigen::Matrix<double, 12, 1> b = J.transpose() * r;
-  H_r += H;
-  b_r += b;
+  // J^T J is symmetric: form its upper triangle once and add it to both halves.
+  for (int j = 0; j < 12; ++j) {
+    const double a0 = J(0, j), a1 = J(1, j);
+    for (int i = 0; i < j; ++i) {
+      const double h = J(0, i) * a0 + J(1, i) * a1;
+      H_r(i, j) += h;
+      H_r(j, i) += h;
+    }
+    H_r(j, j) += a0 * a0 + a1 * a1;
+    b_r(j) += a0 * r.x() + a1 * r.y();
+  }
   return r.squaredNorm();
 }
 

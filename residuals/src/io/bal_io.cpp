@@ -111,6 +111,39 @@ class BalTokens {
   std::size_t position_ = 0;
 };
 
+/// Which of `count` indices the observations use, asked for in increasing order. With the input's
+/// size known, the counts are bounded by it and a flag per index is kept; from a stream of unknown
+/// size the used indices are kept sorted instead, so that memory follows the data, not the header.
+class IndexUse {
+ public:
+  IndexUse(int count, bool bounded) {
+    if (bounded) flags_.assign(static_cast<std::size_t>(count), 0);
+  }
+  void add(int index) {
+    if (!flags_.empty()) {
+      flags_[static_cast<std::size_t>(index)] = 1;
+    } else {
+      sorted_.push_back(index);
+    }
+  }
+  /// Call once after the last add().
+  void finish() {
+    std::sort(sorted_.begin(), sorted_.end());
+    sorted_.erase(std::unique(sorted_.begin(), sorted_.end()), sorted_.end());
+  }
+  /// Whether `index` is used; indices must be asked for in increasing order.
+  bool used(int index) {
+    if (!flags_.empty()) return flags_[static_cast<std::size_t>(index)] != 0;
+    while (next_ < sorted_.size() && sorted_[next_] < index) ++next_;
+    return next_ < sorted_.size() && sorted_[next_] == index;
+  }
+
+ private:
+  std::vector<char> flags_;
+  std::vector<int> sorted_;
+  std::size_t next_ = 0;
+};
+
 BalProblem read_bal_tokens(BalTokens& tokens) {
   const auto header = [] { return std::string("the header"); };
   const int num_cameras = tokens.count(tokens.expect(header), "num_cameras");
@@ -138,8 +171,8 @@ BalProblem read_bal_tokens(BalTokens& tokens) {
 
   BalProblem problem;
   reserve(problem.observations, num_observations);
-  std::vector<std::uint32_t> camera_uses(static_cast<std::size_t>(num_cameras), 0);
-  std::vector<std::uint32_t> point_uses(static_cast<std::size_t>(num_points), 0);
+  IndexUse camera_use(num_cameras, remaining.has_value());
+  IndexUse point_use(num_points, remaining.has_value());
   for (int k = 0; k < num_observations; ++k) {
     const auto where = [&] {
       return "observation " + std::to_string(k) + " of " + std::to_string(num_observations);
@@ -149,11 +182,13 @@ BalProblem read_bal_tokens(BalTokens& tokens) {
     o.point = tokens.index(tokens.expect(where), "point", num_points);
     o.x = tokens.number(tokens.expect(where), [] { return std::string("observation x"); });
     o.y = tokens.number(tokens.expect(where), [] { return std::string("observation y"); });
-    ++camera_uses[static_cast<std::size_t>(o.camera)];
-    ++point_uses[static_cast<std::size_t>(o.point)];
+    camera_use.add(o.camera);
+    point_use.add(o.point);
     problem.observations.push_back(o);
   }
 
+  camera_use.finish();
+  point_use.finish();
   reserve(problem.cameras, num_cameras);
   for (int i = 0; i < num_cameras; ++i) {
     BalCamera camera;
@@ -165,7 +200,7 @@ BalProblem read_bal_tokens(BalTokens& tokens) {
       camera[k] = tokens.number(tokens.expect(where), [&] {
         return "camera " + std::to_string(i) + " parameter " + std::to_string(k);
       });
-      if (k == 0 && camera_uses[static_cast<std::size_t>(i)] == 0) {
+      if (k == 0 && !camera_use.used(i)) {
         tokens.fail("camera " + std::to_string(i) +
                     " observes no point (every camera and point must take part in an "
                     "observation)");
@@ -185,7 +220,7 @@ BalProblem read_bal_tokens(BalTokens& tokens) {
       point[k] = tokens.number(tokens.expect(where), [&] {
         return "point " + std::to_string(i) + " coordinate " + std::to_string(k);
       });
-      if (k == 0 && point_uses[static_cast<std::size_t>(i)] == 0) {
+      if (k == 0 && !point_use.used(i)) {
         tokens.fail("point " + std::to_string(i) +
                     " is observed by no camera (every camera and point must take part in an "
                     "observation)");
