@@ -26,11 +26,13 @@ inline std::size_t packed_column(std::size_t D, std::size_t c) { return c * (2 *
 
 /// out(r, c) += H(row0 + r, col0 + c) for r < rows, c < cols (out column-major, leading
 /// dimension ld), H packed as above; the row and column ranges are the same variable's
-/// (the whole block is added) or two different variables' (disjoint ranges).
+/// (the whole block is added) or two different variables' (disjoint ranges). kRows / kCols > 0
+/// fix rows / cols at compile time (for the hot loops); 0 takes them at run time.
+template <int kRows = 0, int kCols = 0>
 inline void add_packed_block(const double* H, std::size_t D, std::size_t row0, std::size_t col0,
                              int rows, int cols, double* out, std::size_t ld) {
-  const auto R = static_cast<std::size_t>(rows);
-  const auto C = static_cast<std::size_t>(cols);
+  const auto R = static_cast<std::size_t>(kRows > 0 ? kRows : rows);
+  const auto C = static_cast<std::size_t>(kCols > 0 ? kCols : cols);
   if (row0 > col0) {  // below the diagonal: each column is contiguous
     for (std::size_t c = 0; c < C; ++c) {
       const double* src = H + packed_column(D, col0 + c) + (row0 - col0 - c);

@@ -227,21 +227,35 @@ SchurSystem::SchurSystem(const Problem& problem, const std::vector<char>& elimin
   for (std::size_t c = 0; c < nc; ++c) cam_grad_begin_[c + 1] += cam_grad_begin_[c];
 
   // Camera pairs of S: every diagonal, pairs inside blocks, pairs of cameras sharing a point.
-  std::vector<std::uint64_t> keys;  // column << 32 | row
+  // Per column camera j, the row cameras i >= j it pairs with: a marker per camera avoids
+  // sorting every shared-point pair (Sum over points of k (k + 1) / 2 of them).
+  std::vector<std::uint64_t> keys;  // column << 32 | row, ascending
   const auto key = [](int col, int row) {
     return (static_cast<std::uint64_t>(col) << 32) | static_cast<std::uint32_t>(row);
   };
-  for (std::size_t c = 0; c < nc; ++c)
-    keys.push_back(key(static_cast<int>(c), static_cast<int>(c)));
-  for (const RawPair& r : raw_pairs) keys.push_back(key(r.col, r.row));
-  for (std::size_t p = 0; p < np; ++p) {
-    for (std::size_t a = pt_edge_begin_[p]; a < pt_edge_begin_[p + 1]; ++a) {
-      for (std::size_t b = pt_edge_begin_[p]; b <= a; ++b)
-        keys.push_back(key(edge_cam_[b], edge_cam_[a]));
+  {
+    std::vector<std::vector<int>> block_rows(nc);
+    for (const RawPair& r : raw_pairs) block_rows[at(r.col)].push_back(r.row);
+    std::vector<std::size_t> marked(nc, nc);  // column that last marked camera i
+    std::vector<int> rows;
+    for (std::size_t j = 0; j < nc; ++j) {
+      rows.clear();
+      const auto mark = [&](int i) {
+        if (marked[at(i)] != j) {
+          marked[at(i)] = j;
+          rows.push_back(i);
+        }
+      };
+      mark(static_cast<int>(j));
+      for (const int i : block_rows[j]) mark(i);
+      for (std::size_t k = cam_edge_begin_[j]; k < cam_edge_begin_[j + 1]; ++k) {
+        const std::size_t e = cam_edges_[k];
+        for (std::size_t f = e; f < pt_edge_begin_[at(edge_pt_[e]) + 1]; ++f) mark(edge_cam_[f]);
+      }
+      std::sort(rows.begin(), rows.end());
+      for (const int i : rows) keys.push_back(key(static_cast<int>(j), i));
     }
   }
-  std::sort(keys.begin(), keys.end());
-  keys.erase(std::unique(keys.begin(), keys.end()), keys.end());
   const auto pair_index = [&](int col, int row) {
     return static_cast<std::size_t>(std::lower_bound(keys.begin(), keys.end(), key(col, row)) -
                                     keys.begin());
@@ -448,8 +462,9 @@ void SchurSystem::plan_chunks(const Problem& problem) {
 
 /// The points of chunk k: V, their gradients, W per edge and, fused, the chunk's slots.
 /// h_of(q) / b_of(q): packed H and b of the block of pt_contribs_[q].
-template <typename HOf, typename BOf>
-void SchurSystem::scatter_chunk(std::size_t k, double* gradient, const HOf& h_of, const BOf& b_of) {
+template <int DC, int DP, typename HOf, typename BOf>
+void SchurSystem::scatter_chunk_sized(std::size_t k, double* gradient, const HOf& h_of,
+                                      const BOf& b_of) {
   const std::size_t p0 = k * kChunkPoints;
   const std::size_t p1 = std::min(pt_dim_.size(), p0 + kChunkPoints);
   if (fused_) {
@@ -465,7 +480,8 @@ void SchurSystem::scatter_chunk(std::size_t k, double* gradient, const HOf& h_of
     double* g = gradient + pt_offset_[p];
     for (std::size_t q = pt_contrib_begin_[p]; q < pt_contrib_begin_[p + 1]; ++q) {
       const auto [block, local] = pt_contribs_[q];
-      add_packed_block(h_of(q), at(block_dim(block)), at(local), at(local), dp, dp, V, at(dp));
+      add_packed_block<DP, DP>(h_of(q), at(block_dim(block)), at(local), at(local), dp, dp, V,
+                               at(dp));
       const double* b = b_of(q) + local;
       for (int r = 0; r < dp; ++r) g[r] += b[r];
     }
@@ -477,15 +493,30 @@ void SchurSystem::scatter_chunk(std::size_t k, double* gradient, const HOf& h_of
         const Contribution& src = edge_contribs_[q];
         const double* H = h_of(edge_contrib_source_[q]);
         const auto D = at(block_dim(src.block));
-        add_packed_block(H, D, at(src.row_local), at(src.col_local), dc, dp, W, at(dc));
+        add_packed_block<DC, DP>(H, D, at(src.row_local), at(src.col_local), dc, dp, W, at(dc));
         if (!fused_) continue;
         double* slot = slots_.data() + edge_slot_[e];
-        add_packed_block(H, D, at(src.row_local), at(src.row_local), dc, dc, slot, at(dc));
+        add_packed_block<DC, DC>(H, D, at(src.row_local), at(src.row_local), dc, dc, slot, at(dc));
         const double* b = b_of(edge_contrib_source_[q]) + src.row_local;
         double* slot_g = slot + at(dc) * at(dc);
         for (int r = 0; r < dc; ++r) slot_g[r] += b[r];
       }
     }
+  }
+}
+
+template <typename HOf, typename BOf>
+void SchurSystem::scatter_chunk(std::size_t k, double* gradient, const HOf& h_of, const BOf& b_of) {
+  switch (kernel_) {
+    case 1:
+      scatter_chunk_sized<9, 3>(k, gradient, h_of, b_of);
+      break;
+    case 2:
+      scatter_chunk_sized<6, 3>(k, gradient, h_of, b_of);
+      break;
+    default:
+      scatter_chunk_sized<0, 0>(k, gradient, h_of, b_of);
+      break;
   }
 }
 
@@ -898,10 +929,10 @@ void SchurSystem::back_substitute(const double* x_cameras, double* x) const {
                                   .lazyProduct(ConstMapVector<DC>(x_cameras + cam_offset_[c], dc));
                         }
                         MapVector<DP>(x + pt_offset_[p], dp).noalias() =
-              ConstMapMatrix<DP, DP>(l_inverse_.data() + pt_v_offset_[p], dp, dp)
-                  .transpose()
-                  .template triangularView<Eigen::Upper>() *
-              t;
+                            ConstMapMatrix<DP, DP>(l_inverse_.data() + pt_v_offset_[p], dp, dp)
+                                .transpose()
+                                .template triangularView<Eigen::Upper>() *
+                            t;
                       }
                     });
 }

@@ -65,6 +65,8 @@ class SchurSystem final : public LinearSystem {
   void plan_chunks(const Problem& problem);
   template <typename HOf, typename BOf>
   void scatter_chunk(std::size_t k, double* gradient, const HOf& h_of, const BOf& b_of);
+  template <int DC, int DP, typename HOf, typename BOf>
+  void scatter_chunk_sized(std::size_t k, double* gradient, const HOf& h_of, const BOf& b_of);
   void gather_cameras(const BlockLinearizations& blocks, double* gradient);
   int block_dim(std::int32_t block) const { return block_dims_[static_cast<std::size_t>(block)]; }
 
