@@ -280,6 +280,7 @@ TEST(SchurSolveTest, AutoEliminatesTheLargestIndependentGroup) {
   ASSERT_TRUE(summary.is_solution_usable()) << summary.message;
   EXPECT_NE(summary.linear_solver.find("schur complement of 50 eliminated"), std::string::npos)
       << summary.linear_solver;
+  EXPECT_EQ(summary.trust_region_growth, 3.0);  // automatic, with the Schur complement
 
   // A chain of 2-D variables: every block connects two of them, nothing to eliminate.
   Problem chain;
@@ -294,6 +295,10 @@ TEST(SchurSolveTest, AutoEliminatesTheLargestIndependentGroup) {
   }
   const SolverSummary full = solve(tight_options(LinearSolver::kAuto), chain);
   EXPECT_EQ(full.linear_solver.find("schur"), std::string::npos) << full.linear_solver;
+  EXPECT_EQ(full.trust_region_growth, 10.0);  // automatic, whole system
+  SolverOptions set = tight_options(LinearSolver::kAuto);
+  set.max_trust_region_growth = 4.0;
+  EXPECT_EQ(solve(set, chain).trust_region_growth, 4.0);
   const SolverSummary forced = solve(tight_options(LinearSolver::kSchur), chain);
   EXPECT_EQ(forced.termination, TerminationType::kFailure);
   EXPECT_EQ(forced.message,

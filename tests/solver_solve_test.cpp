@@ -553,7 +553,7 @@ TEST(SolverOptionsTest, ValidateNamesTheBadSetting) {
   expect_invalid([](SolverOptions& o) { o.function_tolerance = -1.0; },
                  "function_tolerance must be finite and >= 0, got -1.000000");
   expect_invalid([](SolverOptions& o) { o.max_trust_region_growth = 0.5; },
-                 "max_trust_region_growth must be finite and >= 1, got 0.500000");
+                 "max_trust_region_growth must be 0 (automatic) or finite and >= 1, got 0.500000");
   expect_invalid([](SolverOptions& o) { o.factor_reuse_ratio = -1.0; },
                  "factor_reuse_ratio must be finite and >= 0, got -1.000000");
   options.initial_trust_region_radius = 0.0;

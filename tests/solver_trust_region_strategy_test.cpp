@@ -50,6 +50,7 @@ TEST(TrustRegionStrategyTest, RejectionsInARowDivideByTwoThenFourThenEight) {
 TEST(TrustRegionStrategyTest, AnAcceptedStepResetsTheShrinkFactor) {
   SolverOptions options;
   options.initial_trust_region_radius = 1e4;
+  options.max_trust_region_growth = 10.0;  // as solve() resolves it for the whole system
   TrustRegionStrategy region(options);
   region.on_rejected();
   region.on_rejected();
@@ -87,6 +88,7 @@ TEST(TrustRegionStrategyTest, GrowthStopsAtTheMaximumRadius) {
   SolverOptions options;
   options.initial_trust_region_radius = 1e4;
   options.max_trust_region_radius = 2.5e4;
+  options.max_trust_region_growth = 10.0;
   TrustRegionStrategy region(options);
   region.on_accepted(1.0);
   EXPECT_EQ(region.radius(), 2.5e4);

@@ -100,13 +100,14 @@ CLI::Validator real_in(double min, double max) {
       "NUMBER in " + range);
 }
 
-CLI::Validator zero_or_real_in(double min, double max) {
+CLI::Validator zero_or_real_in(double min, double max, const std::string& zero_means) {
   const std::string range = "[" + number_text(min) + ", " + number_text(max) + "]";
   return CLI::Validator(
-      [min, max, range](std::string& value) -> std::string {
+      [min, max, range, zero_means](std::string& value) -> std::string {
         double parsed = 0.0;
         if (!parse_real(value, &parsed) || (parsed != 0.0 && (parsed < min || parsed > max))) {
-          return "must be 0 (off) or a finite number in " + range + ", got " + shown(value);
+          return "must be 0 (" + zero_means + ") or a finite number in " + range + ", got " +
+                 shown(value);
         }
         return {};
       },

@@ -30,8 +30,8 @@ CLI::Validator integer_in(long long min, long long max);
 CLI::Validator seed_value();
 /// A finite decimal number in [min, max] (NaN and Inf refused).
 CLI::Validator real_in(double min, double max);
-/// 0 (off), or a finite number in [min, max].
-CLI::Validator zero_or_real_in(double min, double max);
+/// 0 (which means `zero_means`, "off" unless given), or a finite number in [min, max].
+CLI::Validator zero_or_real_in(double min, double max, const std::string& zero_means = "off");
 /// A path: not empty.
 CLI::Validator path_value();
 

@@ -28,6 +28,7 @@ struct SimulateBalArgs {
   int observations_per_point = 4;
   double noise = 1.0;
   double outliers = 0.0;
+  double start_noise = 1.0;
   std::uint64_t seed = 1;
   std::string out;
   std::string truth;
@@ -82,6 +83,10 @@ int run_simulate_bal(const SimulateBalArgs& args) {
   options.pixel_noise_sigma = args.noise;
   options.outlier_fraction = args.outliers;
   options.seed = args.seed;
+  options.camera_rotation_sigma_rad *= args.start_noise;
+  options.camera_position_sigma_m *= args.start_noise;
+  options.focal_sigma_relative *= args.start_noise;
+  options.point_sigma_m *= args.start_noise;
   const BalScene scene = simulate_bal(options);
 
   std::size_t outliers = 0;
@@ -158,6 +163,11 @@ void register_simulate_bal(CLI::App& app, CommandRegistry& registry) {
   cmd->add_option("--outliers", args->outliers,
                   "fraction of observations moved 50-100 pixels away (outliers)")
       ->check(real_in(0.0, 1.0))
+      ->capture_default_str();
+  cmd->add_option("--start-noise", args->start_noise,
+                  "scale of the start's perturbation (1: rotations 0.01 rad, camera centres and "
+                  "points 0.1 m, focal lengths 1 %, one sigma each)")
+      ->check(real_in(0.0, 100.0))
       ->capture_default_str();
   cmd->add_option("--seed", args->seed, "seed of the scene and the noise")
       ->check(seed_value())

@@ -1,6 +1,6 @@
 // carat solve-bal FILE [--out FILE] [--linear-solver auto|schur|cholesky] [--max-iterations N]
 //                      [--threads T] [--loss none|huber|cauchy] [--loss-scale S]
-//                      [--trust-region-growth G] [--factor-reuse] [--json]
+//                      [--trust-region-growth G] [--no-factor-reuse] [--json]
 #include <cstdio>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -28,8 +28,8 @@ struct SolveBalArgs {
   int threads = 1;
   std::string loss = "none";
   double loss_scale = 1.0;
-  double trust_region_growth = 3.0;
-  bool factor_reuse = false;
+  double trust_region_growth = SolverOptions{}.max_trust_region_growth;
+  bool no_factor_reuse = false;
   bool json = false;
 };
 
@@ -54,7 +54,7 @@ int run_solve_bal(const CLI::App& command, const SolveBalArgs& args) {
   options.max_iterations = args.max_iterations;
   options.num_threads = args.threads;
   options.max_trust_region_growth = args.trust_region_growth;
-  options.reuse_factorization = args.factor_reuse;
+  options.reuse_factorization = !args.no_factor_reuse;
   const SolverSummary summary = solve(options, problem);
   if (summary.termination == TerminationType::kFailure) {
     throw Error(args.input + ": the solve failed: " + summary.message);
@@ -123,12 +123,12 @@ void register_solve_bal(CLI::App& app, CommandRegistry& registry) {
       ->check(real_in(1e-6, 1e6))
       ->capture_default_str();
   cmd->add_option("--trust-region-growth", args->trust_region_growth,
-                  "most the LM radius grows after one step")
-      ->check(real_in(1.0, 1e6))
+                  "most the LM radius grows after one step (0: automatic, 3 with the Schur "
+                  "complement, 10 without)")
+      ->check(zero_or_real_in(1.0, 1e6, "automatic"))
       ->capture_default_str();
-  cmd->add_flag("--factor-reuse", args->factor_reuse,
-                "try steps on an earlier factorization in slow tails (off for BA: see "
-                "docs/benchmarks.md)");
+  cmd->add_flag("--no-factor-reuse", args->no_factor_reuse,
+                "factorize afresh every iteration (no steps on an earlier factorization)");
   cmd->add_flag("--json", args->json, "print one JSON object instead of the report");
   registry.add(cmd, [args, cmd] { return run_solve_bal(*cmd, *args); });
 }

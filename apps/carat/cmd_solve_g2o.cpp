@@ -142,8 +142,8 @@ void register_solve_g2o(CLI::App& app, CommandRegistry& registry) {
   cmd->add_flag("--no-factor-reuse", args->no_factor_reuse,
                 "factorize afresh every iteration (no steps on an earlier factorization)");
   cmd->add_option("--trust-region-growth", args->trust_region_growth,
-                  "most the LM radius grows after one step (Ceres: 3)")
-      ->check(real_in(1.0, 1e6))
+                  "most the LM radius grows after one step (0: automatic, 10 here; Ceres: 3)")
+      ->check(zero_or_real_in(1.0, 1e6, "automatic"))
       ->capture_default_str();
   cmd->add_flag("--repair-information", args->repair_information,
                 "replace an information matrix that is not positive definite by the nearest one "

@@ -6,6 +6,7 @@
 #include <carat/base/atomic_file.hpp>
 #include <carat/base/error.hpp>
 #include <carat/base/input_file.hpp>
+#include <carat/base/multiversion.hpp>
 #include <carat/base/output_folder.hpp>
 #include <carat/base/statistics.hpp>
 #include <carat/base/stopwatch.hpp>

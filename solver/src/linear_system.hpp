@@ -55,6 +55,9 @@ class LinearSystem {
   /// of an earlier assembly).
   virtual void solve(const Eigen::VectorXd& rhs, Eigen::VectorXd* x) = 0;
 
+  /// The trust-region growth SolverOptions::max_trust_region_growth = 0 stands for here.
+  virtual double automatic_trust_region_growth() const { return 10.0; }
+
   /// Seconds spent eliminating variables (forming the reduced system, back-substitution)
   /// since the last call; 0 for the whole-system path.
   virtual double take_elimination_seconds() { return 0.0; }

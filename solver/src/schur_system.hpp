@@ -44,6 +44,7 @@ class SchurSystem final : public LinearSystem {
   void multiply(const Eigen::VectorXd& x, Eigen::VectorXd* y) const override;
   void solve(const Eigen::VectorXd& rhs, Eigen::VectorXd* x) override;
   double take_elimination_seconds() override;
+  double automatic_trust_region_growth() const override { return 3.0; }
 
   /// Size of the reduced system (tangent dimensions of the variables not eliminated).
   int reduced_size() const { return ns_; }

@@ -90,7 +90,7 @@ class Solver {
     return finish(reason.type, std::move(reason.message));
   }
 
-  const SolverOptions& options_;
+  SolverOptions options_;  ///< a copy: the automatic trust-region growth is resolved in it
   Problem& problem_;
   SolverSummary& summary_;
   Stopwatch solve_time_;  ///< since the solver was made
@@ -415,6 +415,10 @@ bool Solver::initialize() {
     return false;
   }
   summary_.time.symbolic_s += t0.elapsed_s();
+  if (options_.max_trust_region_growth == 0.0) {
+    options_.max_trust_region_growth = system_->automatic_trust_region_growth();
+  }
+  summary_.trust_region_growth = options_.max_trust_region_growth;
   summary_.num_tangent_parameters = system_->size();
   summary_.hessian_nonzeros = system_->hessian_nonzeros();
   summary_.factor_nonzeros = system_->factor_nonzeros();

@@ -95,8 +95,9 @@ bool SolverOptions::validate(std::string* error) const {
   if (!(max_trust_region_radius >= initial_trust_region_radius)) {
     return fail(error, "max_trust_region_radius must be >= initial_trust_region_radius");
   }
-  if (!(max_trust_region_growth >= 1.0) || !std::isfinite(max_trust_region_growth)) {
-    return fail(error, "max_trust_region_growth must be finite and >= 1, got " +
+  if (max_trust_region_growth != 0.0 &&
+      (!(max_trust_region_growth >= 1.0) || !std::isfinite(max_trust_region_growth))) {
+    return fail(error, "max_trust_region_growth must be 0 (automatic) or finite and >= 1, got " +
                            std::to_string(max_trust_region_growth));
   }
   if (!(max_lm_diagonal >= min_lm_diagonal)) {

@@ -122,6 +122,7 @@ std::string SolverSummary::to_json() const {
   j["threads"] = num_threads;
   j["method"] = method;
   j["linear_solver"] = linear_solver;
+  j["trust_region_growth"] = trust_region_growth;
   j["time_s"] = time.total_s;
   j["time_breakdown"] = {{"symbolic_s", time.symbolic_s}, {"linearize_s", time.linearize_s},
                          {"cost_s", time.cost_s},         {"assembly_s", time.assembly_s},

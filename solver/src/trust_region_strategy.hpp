@@ -17,7 +17,8 @@ namespace carat::internal {
 /// The radius of the Levenberg-Marquardt trust region and the rules that move it.
 class TrustRegionStrategy {
  public:
-  /// Starts at options.initial_trust_region_radius; reads the LM settings of `options`.
+  /// Starts at options.initial_trust_region_radius; reads the LM settings of `options`, whose
+  /// max_trust_region_growth must be resolved already (> 0; solve() resolves the automatic 0).
   explicit TrustRegionStrategy(const SolverOptions& options);
 
   /// The radius mu (dimensionless: the damping is clamped diag(H) / mu).

@@ -47,19 +47,20 @@ LinearSolver parse_linear_solver(std::string_view name);
 
 /// What solve() does and when it stops.
 struct SolverOptions {
-  Method method = Method::kLevenbergMarquardt;  ///< nonlinear method
-  Ordering ordering = Ordering::kAuto;          ///< fill-reducing ordering
+  Method method = Method::kLevenbergMarquardt;       ///< nonlinear method
+  Ordering ordering = Ordering::kAuto;               ///< fill-reducing ordering
   LinearSolver linear_solver = LinearSolver::kAuto;  ///< whole system or Schur complement
-  int max_iterations = 50;                      ///< iterations (accepted or not) before giving up
-  double function_tolerance = 1e-6;             ///< stop when |cost change| / cost < this
-  double gradient_tolerance = 1e-10;            ///< stop when max |gradient| < this
-  double parameter_tolerance = 1e-8;            ///< stop when |step| < this * (|x| + this)
-  double initial_trust_region_radius = 1e4;     ///< LM: initial radius mu (damping is 1/mu)
-  double max_trust_region_radius = 1e16;        ///< LM: largest radius
+  int max_iterations = 50;                   ///< iterations (accepted or not) before giving up
+  double function_tolerance = 1e-6;          ///< stop when |cost change| / cost < this
+  double gradient_tolerance = 1e-10;         ///< stop when max |gradient| < this
+  double parameter_tolerance = 1e-8;         ///< stop when |step| < this * (|x| + this)
+  double initial_trust_region_radius = 1e4;  ///< LM: initial radius mu (damping is 1/mu)
+  double max_trust_region_radius = 1e16;     ///< LM: largest radius
   /// LM: most the radius can grow after one step: radius / max(1 / this, 1 - (2 rho - 1)^3)
-  /// for gain ratio rho (Ceres uses 3; a larger factor reaches undamped steps sooner when the
-  /// model keeps predicting the decrease exactly).
-  double max_trust_region_growth = 10.0;
+  /// for gain ratio rho; 0 (automatic): 10 when the whole system is factorized (pose graphs
+  /// reach undamped steps sooner), 3, Ceres's value, with the Schur complement (bundle
+  /// adjustment's model is less exact: 10 there ends some solves early at a higher cost).
+  double max_trust_region_growth = 0.0;
   double min_trust_region_radius = 1e-32;  ///< LM: stop when the radius falls below this
   double min_relative_decrease = 1e-3;     ///< LM: smallest gain ratio that accepts a step
   double min_lm_diagonal = 1e-6;           ///< LM: lower clamp of diag(H) in the damping

@@ -69,6 +69,7 @@ struct SolverSummary {
   int num_threads = 1;                       ///< threads used for linearization
   std::string method;                        ///< "levenberg_marquardt" or "gauss_newton"
   std::string linear_solver;                 ///< e.g. "cholmod_supernodal (block_amd)"
+  double trust_region_growth = 0.0;          ///< LM's largest radius growth per step, as used
   TimeBreakdown time;                        ///< where the time went
   std::vector<IterationSummary> iterations;  ///< one row per iteration (iteration 0 first)
 
