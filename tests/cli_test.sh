@@ -377,6 +377,31 @@ check simulate_bal_no_out 2 "--out" -- "$CARAT" simulate-bal --cameras 4
 check simulate_bal_same_files 2 "--truth and --out name the same file" -- "$CARAT" simulate-bal --out "$scratch/never.bal" --truth "$scratch/never.bal"
 check simulate_bal_out_dir 2 "--out" -- "$CARAT" simulate-bal --out "$scratch"
 [[ ! -e "$scratch/never.bal" ]] && pass=$((pass + 1)) || { echo "FAIL simulate-bal wrote an output on a usage error"; fail=$((fail + 1)); }
+
+# solve-bal: the Schur complement and the whole system reach the same optimum, near the noise
+# floor; the solved problem written with --out reads back at that cost.
+"$CARAT" simulate-bal --layout ring --cameras 12 --points 400 --observations-per-point 4 --seed 5 --out "$scratch/ba.bal" --json >"$scratch/ba_sim.json"
+check solve_bal_schur 0 "" -- "$CARAT" solve-bal "$scratch/ba.bal" --json --out "$scratch/ba_solved.bal"
+cp "$scratch/out" "$scratch/ba_schur.json"
+expect solve_bal_schur_fields "$(json_field "$scratch/ba_schur.json" "j['cameras'] == 12 and j['points'] == 400 and j['observations'] == 1600 and j['termination'] == 'CONVERGENCE' and 'schur complement of 400 eliminated' in j['linear_solver'] and j['trust_region_growth'] == 3 and j['final_cost'] < 0.02 * j['initial_cost'] and {'read_s', 'build_s', 'write_s', 'schur_s', 'linearize_s', 'assembly_s'} <= set(j['time_breakdown']) and j['time_s'] >= j['solve_time_s']")"
+expect solve_bal_noise_floor "$(python3 -c "import json,sys; a=json.load(open(sys.argv[1])); s=json.load(open(sys.argv[2])); print(0.8 * (s['truth_cost'] - 0.5 * (12 * 9 + 400 * 3)) < a['final_cost'] <= s['truth_cost'])" "$scratch/ba_schur.json" "$scratch/ba_sim.json")"
+check solve_bal_cholesky 0 "" -- "$CARAT" solve-bal "$scratch/ba.bal" --json --linear-solver cholesky
+expect solve_bal_same_optimum "$(python3 -c "import json,sys; a=json.load(open(sys.argv[1])); b=json.load(open(sys.argv[2])); print('schur' not in b['linear_solver'] and abs(a['final_cost'] - b['final_cost']) <= 1e-6 * b['final_cost'])" "$scratch/ba_schur.json" "$scratch/out")"
+check solve_bal_resolve 0 "" -- "$CARAT" solve-bal "$scratch/ba_solved.bal" --json --max-iterations 0
+expect solve_bal_written_cost "$(python3 -c "import json,sys; a=json.load(open(sys.argv[1])); b=json.load(open(sys.argv[2])); print(abs(a['final_cost'] - b['initial_cost']) <= 1e-12 * a['final_cost'])" "$scratch/ba_schur.json" "$scratch/out")"
+check solve_bal_report 0 "" -- "$CARAT" solve-bal "$scratch/ba.bal" --threads 2 --loss huber --loss-scale 2
+grep -q "^$scratch/ba.bal: 12 cameras, 400 points, 1600 observations$" "$scratch/out" && pass=$((pass + 1)) || { echo "FAIL solve-bal report heading: $(head -c 200 "$scratch/out")"; fail=$((fail + 1)); }
+printf '2 2 3\n0 0 1 1\n1 0 2 2\n0 1 3 3\n' >"$scratch/bad.bal"
+check solve_bal_truncated 1 "bad.bal:" -- "$CARAT" solve-bal "$scratch/bad.bal"
+check solve_bal_bad_solver 2 "--linear-solver" -- "$CARAT" solve-bal "$scratch/ba.bal" --linear-solver qr
+check solve_bal_bad_growth 2 "--trust-region-growth" -- "$CARAT" solve-bal "$scratch/ba.bal" --trust-region-growth 0.5
+check solve_bal_scale_without_loss 2 "--loss-scale" -- "$CARAT" solve-bal "$scratch/ba.bal" --loss-scale 2
+check solve_bal_out_is_input 2 "--out" -- "$CARAT" solve-bal "$scratch/ba.bal" --out "$scratch/ba.bal"
+check solve_bal_missing 1 "no-such.bal" -- "$CARAT" solve-bal "$scratch/no-such.bal"
+if [[ -f "${CARAT_DATA_DIR:-}/posegraph/dubrovnik-3-7-pre.txt" ]]; then
+  check solve_bal_dubrovnik 0 "" -- "$CARAT" solve-bal "$CARAT_DATA_DIR/posegraph/dubrovnik-3-7-pre.txt" --json
+  expect solve_bal_dubrovnik_fields "$(json_field "$scratch/out" "j['cameras'] == 3 and j['points'] == 7 and j['observations'] == 19 and j['final_cost'] < j['initial_cost'] and j['termination'] != 'FAILURE'")"
+fi
 check simulate_out_of_range 2 "" -- "$CARAT" simulate --out "$scratch/x" --frames 1
 check paper_unknown_flag 2 "" -- "$CARAT" paper --fast
 check demo_out_of_range 2 "" -- "$CARAT" demo --residuals 10

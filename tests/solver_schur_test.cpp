@@ -17,6 +17,7 @@
 #include "carat/base/error.hpp"
 #include "carat/solver/autodiff_block.hpp"
 #include "carat/solver/lie_functions.hpp"
+#include "carat/solver/loss_function.hpp"
 #include "carat/solver/problem.hpp"
 #include "carat/solver/solve.hpp"
 #include "carat/solver/solver_options.hpp"
@@ -59,7 +60,8 @@ struct BundleProblem {
 
 template <int kCamera>
 BundleProblem<kCamera> make_bundle(int num_cameras, int num_points, int views, unsigned seed,
-                                   bool mark_points) {
+                                   bool mark_points,
+                                   std::shared_ptr<const LossFunction> loss = nullptr) {
   std::mt19937 rng(seed);
   std::normal_distribution<double> noise(0.0, 1.0);
   std::uniform_real_distribution<double> uniform(-1.0, 1.0);
@@ -109,8 +111,10 @@ BundleProblem<kCamera> make_bundle(int num_cameras, int num_points, int views, u
       const Eigen::Vector2d observed = r + pixel * Eigen::Vector2d(noise(rng), noise(rng));
       auto block = make_autodiff_block<2, VariableSize<kCamera>, VariableSize<3>>(
           Reprojection<kCamera>{}, std::vector<Eigen::Vector2d>{observed});
-      out.problem.add_residual_block(block, {out.cameras[static_cast<std::size_t>(c)],
-                                             out.points[static_cast<std::size_t>(p)]});
+      out.problem.add_residual_block(
+          block,
+          {out.cameras[static_cast<std::size_t>(c)], out.points[static_cast<std::size_t>(p)]},
+          loss);
     }
   }
   return out;
@@ -253,6 +257,21 @@ TEST(SchurSolveTest, ReachesTheWholeSystemOptimum) {
     EXPECT_GT(a.time.schur_s, 0.0);
     EXPECT_EQ(b.time.schur_s, 0.0);
   }
+}
+
+TEST(SchurSolveTest, ReachesTheWholeSystemOptimumWithARobustLoss) {
+  // With a loss the blocks go through their H (not their Jacobian rows) into the elimination.
+  const auto huber = make_loss(LossKind::kHuber, 2.0);
+  BundleProblem<9> schur = make_bundle<9>(10, 300, 4, 13, true, huber);
+  BundleProblem<9> full = make_bundle<9>(10, 300, 4, 13, false, huber);
+  Problem& a_problem = schur.problem;
+  Problem& b_problem = full.problem;
+  const SolverSummary a = solve(tight_options(LinearSolver::kSchur), a_problem);
+  const SolverSummary b = solve(tight_options(LinearSolver::kCholesky), b_problem);
+  ASSERT_TRUE(a.is_solution_usable()) << a.message;
+  ASSERT_TRUE(b.is_solution_usable()) << b.message;
+  EXPECT_GT(a.initial_cost, 5.0 * a.final_cost);
+  EXPECT_NEAR(a.final_cost, b.final_cost, 1e-9 * b.final_cost);
 }
 
 TEST(SchurSolveTest, BitIdenticalForAnyNumberOfThreads) {

@@ -150,6 +150,24 @@ bool BlockEvaluator::evaluate_block(std::size_t i, int which, BlockScratch& s, d
   return ok;
 }
 
+bool BlockEvaluator::evaluate_rows(std::size_t i, int which, int n, double* out,
+                                   double* cost) const {
+  static constexpr int kRows[] = {0, 1, 2, 3, 4, 5, 6, 7};
+  const auto& ptrs = pointers_[which];
+  const ParameterPointers params(ptrs.data() + param_begin_[i],
+                                 param_begin_[i + 1] - param_begin_[i]);
+  const auto count = static_cast<std::size_t>(n) * static_cast<std::size_t>(dims_[i] + 1);
+  double* residuals = out + static_cast<std::size_t>(n) * static_cast<std::size_t>(dims_[i]);
+  problem_.blocks()[i].block->evaluate_rows(
+      params, std::span<const int>(kRows, static_cast<std::size_t>(n)), residuals, out);
+  double sum = 0.0;
+  bool ok = true;
+  for (std::size_t k = 0; k < count; ++k) ok = ok && std::isfinite(out[k]);
+  for (int k = 0; k < n; ++k) sum += residuals[k] * residuals[k];
+  *cost = 0.5 * sum;
+  return ok;
+}
+
 std::string BlockEvaluator::describe_bad_block(std::size_t i, int which) const {
   const auto& ptrs = pointers_[which];
   const ParameterPointers params(ptrs.data() + param_begin_[i],

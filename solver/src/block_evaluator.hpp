@@ -43,6 +43,11 @@ class BlockEvaluator {
   bool evaluate_block(std::size_t i, int which, BlockScratch& scratch, double* packed_h, double* b,
                       double* cost) const;
 
+  /// Evaluates all n rows of block i at buffer `which` (no loss, not reduced): the Jacobian rows
+  /// (n x D, row-major) then the n residuals into `out`, and 1/2 |r|^2 into *cost. False if
+  /// something is not finite.
+  bool evaluate_rows(std::size_t i, int which, int n, double* out, double* cost) const;
+
   /// "residual block i: <which row is not finite>" at buffer `which`.
   std::string describe_bad_block(std::size_t i, int which) const;
 

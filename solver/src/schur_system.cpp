@@ -406,6 +406,25 @@ void SchurSystem::plan_chunks(const Problem& problem) {
   chunk_b_size_ = 0;
   pt_contrib_h_local_.assign(pt_contribs_.size(), 0);
   pt_contrib_b_local_.assign(pt_contribs_.size(), 0);
+  // Direct: a block of a few rows, no loss and no reduced form is scattered from its Jacobian
+  // rows (J_p^T J_p into V, J_c^T J_p into W, J_c^T J_c into its camera's slot), without its
+  // D x D H. Its camera (if any) is the row variable of its one edge contribution.
+  direct_.assign(pt_contribs_.size(), 0);
+  direct_rows_.assign(pt_contribs_.size(), 0);
+  direct_cam_local_.assign(pt_contribs_.size(), -1);
+  direct_edge_.assign(pt_contribs_.size(), kNoEdge);
+  for (std::size_t e = 0; e < edge_cam_.size(); ++e) {
+    for (std::size_t q = edge_contrib_begin_[e]; q < edge_contrib_begin_[e + 1]; ++q) {
+      direct_edge_[edge_contrib_source_[q]] = e;
+      direct_cam_local_[edge_contrib_source_[q]] = edge_contribs_[q].row_local;
+    }
+  }
+  for (std::size_t q = 0; q < pt_contribs_.size(); ++q) {
+    const auto& entry = blocks[static_cast<std::size_t>(pt_contribs_[q].first)];
+    direct_rows_[q] = entry.block->num_rows();
+    direct_[q] = !entry.loss && entry.block->num_rows() <= kDirectRows &&
+                 entry.block->reduced_dim() == entry.block->tangent_dim();
+  }
   for (std::size_t k = 0; k < num_chunks; ++k) {
     const std::size_t p0 = k * kChunkPoints;
     const std::size_t p1 = std::min(np, p0 + kChunkPoints);
@@ -421,12 +440,16 @@ void SchurSystem::plan_chunks(const Problem& problem) {
     }
     std::size_t h = 0, b = 0;
     for (std::size_t q = pt_contrib_begin_[p0]; q < pt_contrib_begin_[p1]; ++q) {
-      const auto D =
-          at(blocks[static_cast<std::size_t>(pt_contribs_[q].first)].block->tangent_dim());
+      const auto& entry = blocks[static_cast<std::size_t>(pt_contribs_[q].first)];
+      const auto D = at(entry.block->tangent_dim());
       pt_contrib_h_local_[q] = h;
       pt_contrib_b_local_[q] = b;
-      h += D * (D + 1) / 2;
-      b += D;
+      if (direct_[q]) {
+        h += at(direct_rows_[q]) * (D + 1);  // Jacobian rows, then residuals
+      } else {
+        h += D * (D + 1) / 2;
+        b += D;
+      }
     }
     chunk_h_size_ = std::max(chunk_h_size_, h);
     chunk_b_size_ = std::max(chunk_b_size_, b);
@@ -462,9 +485,39 @@ void SchurSystem::plan_chunks(const Problem& problem) {
 
 /// The points of chunk k: V, their gradients, W per edge and, fused, the chunk's slots.
 /// h_of(q) / b_of(q): packed H and b of the block of pt_contribs_[q].
+/// The contributions of a direct block (see plan_chunks()) from its n Jacobian rows J (n x D,
+/// row-major) and residuals r: V += J_p^T J_p, g_p += J_p^T r and, with a camera, W += J_c^T J_p,
+/// slot += J_c^T J_c, slot gradient += J_c^T r.
+template <int DC, int DP>
+__attribute__((always_inline)) inline void scatter_rows(const double* J, const double* r, int n,
+                                                        int D, int pt_local, int cam_local, int dc,
+                                                        int dp, double* V, double* g, double* W,
+                                                        double* slot) {
+  const int C = DC > 0 ? DC : dc;
+  const int P = DP > 0 ? DP : dp;
+  for (int k = 0; k < n; ++k) {
+    const double* row = J + k * D;
+    const double* jp = row + pt_local;
+    for (int b = 0; b < P; ++b) {
+      for (int a = 0; a < P; ++a) V[b * P + a] += jp[a] * jp[b];
+      g[b] += jp[b] * r[k];
+    }
+    if (cam_local < 0) continue;
+    const double* jc = row + cam_local;
+    for (int b = 0; b < P; ++b) {
+      for (int a = 0; a < C; ++a) W[b * C + a] += jc[a] * jp[b];
+    }
+    for (int b = 0; b < C; ++b) {  // the lower triangle (gather_cameras() mirrors it)
+      for (int a = b; a < C; ++a) slot[b * C + a] += jc[a] * jc[b];
+    }
+    double* slot_g = slot + C * C;
+    for (int a = 0; a < C; ++a) slot_g[a] += jc[a] * r[k];
+  }
+}
+
 template <int DC, int DP, typename HOf, typename BOf>
 void SchurSystem::scatter_chunk_sized(std::size_t k, double* gradient, const HOf& h_of,
-                                      const BOf& b_of) {
+                                      const BOf& b_of, bool use_direct) {
   const std::size_t p0 = k * kChunkPoints;
   const std::size_t p1 = std::min(pt_dim_.size(), p0 + kChunkPoints);
   if (fused_) {
@@ -478,8 +531,23 @@ void SchurSystem::scatter_chunk_sized(std::size_t k, double* gradient, const HOf
     double* V = v_.data() + pt_v_offset_[p];
     std::fill_n(V, at(dp) * at(dp), 0.0);
     double* g = gradient + pt_offset_[p];
+    for (std::size_t e = pt_edge_begin_[p]; e < pt_edge_begin_[p + 1]; ++e) {
+      std::fill_n(w_.data() + edge_w_offset_[e], at(cam_dim_[at(edge_cam_[e])]) * at(dp), 0.0);
+    }
     for (std::size_t q = pt_contrib_begin_[p]; q < pt_contrib_begin_[p + 1]; ++q) {
       const auto [block, local] = pt_contribs_[q];
+      if (use_direct && direct_[q]) {
+        const std::size_t e = direct_edge_[q];
+        const bool has_camera = e != kNoEdge;
+        const int dc = has_camera ? cam_dim_[at(edge_cam_[e])] : 0;
+        const int n = direct_rows_[q];
+        const int D = block_dim(block);
+        const double* J = h_of(q);
+        scatter_rows<DC, DP>(J, J + n * D, n, D, local, has_camera ? direct_cam_local_[q] : -1, dc,
+                             dp, V, g, has_camera ? w_.data() + edge_w_offset_[e] : nullptr,
+                             has_camera ? slots_.data() + edge_slot_[e] : nullptr);
+        continue;
+      }
       add_packed_block<DP, DP>(h_of(q), at(block_dim(block)), at(local), at(local), dp, dp, V,
                                at(dp));
       const double* b = b_of(q) + local;
@@ -488,9 +556,9 @@ void SchurSystem::scatter_chunk_sized(std::size_t k, double* gradient, const HOf
     for (std::size_t e = pt_edge_begin_[p]; e < pt_edge_begin_[p + 1]; ++e) {
       const int dc = cam_dim_[at(edge_cam_[e])];
       double* W = w_.data() + edge_w_offset_[e];
-      std::fill_n(W, at(dc) * at(dp), 0.0);
       for (std::size_t q = edge_contrib_begin_[e]; q < edge_contrib_begin_[e + 1]; ++q) {
         const Contribution& src = edge_contribs_[q];
+        if (use_direct && direct_[edge_contrib_source_[q]]) continue;
         const double* H = h_of(edge_contrib_source_[q]);
         const auto D = at(block_dim(src.block));
         add_packed_block<DC, DP>(H, D, at(src.row_local), at(src.col_local), dc, dp, W, at(dc));
@@ -506,16 +574,17 @@ void SchurSystem::scatter_chunk_sized(std::size_t k, double* gradient, const HOf
 }
 
 template <typename HOf, typename BOf>
-void SchurSystem::scatter_chunk(std::size_t k, double* gradient, const HOf& h_of, const BOf& b_of) {
+void SchurSystem::scatter_chunk(std::size_t k, double* gradient, const HOf& h_of, const BOf& b_of,
+                                bool use_direct) {
   switch (kernel_) {
     case 1:
-      scatter_chunk_sized<9, 3>(k, gradient, h_of, b_of);
+      scatter_chunk_sized<9, 3>(k, gradient, h_of, b_of, use_direct);
       break;
     case 2:
-      scatter_chunk_sized<6, 3>(k, gradient, h_of, b_of);
+      scatter_chunk_sized<6, 3>(k, gradient, h_of, b_of, use_direct);
       break;
     default:
-      scatter_chunk_sized<0, 0>(k, gradient, h_of, b_of);
+      scatter_chunk_sized<0, 0>(k, gradient, h_of, b_of, use_direct);
       break;
   }
 }
@@ -551,8 +620,16 @@ void SchurSystem::gather_cameras(const BlockLinearizations& blocks, double* grad
           double* A = a_.data() + pairs_[column_pair_begin_[j]].h_offset;  // the diagonal block
           const std::size_t dd = at(dj) * at(dj);
           for (std::size_t s = cam_slot_begin_[j]; s < cam_slot_begin_[j + 1]; ++s) {
+            // A slot's lower triangle holds the sum (its upper one may not): mirror it.
             const double* slot = slots_.data() + cam_slots_[s];
-            for (std::size_t t = 0; t < dd; ++t) A[t] += slot[t];
+            for (int c = 0; c < dj; ++c) {
+              A[at(c) * at(dj) + at(c)] += slot[at(c) * at(dj) + at(c)];
+              for (int r = c + 1; r < dj; ++r) {
+                const double v = slot[at(c) * at(dj) + at(r)];
+                A[at(c) * at(dj) + at(r)] += v;
+                A[at(r) * at(dj) + at(c)] += v;
+              }
+            }
             for (int r = 0; r < dj; ++r) g[r] += slot[dd + at(r)];
           }
         }
@@ -572,7 +649,7 @@ void SchurSystem::assemble(const BlockLinearizations& blocks, Eigen::VectorXd* g
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, num_chunks, 1),
                     [&](const tbb::blocked_range<std::size_t>& range) {
                       for (std::size_t k = range.begin(); k != range.end(); ++k) {
-                        scatter_chunk(k, g, h_of, b_of);
+                        scatter_chunk(k, g, h_of, b_of, /*use_direct=*/false);
                       }
                     });
   gather_cameras(blocks, g);
@@ -614,11 +691,13 @@ bool SchurSystem::linearize(const BlockEvaluator& evaluator, int which, Eigen::V
           for (std::size_t q = pt_contrib_begin_[p0]; q < pt_contrib_begin_[p1]; ++q) {
             const auto block = static_cast<std::size_t>(pt_contribs_[q].first);
             double c = 0.0;
-            if (!evaluator.evaluate_block(block, which, local.block,
-                                          local.h.data() + pt_contrib_h_local_[q],
-                                          local.b.data() + pt_contrib_b_local_[q], &c)) {
-              record_bad_block(first_bad, block);
-            }
+            const bool ok =
+                direct_[q] ? evaluator.evaluate_rows(block, which, direct_rows_[q],
+                                                     local.h.data() + pt_contrib_h_local_[q], &c)
+                           : evaluator.evaluate_block(block, which, local.block,
+                                                      local.h.data() + pt_contrib_h_local_[q],
+                                                      local.b.data() + pt_contrib_b_local_[q], &c);
+            if (!ok) record_bad_block(first_bad, block);
             sum += c;
           }
           chunk_cost_[k] = sum;
@@ -626,7 +705,8 @@ bool SchurSystem::linearize(const BlockEvaluator& evaluator, int which, Eigen::V
           t0.restart();
           scatter_chunk(
               k, g, [&](std::size_t q) { return local.h.data() + pt_contrib_h_local_[q]; },
-              [&](std::size_t q) { return local.b.data() + pt_contrib_b_local_[q]; });
+              [&](std::size_t q) { return local.b.data() + pt_contrib_b_local_[q]; },
+              /*use_direct=*/true);
           scatter_cpu[k] = t0.elapsed_s();
         }
       });

@@ -65,13 +65,17 @@ class SchurSystem final : public LinearSystem {
 
   void plan_chunks(const Problem& problem);
   template <typename HOf, typename BOf>
-  void scatter_chunk(std::size_t k, double* gradient, const HOf& h_of, const BOf& b_of);
+  void scatter_chunk(std::size_t k, double* gradient, const HOf& h_of, const BOf& b_of,
+                     bool use_direct);
   template <int DC, int DP, typename HOf, typename BOf>
-  void scatter_chunk_sized(std::size_t k, double* gradient, const HOf& h_of, const BOf& b_of);
+  void scatter_chunk_sized(std::size_t k, double* gradient, const HOf& h_of, const BOf& b_of,
+                           bool use_direct);
   void gather_cameras(const BlockLinearizations& blocks, double* gradient);
   int block_dim(std::int32_t block) const { return block_dims_[static_cast<std::size_t>(block)]; }
 
   static constexpr std::size_t kChunkPoints = 256;  // points per chunk (fixed: deterministic)
+  static constexpr int kDirectRows = 4;             // most rows of a direct block
+  static constexpr std::size_t kNoEdge = ~std::size_t{0};
 
   struct Impl;
   int ns_ = 0;
@@ -125,6 +129,11 @@ class SchurSystem final : public LinearSystem {
   std::vector<std::size_t> cam_slot_begin_, cam_slots_;
   std::vector<double> slots_;
   std::vector<std::size_t> pt_contrib_h_local_, pt_contrib_b_local_;
+  // Direct blocks (see plan_chunks()): flag, rows, camera offset in the block, edge.
+  std::vector<char> direct_;
+  std::vector<int> direct_rows_;
+  std::vector<int> direct_cam_local_;
+  std::vector<std::size_t> direct_edge_;
   std::size_t chunk_h_size_ = 0, chunk_b_size_ = 0;
   std::vector<std::size_t> other_blocks_;
   std::vector<double> chunk_cost_;
