@@ -297,13 +297,32 @@ SchurSystem::SchurSystem(const Problem& problem, const std::vector<char>& elimin
     }
   }
   raw_pairs = {};
-  // Each column's largest block of S rows (the scratch of form_reduced_system()).
-  for (std::size_t j = 0; j < nc; ++j) {
-    std::size_t rows = 0;
-    for (std::size_t k = column_pair_begin_[j]; k < column_pair_begin_[j + 1]; ++k) {
-      rows += at(cam_dim_[at(pairs_[k].row_cam)]);
+  // Groups of kGroupCameras consecutive cameras for form_reduced_system(): the points each
+  // group sees (ascending) and the values of its stacked columns of S blocks.
+  {
+    const std::size_t num_groups = (nc + kGroupCameras - 1) / kGroupCameras;
+    group_points_begin_.assign(num_groups + 1, 0);
+    std::vector<std::size_t> seen(np, num_groups);  // group that last listed point p
+    for (std::size_t group = 0; group < num_groups; ++group) {
+      const std::size_t first = group_points_.size();
+      std::size_t values = 0;
+      for (std::size_t j = group * kGroupCameras; j < std::min(nc, (group + 1) * kGroupCameras);
+           ++j) {
+        for (std::size_t k = cam_edge_begin_[j]; k < cam_edge_begin_[j + 1]; ++k) {
+          const auto p = at(edge_pt_[cam_edges_[k]]);
+          if (seen[p] != group) {
+            seen[p] = group;
+            group_points_.push_back(p);
+          }
+        }
+        for (std::size_t k = column_pair_begin_[j]; k < column_pair_begin_[j + 1]; ++k) {
+          values += at(cam_dim_[at(pairs_[k].row_cam)]) * at(cam_dim_[j]);
+        }
+      }
+      std::sort(group_points_.begin() + static_cast<std::ptrdiff_t>(first), group_points_.end());
+      group_points_begin_[group + 1] = group_points_.size();
+      max_group_values_ = std::max(max_group_values_, values);
     }
-    max_column_values_ = std::max(max_column_values_, rows * at(cam_dim_[j]));
   }
 
   // Lower-triangular CSC of S in camera order: per scalar column of camera j, the diagonal
@@ -489,10 +508,12 @@ void SchurSystem::plan_chunks(const Problem& problem) {
 /// row-major) and residuals r: V += J_p^T J_p, g_p += J_p^T r and, with a camera, W += J_c^T J_p,
 /// slot += J_c^T J_c, slot gradient += J_c^T r.
 template <int DC, int DP>
-__attribute__((always_inline)) inline void scatter_rows(const double* J, const double* r, int n,
-                                                        int D, int pt_local, int cam_local, int dc,
-                                                        int dp, double* V, double* g, double* W,
-                                                        double* slot) {
+__attribute__((always_inline)) inline void scatter_rows(const double* __restrict J,
+                                                        const double* __restrict r, int n, int D,
+                                                        int pt_local, int cam_local, int dc, int dp,
+                                                        double* __restrict V, double* __restrict g,
+                                                        double* __restrict W,
+                                                        double* __restrict slot) {
   const int C = DC > 0 ? DC : dc;
   const int P = DP > 0 ? DP : dp;
   for (int k = 0; k < n; ++k) {
@@ -513,6 +534,17 @@ __attribute__((always_inline)) inline void scatter_rows(const double* J, const d
     double* slot_g = slot + C * C;
     for (int a = 0; a < C; ++a) slot_g[a] += jc[a] * r[k];
   }
+}
+
+CARAT_MULTIVERSION void scatter_rows_9_3(const double* J, const double* r, int n, int D,
+                                         int pt_local, int cam_local, double* V, double* g,
+                                         double* W, double* slot) {
+  scatter_rows<9, 3>(J, r, n, D, pt_local, cam_local, 9, 3, V, g, W, slot);
+}
+CARAT_MULTIVERSION void scatter_rows_6_3(const double* J, const double* r, int n, int D,
+                                         int pt_local, int cam_local, double* V, double* g,
+                                         double* W, double* slot) {
+  scatter_rows<6, 3>(J, r, n, D, pt_local, cam_local, 6, 3, V, g, W, slot);
 }
 
 template <int DC, int DP, typename HOf, typename BOf>
@@ -543,9 +575,16 @@ void SchurSystem::scatter_chunk_sized(std::size_t k, double* gradient, const HOf
         const int n = direct_rows_[q];
         const int D = block_dim(block);
         const double* J = h_of(q);
-        scatter_rows<DC, DP>(J, J + n * D, n, D, local, has_camera ? direct_cam_local_[q] : -1, dc,
-                             dp, V, g, has_camera ? w_.data() + edge_w_offset_[e] : nullptr,
-                             has_camera ? slots_.data() + edge_slot_[e] : nullptr);
+        const int cam_local = has_camera ? direct_cam_local_[q] : -1;
+        double* W = has_camera ? w_.data() + edge_w_offset_[e] : nullptr;
+        double* slot = has_camera ? slots_.data() + edge_slot_[e] : nullptr;
+        if constexpr (DC == 9 && DP == 3) {
+          scatter_rows_9_3(J, J + n * D, n, D, local, cam_local, V, g, W, slot);
+        } else if constexpr (DC == 6 && DP == 3) {
+          scatter_rows_6_3(J, J + n * D, n, D, local, cam_local, V, g, W, slot);
+        } else {
+          scatter_rows<DC, DP>(J, J + n * D, n, D, local, cam_local, dc, dp, V, g, W, slot);
+        }
         continue;
       }
       add_packed_block<DP, DP>(h_of(q), at(block_dim(block)), at(local), at(local), dp, dp, V,
@@ -801,19 +840,20 @@ bool SchurSystem::eliminate_points(const Eigen::VectorXd& damping) {
 namespace {
 
 /// What one column of S needs from the system (see SchurSystem::form_reduced_system()).
-struct ColumnInput {
-  const std::size_t* edges_begin;  // the column camera's edges, in point order
-  const std::size_t* edges_end;
-  const int* edge_pt;
+struct GroupInput {
+  const std::size_t* points_begin;  // the points the group's cameras see, ascending
+  const std::size_t* points_end;
+  int first_camera;  // the group: cameras [first_camera, end_camera)
+  int end_camera;
+  std::size_t num_cameras;
   const int* edge_cam;
   const std::size_t* edge_y_offset;
   const std::size_t* pt_edge_begin;
   const int* cam_dim;
   const int* pt_dim;
   const double* y;
-  const std::size_t* row_offset;  // per camera: its rows' offset in `column`
-  int dj;
-  double* column;  // the column's blocks of S, stacked (rows x dj, column-major per block)
+  const std::size_t* row_offset;  // [(j - first_camera) * num_cameras + i]: block (i, j) in stack
+  double* stack;                  // the group's columns of S blocks (column-major per block)
 };
 
 /// S (di x dj, column-major) -= Y1 (di x dp) Y2^T (dj x dp).
@@ -835,27 +875,36 @@ __attribute__((always_inline)) inline void subtract_product(double* __restrict S
   }
 }
 
-/// For every point the column camera sees, in point order: S_ij -= Y_ip Y_jp^T for each camera
-/// i >= j that sees it too (the point's edges from the column's own one on, by camera).
+/// For every point a camera of the group sees, in point order, and each such camera j:
+/// S_ij -= Y_ip Y_jp^T for every camera i >= j that sees the point too (the point's edges from
+/// j's own one on, by camera). A point's edges are read once per group, not once per camera.
 template <int DC, int DP>
-__attribute__((always_inline)) inline void reduce_column_body(const ColumnInput& in) {
-  for (const std::size_t* it = in.edges_begin; it != in.edges_end; ++it) {
-    const std::size_t e = *it;
-    const auto p = static_cast<std::size_t>(in.edge_pt[e]);
+__attribute__((always_inline)) inline void reduce_group_body(const GroupInput& in) {
+  for (const std::size_t* it = in.points_begin; it != in.points_end; ++it) {
+    const std::size_t p = *it;
     const int dp = in.pt_dim[p];
-    const double* Yj = in.y + in.edge_y_offset[e];
-    for (std::size_t f = e; f < in.pt_edge_begin[p + 1]; ++f) {
-      const auto i = static_cast<std::size_t>(in.edge_cam[f]);
-      subtract_product<DC, DP>(in.column + in.row_offset[i], in.y + in.edge_y_offset[f], Yj,
-                               in.cam_dim[i], in.dj, dp);
+    const std::size_t end = in.pt_edge_begin[p + 1];
+    for (std::size_t e = in.pt_edge_begin[p]; e < end; ++e) {
+      const int j = in.edge_cam[e];
+      if (j < in.first_camera) continue;
+      if (j >= in.end_camera) break;
+      const double* Yj = in.y + in.edge_y_offset[e];
+      const std::size_t* offsets =
+          in.row_offset + static_cast<std::size_t>(j - in.first_camera) * in.num_cameras;
+      const int dj = in.cam_dim[j];
+      for (std::size_t f = e; f < end; ++f) {
+        const auto i = static_cast<std::size_t>(in.edge_cam[f]);
+        subtract_product<DC, DP>(in.stack + offsets[i], in.y + in.edge_y_offset[f], Yj,
+                                 in.cam_dim[i], dj, dp);
+      }
     }
   }
 }
 
-CARAT_MULTIVERSION void reduce_column_9_3(const ColumnInput& in) { reduce_column_body<9, 3>(in); }
-CARAT_MULTIVERSION void reduce_column_6_3(const ColumnInput& in) { reduce_column_body<6, 3>(in); }
-CARAT_MULTIVERSION void reduce_column_any(const ColumnInput& in) {
-  reduce_column_body<Eigen::Dynamic, Eigen::Dynamic>(in);
+CARAT_MULTIVERSION void reduce_group_9_3(const GroupInput& in) { reduce_group_body<9, 3>(in); }
+CARAT_MULTIVERSION void reduce_group_6_3(const GroupInput& in) { reduce_group_body<6, 3>(in); }
+CARAT_MULTIVERSION void reduce_group_any(const GroupInput& in) {
+  reduce_group_body<Eigen::Dynamic, Eigen::Dynamic>(in);
 }
 
 }  // namespace
@@ -864,63 +913,75 @@ CARAT_MULTIVERSION void reduce_column_any(const ColumnInput& in) {
 /// camera blocks per task, each block's sum in point order.
 template <int DC, int DP>
 void SchurSystem::form_reduced_system(const Eigen::VectorXd& damping) {
-  struct ColumnScratch {
-    std::vector<double> column;
+  struct GroupScratch {
+    std::vector<double> stack;
     std::vector<std::size_t> row_offset;
   };
-  tbb::enumerable_thread_specific<ColumnScratch> scratch;
+  const std::size_t nc = cam_dim_.size();
+  const std::size_t num_groups = group_points_begin_.size() - 1;
+  tbb::enumerable_thread_specific<GroupScratch> scratch;
   tbb::parallel_for(
-      tbb::blocked_range<std::size_t>(0, cam_dim_.size(), 1),
+      tbb::blocked_range<std::size_t>(0, num_groups, 1),
       [&](const tbb::blocked_range<std::size_t>& range) {
-        ColumnScratch& local = scratch.local();
-        local.column.resize(max_column_values_);
-        local.row_offset.resize(cam_dim_.size());
-        for (std::size_t j = range.begin(); j != range.end(); ++j) {
-          const int dj = cam_dim_[j];
-          // The column's blocks, stacked, start as A (+ damping on the diagonal block).
+        GroupScratch& local = scratch.local();
+        local.stack.resize(max_group_values_);
+        local.row_offset.resize(kGroupCameras * nc);
+        for (std::size_t group = range.begin(); group != range.end(); ++group) {
+          const std::size_t j0 = group * kGroupCameras;
+          const std::size_t j1 = std::min(nc, j0 + kGroupCameras);
+          // The group's blocks, stacked, start as A (+ damping on the diagonal blocks).
           std::size_t offset = 0;
-          for (std::size_t k = column_pair_begin_[j]; k < column_pair_begin_[j + 1]; ++k) {
-            const Pair& pair = pairs_[k];
-            const std::size_t size = at(cam_dim_[at(pair.row_cam)]) * at(dj);
-            local.row_offset[at(pair.row_cam)] = offset;
-            std::copy_n(a_.data() + pair.h_offset, size, local.column.data() + offset);
-            offset += size;
+          for (std::size_t j = j0; j < j1; ++j) {
+            const int dj = cam_dim_[j];
+            std::size_t* rows = local.row_offset.data() + (j - j0) * nc;
+            for (std::size_t k = column_pair_begin_[j]; k < column_pair_begin_[j + 1]; ++k) {
+              const Pair& pair = pairs_[k];
+              const std::size_t size = at(cam_dim_[at(pair.row_cam)]) * at(dj);
+              rows[at(pair.row_cam)] = offset;
+              std::copy_n(a_.data() + pair.h_offset, size, local.stack.data() + offset);
+              offset += size;
+            }
+            double* diagonal = local.stack.data() + rows[j];
+            for (int r = 0; r < dj; ++r)
+              diagonal[at(r) * at(dj) + at(r)] += damping[cam_offset_[j] + r];
           }
-          for (int r = 0; r < dj; ++r) {
-            local.column[at(r) * at(dj) + at(r)] += damping[cam_offset_[j] + r];
-          }
-          const ColumnInput in{cam_edges_.data() + cam_edge_begin_[j],
-                               cam_edges_.data() + cam_edge_begin_[j + 1],
-                               edge_pt_.data(),
-                               edge_cam_.data(),
-                               edge_w_offset_.data(),
-                               pt_edge_begin_.data(),
-                               cam_dim_.data(),
-                               pt_dim_.data(),
-                               y_.data(),
-                               local.row_offset.data(),
-                               dj,
-                               local.column.data()};
+          const GroupInput in{group_points_.data() + group_points_begin_[group],
+                              group_points_.data() + group_points_begin_[group + 1],
+                              static_cast<int>(j0),
+                              static_cast<int>(j1),
+                              nc,
+                              edge_cam_.data(),
+                              edge_w_offset_.data(),
+                              pt_edge_begin_.data(),
+                              cam_dim_.data(),
+                              pt_dim_.data(),
+                              y_.data(),
+                              local.row_offset.data(),
+                              local.stack.data()};
           if constexpr (DC == 9 && DP == 3) {
-            reduce_column_9_3(in);
+            reduce_group_9_3(in);
           } else if constexpr (DC == 6 && DP == 3) {
-            reduce_column_6_3(in);
+            reduce_group_6_3(in);
           } else {
-            reduce_column_any(in);
+            reduce_group_any(in);
           }
-          for (std::size_t k = column_pair_begin_[j]; k < column_pair_begin_[j + 1]; ++k) {
-            const Pair& pair = pairs_[k];
-            const int di = cam_dim_[at(pair.row_cam)];
-            const double* S = local.column.data() + local.row_offset[at(pair.row_cam)];
-            const bool diagonal = at(pair.row_cam) == j;
-            for (int c = 0; c < dj; ++c) {
-              double* column = values_.data() + colptr_[at(cam_offset_[j] + c)];
-              const double* src = S + at(c) * at(di);
-              if (diagonal) {
-                for (int r = c; r < dj; ++r) column[r - c] = src[r];
-              } else {
-                double* dst = column + (dj - c) + pair.row_in_column;
-                for (int r = 0; r < di; ++r) dst[r] = src[r];
+          for (std::size_t j = j0; j < j1; ++j) {
+            const int dj = cam_dim_[j];
+            const std::size_t* rows = local.row_offset.data() + (j - j0) * nc;
+            for (std::size_t k = column_pair_begin_[j]; k < column_pair_begin_[j + 1]; ++k) {
+              const Pair& pair = pairs_[k];
+              const int di = cam_dim_[at(pair.row_cam)];
+              const double* S = local.stack.data() + rows[at(pair.row_cam)];
+              const bool diagonal = at(pair.row_cam) == j;
+              for (int c = 0; c < dj; ++c) {
+                double* column = values_.data() + colptr_[at(cam_offset_[j] + c)];
+                const double* src = S + at(c) * at(di);
+                if (diagonal) {
+                  for (int r = c; r < dj; ++r) column[r - c] = src[r];
+                } else {
+                  double* dst = column + (dj - c) + pair.row_in_column;
+                  for (int r = 0; r < di; ++r) dst[r] = src[r];
+                }
               }
             }
           }

@@ -75,6 +75,7 @@ class SchurSystem final : public LinearSystem {
 
   static constexpr std::size_t kChunkPoints = 256;  // points per chunk (fixed: deterministic)
   static constexpr int kDirectRows = 4;             // most rows of a direct block
+  static constexpr std::size_t kGroupCameras = 8;   // cameras per task forming S
   static constexpr std::size_t kNoEdge = ~std::size_t{0};
 
   struct Impl;
@@ -113,7 +114,9 @@ class SchurSystem final : public LinearSystem {
     std::int16_t col_local;
   };
   std::vector<Contribution> pair_contribs_;
-  std::size_t max_column_values_ = 0;  // largest column of S blocks (values)
+  // Groups of cameras for forming S (see the constructor).
+  std::vector<std::size_t> group_points_begin_, group_points_;
+  std::size_t max_group_values_ = 0;
   std::vector<std::size_t> edge_contrib_begin_;
   std::vector<Contribution> edge_contribs_;         // row_local: camera, col_local: point
   std::vector<std::uint32_t> edge_contrib_source_;  // its block's index in pt_contribs_
