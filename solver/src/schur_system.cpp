@@ -8,6 +8,7 @@
 #include <Eigen/Cholesky>
 #include <algorithm>
 #include <atomic>
+#include <cmath>
 #include <string>
 #include <tuple>
 
@@ -804,36 +805,76 @@ Eigen::VectorXd SchurSystem::diagonal() const {
   return d;
 }
 
+/// L^-1 (3 x 3, column-major, lower; the upper part zero) for V + diag(d) = L L^T, V symmetric
+/// 3 x 3 column-major; false if V + diag(d) is not positive definite (or not finite).
+inline bool inverse_cholesky_3(const double* V, const double* d, double* L_inverse) {
+  const double a = V[0] + d[0];
+  if (!(a > 0.0)) return false;
+  const double l00 = std::sqrt(a);
+  const double l10 = V[1] / l00;
+  const double l20 = V[2] / l00;
+  const double b = V[4] + d[1] - l10 * l10;
+  if (!(b > 0.0)) return false;
+  const double l11 = std::sqrt(b);
+  const double l21 = (V[5] - l20 * l10) / l11;
+  const double c = V[8] + d[2] - l20 * l20 - l21 * l21;
+  if (!(c > 0.0)) return false;
+  const double l22 = std::sqrt(c);
+  const double i00 = 1.0 / l00, i11 = 1.0 / l11, i22 = 1.0 / l22;
+  const double i10 = -l10 * i00 * i11;
+  const double i21 = -l21 * i11 * i22;
+  const double i20 = -(l20 * i00 + l21 * i10) * i22;
+  L_inverse[0] = i00;
+  L_inverse[1] = i10;
+  L_inverse[2] = i20;
+  L_inverse[3] = 0.0;
+  L_inverse[4] = i11;
+  L_inverse[5] = i21;
+  L_inverse[6] = 0.0;
+  L_inverse[7] = 0.0;
+  L_inverse[8] = i22;
+  return std::isfinite(i20) && std::isfinite(i21) && std::isfinite(i10);
+}
+
 /// Per point: V + damping = L L^T, L^-1 kept, and Y = W L^-T per edge, so that
 /// W V^-1 W^T = Y Y^T. False if a V is not positive definite.
 template <int DC, int DP>
 bool SchurSystem::eliminate_points(const Eigen::VectorXd& damping) {
   std::atomic<bool> failed{false};
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, pt_dim_.size(), 256),
-                    [&](const tbb::blocked_range<std::size_t>& range) {
-                      using MatrixP = Eigen::Matrix<double, DP, DP>;
-                      MatrixP V_damped;
-                      Eigen::LLT<MatrixP> llt;
-                      for (std::size_t p = range.begin(); p != range.end(); ++p) {
-                        const int dp = pt_dim_[p];
-                        V_damped = ConstMapMatrix<DP, DP>(v_.data() + pt_v_offset_[p], dp, dp);
-                        V_damped.diagonal() += damping.segment(pt_offset_[p], dp);
-                        llt.compute(V_damped);
-                        if (llt.info() != Eigen::Success) {
-                          failed.store(true, std::memory_order_relaxed);
-                          continue;
-                        }
-                        MapMatrix<DP, DP> L_inverse(l_inverse_.data() + pt_v_offset_[p], dp, dp);
-                        L_inverse.setIdentity(dp, dp);
-                        llt.matrixL().solveInPlace(L_inverse);
-                        for (std::size_t e = pt_edge_begin_[p]; e < pt_edge_begin_[p + 1]; ++e) {
-                          const int dc = cam_dim_[at(edge_cam_[e])];
-                          MapMatrix<DC, DP>(y_.data() + edge_w_offset_[e], dc, dp).noalias() =
-                              ConstMapMatrix<DC, DP>(w_.data() + edge_w_offset_[e], dc, dp)
-                                  .lazyProduct(L_inverse.transpose());
-                        }
-                      }
-                    });
+  tbb::parallel_for(
+      tbb::blocked_range<std::size_t>(0, pt_dim_.size(), 256),
+      [&](const tbb::blocked_range<std::size_t>& range) {
+        using MatrixP = Eigen::Matrix<double, DP, DP>;
+        MatrixP V_damped;
+        Eigen::LLT<MatrixP> llt;
+        for (std::size_t p = range.begin(); p != range.end(); ++p) {
+          const int dp = pt_dim_[p];
+          MapMatrix<DP, DP> L_inverse(l_inverse_.data() + pt_v_offset_[p], dp, dp);
+          if constexpr (DP == 3) {
+            if (!inverse_cholesky_3(v_.data() + pt_v_offset_[p], damping.data() + pt_offset_[p],
+                                    L_inverse.data())) {
+              failed.store(true, std::memory_order_relaxed);
+              continue;
+            }
+          } else {
+            V_damped = ConstMapMatrix<DP, DP>(v_.data() + pt_v_offset_[p], dp, dp);
+            V_damped.diagonal() += damping.segment(pt_offset_[p], dp);
+            llt.compute(V_damped);
+            if (llt.info() != Eigen::Success) {
+              failed.store(true, std::memory_order_relaxed);
+              continue;
+            }
+            L_inverse.setIdentity(dp, dp);
+            llt.matrixL().solveInPlace(L_inverse);
+          }
+          for (std::size_t e = pt_edge_begin_[p]; e < pt_edge_begin_[p + 1]; ++e) {
+            const int dc = cam_dim_[at(edge_cam_[e])];
+            MapMatrix<DC, DP>(y_.data() + edge_w_offset_[e], dc, dp).noalias() =
+                ConstMapMatrix<DC, DP>(w_.data() + edge_w_offset_[e], dc, dp)
+                    .lazyProduct(L_inverse.transpose());
+          }
+        }
+      });
   return !failed.load();
 }
 
@@ -1032,20 +1073,33 @@ void SchurSystem::reduce_rhs(const Eigen::VectorXd& rhs, double* reduced) {
                             rhs.segment(pt_offset_[p], dp);
                       }
                     });
+  // Per group of cameras (as in form_reduced_system()): each point's edges read in sequence,
+  // each camera's sum in point order.
+  const std::size_t nc = cam_dim_.size();
+  const std::size_t num_groups = group_points_begin_.size() - 1;
   tbb::parallel_for(
-      tbb::blocked_range<std::size_t>(0, cam_dim_.size(), 4),
+      tbb::blocked_range<std::size_t>(0, num_groups, 1),
       [&](const tbb::blocked_range<std::size_t>& range) {
-        for (std::size_t c = range.begin(); c != range.end(); ++c) {
-          const int dc = cam_dim_[c];
-          MapVector<DC> out(reduced + cam_offset_[c], dc);
-          out = rhs.segment(cam_offset_[c], dc);
-          for (std::size_t k = cam_edge_begin_[c]; k < cam_edge_begin_[c + 1]; ++k) {
-            const std::size_t e = cam_edges_[k];
-            const auto p = at(edge_pt_[e]);
+        for (std::size_t group = range.begin(); group != range.end(); ++group) {
+          const std::size_t j0 = group * kGroupCameras;
+          const std::size_t j1 = std::min(nc, j0 + kGroupCameras);
+          for (std::size_t c = j0; c < j1; ++c) {
+            const int dc = cam_dim_[c];
+            MapVector<DC>(reduced + cam_offset_[c], dc) = rhs.segment(cam_offset_[c], dc);
+          }
+          for (std::size_t k = group_points_begin_[group]; k < group_points_begin_[group + 1];
+               ++k) {
+            const std::size_t p = group_points_[k];
             const int dp = pt_dim_[p];
-            out.noalias() -=
-                ConstMapMatrix<DC, DP>(y_.data() + edge_w_offset_[e], dc, dp)
-                    .lazyProduct(ConstMapVector<DP>(z_.data() + (pt_offset_[p] - ns_), dp));
+            const ConstMapVector<DP> z(z_.data() + (pt_offset_[p] - ns_), dp);
+            for (std::size_t e = pt_edge_begin_[p]; e < pt_edge_begin_[p + 1]; ++e) {
+              const auto c = at(edge_cam_[e]);
+              if (c < j0) continue;
+              if (c >= j1) break;
+              const int dc = cam_dim_[c];
+              MapVector<DC>(reduced + cam_offset_[c], dc).noalias() -=
+                  ConstMapMatrix<DC, DP>(y_.data() + edge_w_offset_[e], dc, dp).lazyProduct(z);
+            }
           }
         }
       });
