@@ -356,12 +356,12 @@ SchurSystem::SchurSystem(const Problem& problem, const std::vector<char>& elimin
     }
   }
   values_.assign(rows_.size(), 0.0);
-  a_.assign(a_size, 0.0);
-  w_.assign(w_size, 0.0);
-  y_.assign(w_size, 0.0);
-  v_.assign(v_size, 0.0);
-  l_inverse_.assign(v_size, 0.0);
-  z_.assign(at(n_ - ns_), 0.0);
+  a_ = HugeArray<double>(a_size);
+  w_ = HugeArray<double>(w_size);
+  y_ = HugeArray<double>(w_size);
+  v_ = HugeArray<double>(v_size);
+  l_inverse_ = HugeArray<double>(v_size);
+  z_ = HugeArray<double>(at(n_ - ns_));
 
   Impl& im = *impl_;
   cholmod_l_start(&im.common);
@@ -474,7 +474,7 @@ void SchurSystem::plan_chunks(const Problem& problem) {
     chunk_h_size_ = std::max(chunk_h_size_, h);
     chunk_b_size_ = std::max(chunk_b_size_, b);
   }
-  slots_.assign(slot_size, 0.0);
+  slots_ = HugeArray<double>(slot_size);
   cam_slot_begin_.assign(nc + 1, 0);
   cam_slots_.clear();
   for (std::size_t c = 0; c < nc; ++c) {

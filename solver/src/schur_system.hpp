@@ -17,6 +17,7 @@
 
 #include "carat/solver/problem.hpp"
 #include "carat/solver/solver_options.hpp"
+#include "huge_pages.hpp"
 #include "linear_system.hpp"
 
 namespace carat::internal {
@@ -130,7 +131,7 @@ class SchurSystem final : public LinearSystem {
   // block with a point goes in a chunk's buffer; the blocks without a point.
   std::vector<std::size_t> edge_slot_;
   std::vector<std::size_t> cam_slot_begin_, cam_slots_;
-  std::vector<double> slots_;
+  HugeArray<double> slots_;
   std::vector<std::size_t> pt_contrib_h_local_, pt_contrib_b_local_;
   // Direct blocks (see plan_chunks()): flag, rows, camera offset in the block, edge.
   std::vector<char> direct_;
@@ -144,7 +145,9 @@ class SchurSystem final : public LinearSystem {
   // Values: undamped A blocks, W per edge (dc x dp), V per point; and the factorization's
   // L^-1 (V + damping = L L^T) and Y = W L^-T (kept apart from the assembled values so that
   // solve() may reuse an earlier factorization); z = L^-1 rhs of the last solve.
-  std::vector<double> a_, w_, v_, l_inverse_, y_, z_;
+  // Uninitialized until first written (see HugeArray): assemble() and linearize() write a_, w_,
+  // v_ before anything reads them, factorize() l_inverse_ and y_, solve() z_.
+  HugeArray<double> a_, w_, v_, l_inverse_, y_, z_;
 
   // Reduced system: lower-triangular CSC in camera order (CHOLMOD orders it).
   std::vector<std::int64_t> colptr_, rows_;

@@ -216,30 +216,30 @@ double Solver::trial_cost() {
   return cost;
 }
 
-/// Moves to the trial iterate (cost new_cost) and relinearizes there, except after the last
-/// permitted iteration: nothing would use that H and b (a one-iteration solve, as align() runs
-/// per correspondence set, then costs one linearization instead of two), so its gradient is not
-/// tested either. Records the row and tests the function tolerance. True: the solve ends.
+/// Moves to the trial iterate (cost new_cost) and relinearizes there, unless the solve ends with
+/// this step: after the last permitted iteration, or when the step meets the function tolerance,
+/// nothing would use that H and b (a one-iteration solve, as align() runs per correspondence
+/// set, costs one linearization instead of two; Ceres also skips this evaluation), so the
+/// gradient there is not tested either. Records the row. True: the solve ends.
 bool Solver::take_step(IterationSummary& row, double new_cost, int iteration,
                        const Stopwatch& iteration_time) {
   const double old_cost = cost_;
   const double decrease = old_cost - new_cost;
   if (!row.reused_factorization) fresh_decrease_ = decrease;
   current_ = 1 - current_;
-  std::optional<internal::StopReason> limit =
-      internal::check_iteration_limit(iteration, options_.max_iterations);
-  if (limit) {
+  std::optional<internal::StopReason> stop =
+      internal::check_function_tolerance(decrease, old_cost, options_.function_tolerance);
+  if (!stop) stop = internal::check_iteration_limit(iteration, options_.max_iterations);
+  if (stop) {
     cost_ = new_cost;
-  } else if (!linearize()) {
+    record(row, iteration_time);
+    return finish(std::move(*stop));
+  }
+  if (!linearize()) {
     record(row, iteration_time);
     return true;
   }
   record(row, iteration_time);
-  if (auto stop =
-          internal::check_function_tolerance(decrease, old_cost, options_.function_tolerance)) {
-    return finish(std::move(*stop));
-  }
-  if (limit) return finish(std::move(*limit));
   return false;
 }
 
