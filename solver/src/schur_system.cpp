@@ -507,45 +507,69 @@ void SchurSystem::plan_chunks(const Problem& problem) {
 /// h_of(q) / b_of(q): packed H and b of the block of pt_contribs_[q].
 /// The contributions of a direct block (see plan_chunks()) from its n Jacobian rows J (n x D,
 /// row-major) and residuals r: V += J_p^T J_p, g_p += J_p^T r and, with a camera, W += J_c^T J_p,
-/// slot += J_c^T J_c, slot gradient += J_c^T r.
-template <int DC, int DP>
+/// the lower triangle of slot += J_c^T J_c, slot gradient += J_c^T r. Each output element sums
+/// over the rows first and touches memory once.
+template <int DC, int DP, int N = 0>
 __attribute__((always_inline)) inline void scatter_rows(const double* __restrict J,
-                                                        const double* __restrict r, int n, int D,
+                                                        const double* __restrict r, int rows, int D,
                                                         int pt_local, int cam_local, int dc, int dp,
                                                         double* __restrict V, double* __restrict g,
                                                         double* __restrict W,
                                                         double* __restrict slot) {
   const int C = DC > 0 ? DC : dc;
   const int P = DP > 0 ? DP : dp;
-  for (int k = 0; k < n; ++k) {
-    const double* row = J + k * D;
-    const double* jp = row + pt_local;
-    for (int b = 0; b < P; ++b) {
-      for (int a = 0; a < P; ++a) V[b * P + a] += jp[a] * jp[b];
-      g[b] += jp[b] * r[k];
+  const int n = N > 0 ? N : rows;
+  const auto row = [&](int k) { return J + k * D; };
+  for (int b = 0; b < P; ++b) {
+    for (int a = 0; a < P; ++a) {
+      double sum = 0.0;
+      for (int k = 0; k < n; ++k) sum += row(k)[pt_local + a] * row(k)[pt_local + b];
+      V[b * P + a] += sum;
     }
-    if (cam_local < 0) continue;
-    const double* jc = row + cam_local;
-    for (int b = 0; b < P; ++b) {
-      for (int a = 0; a < C; ++a) W[b * C + a] += jc[a] * jp[b];
+    double sum = 0.0;
+    for (int k = 0; k < n; ++k) sum += row(k)[pt_local + b] * r[k];
+    g[b] += sum;
+  }
+  if (cam_local < 0) return;
+  for (int b = 0; b < P; ++b) {
+    for (int a = 0; a < C; ++a) {
+      double sum = 0.0;
+      for (int k = 0; k < n; ++k) sum += row(k)[cam_local + a] * row(k)[pt_local + b];
+      W[b * C + a] += sum;
     }
-    for (int b = 0; b < C; ++b) {  // the lower triangle (gather_cameras() mirrors it)
-      for (int a = b; a < C; ++a) slot[b * C + a] += jc[a] * jc[b];
+  }
+  for (int b = 0; b < C; ++b) {  // the lower triangle (gather_cameras() mirrors it)
+    for (int a = b; a < C; ++a) {
+      double sum = 0.0;
+      for (int k = 0; k < n; ++k) sum += row(k)[cam_local + a] * row(k)[cam_local + b];
+      slot[b * C + a] += sum;
     }
-    double* slot_g = slot + C * C;
-    for (int a = 0; a < C; ++a) slot_g[a] += jc[a] * r[k];
+  }
+  double* slot_g = slot + C * C;
+  for (int a = 0; a < C; ++a) {
+    double sum = 0.0;
+    for (int k = 0; k < n; ++k) sum += row(k)[cam_local + a] * r[k];
+    slot_g[a] += sum;
   }
 }
 
 CARAT_MULTIVERSION void scatter_rows_9_3(const double* J, const double* r, int n, int D,
                                          int pt_local, int cam_local, double* V, double* g,
                                          double* W, double* slot) {
-  scatter_rows<9, 3>(J, r, n, D, pt_local, cam_local, 9, 3, V, g, W, slot);
+  if (n == 2) {
+    scatter_rows<9, 3, 2>(J, r, n, D, pt_local, cam_local, 9, 3, V, g, W, slot);
+  } else {
+    scatter_rows<9, 3>(J, r, n, D, pt_local, cam_local, 9, 3, V, g, W, slot);
+  }
 }
 CARAT_MULTIVERSION void scatter_rows_6_3(const double* J, const double* r, int n, int D,
                                          int pt_local, int cam_local, double* V, double* g,
                                          double* W, double* slot) {
-  scatter_rows<6, 3>(J, r, n, D, pt_local, cam_local, 6, 3, V, g, W, slot);
+  if (n == 2) {
+    scatter_rows<6, 3, 2>(J, r, n, D, pt_local, cam_local, 6, 3, V, g, W, slot);
+  } else {
+    scatter_rows<6, 3>(J, r, n, D, pt_local, cam_local, 6, 3, V, g, W, slot);
+  }
 }
 
 template <int DC, int DP, typename HOf, typename BOf>
