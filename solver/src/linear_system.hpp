@@ -52,8 +52,12 @@ class LinearSystem {
   virtual void multiply(const Eigen::VectorXd& x, Eigen::VectorXd* y) const = 0;
 
   /// Solves (H + diag(damping)) x = rhs with the last successful factorization (which may be
-  /// of an earlier assembly).
+  /// of an earlier assembly where reuses_factorization()).
   virtual void solve(const Eigen::VectorXd& rhs, Eigen::VectorXd* x) = 0;
+
+  /// Whether solve() may use a factorization of an earlier assembly (SolverOptions::
+  /// reuse_factorization applies only then).
+  virtual bool reuses_factorization() const { return true; }
 
   /// The trust-region growth SolverOptions::max_trust_region_growth = 0 stands for here.
   virtual double automatic_trust_region_growth() const { return 10.0; }

@@ -321,6 +321,14 @@ SchurSystem::SchurSystem(const Problem& problem, const std::vector<char>& elimin
         }
       }
       std::sort(group_points_.begin() + static_cast<std::ptrdiff_t>(first), group_points_.end());
+      for (std::size_t k = first; k < group_points_.size(); ++k) {
+        const std::size_t p = group_points_[k];
+        std::size_t size = 0;
+        for (std::size_t e = pt_edge_begin_[p]; e < pt_edge_begin_[p + 1]; ++e) {
+          size += at(cam_dim_[at(edge_cam_[e])]) * at(pt_dim_[p]);
+        }
+        max_point_y_ = std::max(max_point_y_, size);
+      }
       group_points_begin_[group + 1] = group_points_.size();
       max_group_values_ = std::max(max_group_values_, values);
     }
@@ -358,7 +366,6 @@ SchurSystem::SchurSystem(const Problem& problem, const std::vector<char>& elimin
   values_.assign(rows_.size(), 0.0);
   a_ = HugeArray<double>(a_size);
   w_ = HugeArray<double>(w_size);
-  y_ = HugeArray<double>(w_size);
   v_ = HugeArray<double>(v_size);
   l_inverse_ = HugeArray<double>(v_size);
   z_ = HugeArray<double>(at(n_ - ns_));
@@ -891,12 +898,6 @@ bool SchurSystem::eliminate_points(const Eigen::VectorXd& damping) {
             L_inverse.setIdentity(dp, dp);
             llt.matrixL().solveInPlace(L_inverse);
           }
-          for (std::size_t e = pt_edge_begin_[p]; e < pt_edge_begin_[p + 1]; ++e) {
-            const int dc = cam_dim_[at(edge_cam_[e])];
-            MapMatrix<DC, DP>(y_.data() + edge_w_offset_[e], dc, dp).noalias() =
-                ConstMapMatrix<DC, DP>(w_.data() + edge_w_offset_[e], dc, dp)
-                    .lazyProduct(L_inverse.transpose());
-          }
         }
       });
   return !failed.load();
@@ -916,7 +917,10 @@ struct GroupInput {
   const std::size_t* pt_edge_begin;
   const int* cam_dim;
   const int* pt_dim;
-  const double* y;
+  const double* w;          // W per edge (edge_y_offset)
+  const double* l_inverse;  // L^-1 per point (pt_v_offset)
+  const std::size_t* pt_v_offset;
+  double* y;                      // scratch: Y = W L^-T of one point's edges
   const std::size_t* row_offset;  // [(j - first_camera) * num_cameras + i]: block (i, j) in stack
   double* stack;                  // the group's columns of S blocks (column-major per block)
 };
@@ -949,19 +953,33 @@ __attribute__((always_inline)) inline void reduce_group_body(const GroupInput& i
     const std::size_t p = *it;
     const int dp = in.pt_dim[p];
     const std::size_t end = in.pt_edge_begin[p + 1];
-    for (std::size_t e = in.pt_edge_begin[p]; e < end; ++e) {
+    std::size_t first = in.pt_edge_begin[p];
+    while (first < end && in.edge_cam[first] < in.first_camera) ++first;
+    // Y = W L^-T of the edges from the group's first one on (W V^-1 W^T = Y Y^T).
+    const ConstMapMatrix<DP, DP> L_inverse(in.l_inverse + in.pt_v_offset[p], dp, dp);
+    std::size_t y_offset = 0;
+    for (std::size_t f = first; f < end; ++f) {
+      const int dc = in.cam_dim[in.edge_cam[f]];
+      MapMatrix<DC, DP>(in.y + y_offset, dc, dp).noalias() =
+          ConstMapMatrix<DC, DP>(in.w + in.edge_y_offset[f], dc, dp)
+              .lazyProduct(L_inverse.transpose());
+      y_offset += static_cast<std::size_t>(dc) * static_cast<std::size_t>(dp);
+    }
+    std::size_t ye = 0;  // offset of edge e's Y
+    for (std::size_t e = first; e < end; ++e) {
       const int j = in.edge_cam[e];
-      if (j < in.first_camera) continue;
       if (j >= in.end_camera) break;
-      const double* Yj = in.y + in.edge_y_offset[e];
+      const int dj = in.cam_dim[j];
+      const double* Yj = in.y + ye;
       const std::size_t* offsets =
           in.row_offset + static_cast<std::size_t>(j - in.first_camera) * in.num_cameras;
-      const int dj = in.cam_dim[j];
+      std::size_t yf = ye;
       for (std::size_t f = e; f < end; ++f) {
         const auto i = static_cast<std::size_t>(in.edge_cam[f]);
-        subtract_product<DC, DP>(in.stack + offsets[i], in.y + in.edge_y_offset[f], Yj,
-                                 in.cam_dim[i], dj, dp);
+        subtract_product<DC, DP>(in.stack + offsets[i], in.y + yf, Yj, in.cam_dim[i], dj, dp);
+        yf += static_cast<std::size_t>(in.cam_dim[i]) * static_cast<std::size_t>(dp);
       }
+      ye += static_cast<std::size_t>(dj) * static_cast<std::size_t>(dp);
     }
   }
 }
@@ -981,6 +999,7 @@ void SchurSystem::form_reduced_system(const Eigen::VectorXd& damping) {
   struct GroupScratch {
     std::vector<double> stack;
     std::vector<std::size_t> row_offset;
+    std::vector<double> y;
   };
   const std::size_t nc = cam_dim_.size();
   const std::size_t num_groups = group_points_begin_.size() - 1;
@@ -991,6 +1010,7 @@ void SchurSystem::form_reduced_system(const Eigen::VectorXd& damping) {
         GroupScratch& local = scratch.local();
         local.stack.resize(max_group_values_);
         local.row_offset.resize(kGroupCameras * nc);
+        local.y.resize(max_point_y_);
         for (std::size_t group = range.begin(); group != range.end(); ++group) {
           const std::size_t j0 = group * kGroupCameras;
           const std::size_t j1 = std::min(nc, j0 + kGroupCameras);
@@ -1020,7 +1040,10 @@ void SchurSystem::form_reduced_system(const Eigen::VectorXd& damping) {
                               pt_edge_begin_.data(),
                               cam_dim_.data(),
                               pt_dim_.data(),
-                              y_.data(),
+                              w_.data(),
+                              l_inverse_.data(),
+                              pt_v_offset_.data(),
+                              local.y.data(),
                               local.row_offset.data(),
                               local.stack.data()};
           if constexpr (DC == 9 && DP == 3) {
@@ -1083,18 +1106,19 @@ bool SchurSystem::factorize(const Eigen::VectorXd& damping) {
   return factorized && im.common.status == CHOLMOD_OK && im.L->minor == at(ns_);
 }
 
-/// z = L^-1 rhs_point per point, then reduced = rhs_cameras - sum over each camera's edges of
-/// Y_e z_point.
+/// u = V^-1 rhs_point = L^-T L^-1 rhs_point per point (kept in z_), then reduced =
+/// rhs_cameras - sum over each camera's edges of W_e u_point.
 template <int DC, int DP>
 void SchurSystem::reduce_rhs(const Eigen::VectorXd& rhs, double* reduced) {
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, pt_dim_.size(), 512),
                     [&](const tbb::blocked_range<std::size_t>& range) {
                       for (std::size_t p = range.begin(); p != range.end(); ++p) {
                         const int dp = pt_dim_[p];
+                        const ConstMapMatrix<DP, DP> L_inverse(l_inverse_.data() + pt_v_offset_[p],
+                                                               dp, dp);
                         MapVector<DP>(z_.data() + (pt_offset_[p] - ns_), dp).noalias() =
-                            ConstMapMatrix<DP, DP>(l_inverse_.data() + pt_v_offset_[p], dp, dp)
-                                .template triangularView<Eigen::Lower>() *
-                            rhs.segment(pt_offset_[p], dp);
+                            L_inverse.transpose().lazyProduct(
+                                L_inverse.lazyProduct(rhs.segment(pt_offset_[p], dp)));
                       }
                     });
   // Per group of cameras (as in form_reduced_system()): each point's edges read in sequence,
@@ -1122,38 +1146,37 @@ void SchurSystem::reduce_rhs(const Eigen::VectorXd& rhs, double* reduced) {
               if (c >= j1) break;
               const int dc = cam_dim_[c];
               MapVector<DC>(reduced + cam_offset_[c], dc).noalias() -=
-                  ConstMapMatrix<DC, DP>(y_.data() + edge_w_offset_[e], dc, dp).lazyProduct(z);
+                  ConstMapMatrix<DC, DP>(w_.data() + edge_w_offset_[e], dc, dp).lazyProduct(z);
             }
           }
         }
       });
 }
 
-/// x_point = L^-T (z_point - sum over its edges of Y_e^T x_camera); x_cameras copied.
+/// x_point = V^-1 (rhs_point - sum over its edges of W_e^T x_camera); x_cameras copied.
 template <int DC, int DP>
-void SchurSystem::back_substitute(const double* x_cameras, double* x) const {
+void SchurSystem::back_substitute(const Eigen::VectorXd& rhs, const double* x_cameras,
+                                  double* x) const {
   std::copy_n(x_cameras, ns_, x);
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, pt_dim_.size(), 256),
-                    [&](const tbb::blocked_range<std::size_t>& range) {
-                      Eigen::Matrix<double, DP, 1> t;
-                      for (std::size_t p = range.begin(); p != range.end(); ++p) {
-                        const int dp = pt_dim_[p];
-                        t = ConstMapVector<DP>(z_.data() + (pt_offset_[p] - ns_), dp);
-                        for (std::size_t e = pt_edge_begin_[p]; e < pt_edge_begin_[p + 1]; ++e) {
-                          const auto c = at(edge_cam_[e]);
-                          const int dc = cam_dim_[c];
-                          t.noalias() -=
-                              ConstMapMatrix<DC, DP>(y_.data() + edge_w_offset_[e], dc, dp)
-                                  .transpose()
-                                  .lazyProduct(ConstMapVector<DC>(x_cameras + cam_offset_[c], dc));
-                        }
-                        MapVector<DP>(x + pt_offset_[p], dp).noalias() =
-                            ConstMapMatrix<DP, DP>(l_inverse_.data() + pt_v_offset_[p], dp, dp)
-                                .transpose()
-                                .template triangularView<Eigen::Upper>() *
-                            t;
-                      }
-                    });
+  tbb::parallel_for(
+      tbb::blocked_range<std::size_t>(0, pt_dim_.size(), 256),
+      [&](const tbb::blocked_range<std::size_t>& range) {
+        Eigen::Matrix<double, DP, 1> t;
+        for (std::size_t p = range.begin(); p != range.end(); ++p) {
+          const int dp = pt_dim_[p];
+          t = rhs.segment(pt_offset_[p], dp);
+          for (std::size_t e = pt_edge_begin_[p]; e < pt_edge_begin_[p + 1]; ++e) {
+            const auto c = at(edge_cam_[e]);
+            const int dc = cam_dim_[c];
+            t.noalias() -= ConstMapMatrix<DC, DP>(w_.data() + edge_w_offset_[e], dc, dp)
+                               .transpose()
+                               .lazyProduct(ConstMapVector<DC>(x_cameras + cam_offset_[c], dc));
+          }
+          const ConstMapMatrix<DP, DP> L_inverse(l_inverse_.data() + pt_v_offset_[p], dp, dp);
+          MapVector<DP>(x + pt_offset_[p], dp).noalias() =
+              L_inverse.transpose().lazyProduct(L_inverse.lazyProduct(t));
+        }
+      });
 }
 
 void SchurSystem::solve(const Eigen::VectorXd& rhs, Eigen::VectorXd* x) {
@@ -1186,13 +1209,13 @@ void SchurSystem::solve(const Eigen::VectorXd& rhs, Eigen::VectorXd* x) {
   x->resize(n_);
   switch (kernel_) {
     case 1:
-      back_substitute<9, 3>(x_cameras, x->data());
+      back_substitute<9, 3>(rhs, x_cameras, x->data());
       break;
     case 2:
-      back_substitute<6, 3>(x_cameras, x->data());
+      back_substitute<6, 3>(rhs, x_cameras, x->data());
       break;
     default:
-      back_substitute<Eigen::Dynamic, Eigen::Dynamic>(x_cameras, x->data());
+      back_substitute<Eigen::Dynamic, Eigen::Dynamic>(rhs, x_cameras, x->data());
       break;
   }
   elimination_s_ += t0.elapsed_s();

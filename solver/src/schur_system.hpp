@@ -46,6 +46,7 @@ class SchurSystem final : public LinearSystem {
   void solve(const Eigen::VectorXd& rhs, Eigen::VectorXd* x) override;
   double take_elimination_seconds() override;
   double automatic_trust_region_growth() const override { return 3.0; }
+  bool reuses_factorization() const override { return false; }
 
   /// Size of the reduced system (tangent dimensions of the variables not eliminated).
   int reduced_size() const { return ns_; }
@@ -62,7 +63,7 @@ class SchurSystem final : public LinearSystem {
   template <int DC, int DP>
   void reduce_rhs(const Eigen::VectorXd& rhs, double* reduced);
   template <int DC, int DP>
-  void back_substitute(const double* x_cameras, double* x) const;
+  void back_substitute(const Eigen::VectorXd& rhs, const double* x_cameras, double* x) const;
 
   void plan_chunks(const Problem& problem);
   template <typename HOf, typename BOf>
@@ -118,6 +119,7 @@ class SchurSystem final : public LinearSystem {
   // Groups of cameras for forming S (see the constructor).
   std::vector<std::size_t> group_points_begin_, group_points_;
   std::size_t max_group_values_ = 0;
+  std::size_t max_point_y_ = 0;  // largest Y of one point's edges (values)
   std::vector<std::size_t> edge_contrib_begin_;
   std::vector<Contribution> edge_contribs_;         // row_local: camera, col_local: point
   std::vector<std::uint32_t> edge_contrib_source_;  // its block's index in pt_contribs_
@@ -142,12 +144,13 @@ class SchurSystem final : public LinearSystem {
   std::vector<std::size_t> other_blocks_;
   std::vector<double> chunk_cost_;
 
-  // Values: undamped A blocks, W per edge (dc x dp), V per point; and the factorization's
-  // L^-1 (V + damping = L L^T) and Y = W L^-T (kept apart from the assembled values so that
-  // solve() may reuse an earlier factorization); z = L^-1 rhs of the last solve.
+  // Values: undamped A blocks, W per edge (dc x dp), V per point; the factorization's
+  // L^-1 (V + damping = L L^T; Y = W L^-T is formed where needed, not stored); z: V^-1 rhs of
+  // the points in the last solve. solve() reads W, so it needs the assembly the factorization
+  // was made from: this system does not reuse factorizations.
   // Uninitialized until first written (see HugeArray): assemble() and linearize() write a_, w_,
   // v_ before anything reads them, factorize() l_inverse_ and y_, solve() z_.
-  HugeArray<double> a_, w_, v_, l_inverse_, y_, z_;
+  HugeArray<double> a_, w_, v_, l_inverse_, z_;
 
   // Reduced system: lower-triangular CSC in camera order (CHOLMOD orders it).
   std::vector<std::int64_t> colptr_, rows_;

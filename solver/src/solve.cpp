@@ -419,6 +419,7 @@ bool Solver::initialize() {
     options_.max_trust_region_growth = system_->automatic_trust_region_growth();
   }
   summary_.trust_region_growth = options_.max_trust_region_growth;
+  if (!system_->reuses_factorization()) options_.reuse_factorization = false;
   summary_.num_tangent_parameters = system_->size();
   summary_.hessian_nonzeros = system_->hessian_nonzeros();
   summary_.factor_nonzeros = system_->factor_nonzeros();
