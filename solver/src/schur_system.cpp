@@ -364,9 +364,14 @@ SchurSystem::SchurSystem(const Problem& problem, const std::vector<char>& elimin
     }
   }
   values_.assign(rows_.size(), 0.0);
+  // The assembled values are zeroed here, as SparseSystem zeroes its matrix: their pages are
+  // first touched while the system is set up, not in the first assembly.
   a_ = HugeArray<double>(a_size);
   w_ = HugeArray<double>(w_size);
   v_ = HugeArray<double>(v_size);
+  std::fill_n(a_.data(), a_size, 0.0);
+  std::fill_n(w_.data(), w_size, 0.0);
+  std::fill_n(v_.data(), v_size, 0.0);
   l_inverse_ = HugeArray<double>(v_size);
   z_ = HugeArray<double>(at(n_ - ns_));
 
@@ -421,7 +426,12 @@ void SchurSystem::plan_chunks(const Problem& problem) {
   const std::size_t np = pt_dim_.size();
   const std::size_t nc = cam_dim_.size();
   const auto blocks = problem.blocks();
-  const std::size_t num_chunks = (np + kChunkPoints - 1) / kChunkPoints;
+  // Points per chunk: enough that a chunk's edges are many per camera it touches (about 16 for
+  // each camera of the problem), so that its slots are few beside its blocks; at least 1024.
+  // A function of the problem alone, so results do not depend on the number of threads.
+  const std::size_t edges = edge_cam_.size();
+  chunk_points_ = std::max<std::size_t>(1024, edges == 0 ? np : (16 * nc * np + edges - 1) / edges);
+  const std::size_t num_chunks = (np + chunk_points_ - 1) / chunk_points_;
   // Slots: per chunk, one partial diagonal block (dc x dc) and gradient (dc) per camera the
   // chunk's points are seen by, laid out chunk after chunk.
   edge_slot_.assign(edge_cam_.size(), 0);
@@ -453,8 +463,8 @@ void SchurSystem::plan_chunks(const Problem& problem) {
                  entry.block->reduced_dim() == entry.block->tangent_dim();
   }
   for (std::size_t k = 0; k < num_chunks; ++k) {
-    const std::size_t p0 = k * kChunkPoints;
-    const std::size_t p1 = std::min(np, p0 + kChunkPoints);
+    const std::size_t p0 = k * chunk_points_;
+    const std::size_t p1 = std::min(np, p0 + chunk_points_);
     for (std::size_t e = pt_edge_begin_[p0]; e < pt_edge_begin_[p1]; ++e) {
       const auto c = at(edge_cam_[e]);
       if (seen_in_chunk[c] != static_cast<int>(k)) {
@@ -482,6 +492,7 @@ void SchurSystem::plan_chunks(const Problem& problem) {
     chunk_b_size_ = std::max(chunk_b_size_, b);
   }
   slots_ = HugeArray<double>(slot_size);
+  std::fill_n(slots_.data(), slot_size, 0.0);
   cam_slot_begin_.assign(nc + 1, 0);
   cam_slots_.clear();
   for (std::size_t c = 0; c < nc; ++c) {
@@ -582,8 +593,8 @@ CARAT_MULTIVERSION void scatter_rows_6_3(const double* J, const double* r, int n
 template <int DC, int DP, typename HOf, typename BOf>
 void SchurSystem::scatter_chunk_sized(std::size_t k, double* gradient, const HOf& h_of,
                                       const BOf& b_of, bool use_direct) {
-  const std::size_t p0 = k * kChunkPoints;
-  const std::size_t p1 = std::min(pt_dim_.size(), p0 + kChunkPoints);
+  const std::size_t p0 = k * chunk_points_;
+  const std::size_t p1 = std::min(pt_dim_.size(), p0 + chunk_points_);
   if (fused_) {
     for (std::size_t e = pt_edge_begin_[p0]; e < pt_edge_begin_[p1]; ++e) {
       const int dc = cam_dim_[at(edge_cam_[e])];
@@ -716,7 +727,7 @@ void SchurSystem::assemble(const BlockLinearizations& blocks, Eigen::VectorXd* g
   const auto b_of = [&](std::size_t q) {
     return blocks.b.data() + blocks.b_offset[static_cast<std::size_t>(pt_contribs_[q].first)];
   };
-  const std::size_t num_chunks = (pt_dim_.size() + kChunkPoints - 1) / kChunkPoints;
+  const std::size_t num_chunks = (pt_dim_.size() + chunk_points_ - 1) / chunk_points_;
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, num_chunks, 1),
                     [&](const tbb::blocked_range<std::size_t>& range) {
                       for (std::size_t k = range.begin(); k != range.end(); ++k) {
@@ -738,7 +749,7 @@ bool SchurSystem::linearize(const BlockEvaluator& evaluator, int which, Eigen::V
   double* g = gradient->data();
   const std::size_t num_blocks = storage_.dim.size();
   std::atomic<std::size_t> first_bad{num_blocks};
-  const std::size_t num_chunks = (pt_dim_.size() + kChunkPoints - 1) / kChunkPoints;
+  const std::size_t num_chunks = (pt_dim_.size() + chunk_points_ - 1) / chunk_points_;
   chunk_cost_.assign(num_chunks, 0.0);
   std::vector<double> evaluate_cpu(num_chunks, 0.0), scatter_cpu(num_chunks, 0.0);
   struct ChunkScratch {
@@ -756,8 +767,8 @@ bool SchurSystem::linearize(const BlockEvaluator& evaluator, int which, Eigen::V
         local.b.resize(chunk_b_size_);
         for (std::size_t k = range.begin(); k != range.end(); ++k) {
           Stopwatch t0;
-          const std::size_t p0 = k * kChunkPoints;
-          const std::size_t p1 = std::min(pt_dim_.size(), p0 + kChunkPoints);
+          const std::size_t p0 = k * chunk_points_;
+          const std::size_t p1 = std::min(pt_dim_.size(), p0 + chunk_points_);
           double sum = 0.0;
           for (std::size_t q = pt_contrib_begin_[p0]; q < pt_contrib_begin_[p1]; ++q) {
             const auto block = static_cast<std::size_t>(pt_contribs_[q].first);

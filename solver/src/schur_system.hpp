@@ -75,9 +75,9 @@ class SchurSystem final : public LinearSystem {
   void gather_cameras(const BlockLinearizations& blocks, double* gradient);
   int block_dim(std::int32_t block) const { return block_dims_[static_cast<std::size_t>(block)]; }
 
-  static constexpr std::size_t kChunkPoints = 256;  // points per chunk (fixed: deterministic)
-  static constexpr int kDirectRows = 4;             // most rows of a direct block
-  static constexpr std::size_t kGroupCameras = 8;   // cameras per task forming S
+  std::size_t chunk_points_ = 1024;                // points per chunk (see plan_chunks())
+  static constexpr int kDirectRows = 4;            // most rows of a direct block
+  static constexpr std::size_t kGroupCameras = 8;  // cameras per task forming S
   static constexpr std::size_t kNoEdge = ~std::size_t{0};
 
   struct Impl;
@@ -148,8 +148,8 @@ class SchurSystem final : public LinearSystem {
   // L^-1 (V + damping = L L^T; Y = W L^-T is formed where needed, not stored); z: V^-1 rhs of
   // the points in the last solve. solve() reads W, so it needs the assembly the factorization
   // was made from: this system does not reuse factorizations.
-  // Uninitialized until first written (see HugeArray): assemble() and linearize() write a_, w_,
-  // v_ before anything reads them, factorize() l_inverse_ and y_, solve() z_.
+  // a_, w_, v_ (and slots_) are zeroed by the constructor; l_inverse_ and z_ are first written by
+  // factorize() and solve().
   HugeArray<double> a_, w_, v_, l_inverse_, z_;
 
   // Reduced system: lower-triangular CSC in camera order (CHOLMOD orders it).
