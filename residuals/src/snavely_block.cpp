@@ -35,7 +35,7 @@ Eigen::Vector2d SnavelyReprojectionBlock::evaluate(const double* camera, const d
 
   // R = I + a W + b W^2 and the right Jacobian J_r = I - b W + c W^2 of SO(3), with
   // a = sin(theta)/theta, b = (1 - cos(theta))/theta^2, c = (theta - sin(theta))/theta^3
-  // (Taylor series below 1e-3 rad, as angle_axis_rotate()).
+  // (Taylor series below 1e-3 rad, as lie::angle_axis_rotate()).
   const double theta2 = w.squaredNorm();
   double a, b, c;
   if (theta2 > 1e-6) {

@@ -9,43 +9,17 @@
 
 #include <cmath>
 
+#include "carat/solver/lie_functions.hpp"
+
 namespace carat {
 
 /// Number of parameters of one BAL camera.
 inline constexpr int kBalCameraSize = 9;
 
-/// Rotates `point` by the angle-axis vector `w` (radians): out = R(w) point by Rodrigues' formula
-///   R(w) x = x + a cross(w, x) + b cross(w, cross(w, x)),
-///   a = sin(theta) / theta,  b = (1 - cos(theta)) / theta^2,
-/// with a and b from their Taylor series below an angle of 1e-3 rad (theta = |w|), where the
-/// closed forms lose precision. Templated for automatic differentiation; `out` must not alias
-/// the inputs.
-template <typename T>
-void angle_axis_rotate(const T* w, const T* point, T* out) {
-  using std::cos;
-  using std::sin;
-  using std::sqrt;
-  const T theta2 = w[0] * w[0] + w[1] * w[1] + w[2] * w[2];
-  T a, b;
-  if (theta2 > T(1e-6)) {
-    const T theta = sqrt(theta2);
-    a = sin(theta) / theta;
-    b = (T(1.0) - cos(theta)) / theta2;
-  } else {
-    a = T(1.0) - theta2 / T(6.0);
-    b = T(0.5) - theta2 / T(24.0);
-  }
-  const T wx[3] = {w[1] * point[2] - w[2] * point[1], w[2] * point[0] - w[0] * point[2],
-                   w[0] * point[1] - w[1] * point[0]};
-  const T wwx[3] = {w[1] * wx[2] - w[2] * wx[1], w[2] * wx[0] - w[0] * wx[2],
-                    w[0] * wx[1] - w[1] * wx[0]};
-  for (int i = 0; i < 3; ++i) out[i] = point[i] + a * wx[i] + b * wwx[i];
-}
-
 /// The point `camera` (9 parameters, see above) takes to the camera frame: P = R(w) X + t.
 template <typename T>
 void snavely_camera_point(const T* camera, const T* point, T* P) {
-  angle_axis_rotate(camera, point, P);
+  lie::angle_axis_rotate(camera, point, P);  // Taylor series below 1e-3 rad
   P[0] += camera[3];
   P[1] += camera[4];
   P[2] += camera[5];

@@ -109,36 +109,35 @@ void so3_log(const T q[4], T w[3]) {
   w[2] = sign * k * q[2];
 }
 
-/// out = Exp(w) p: rotates p by the rotation vector w (Rodrigues; out may alias p).
+/// out = Exp(w) p: rotates p by the rotation vector w (radians) by Rodrigues' formula
+///   Exp(w) p = p + a w x p + b w x (w x p),  a = sin(theta) / theta,  b = (1 - cos(theta)) /
+///   theta^2,
+/// with a and b from their Taylor series below theta = |w| = 1e-3 rad, where the closed forms lose
+/// precision (out may alias p).
 template <typename T>
 void angle_axis_rotate(const T w[3], const T p[3], T out[3]) {
   using std::cos;
   using std::sin;
   using std::sqrt;
   const T theta_sq = w[0] * w[0] + w[1] * w[1] + w[2] * w[2];
-  T wxp[3];
-  cross(w, p, wxp);
-  if (value_of(theta_sq) > 1e-16) {
+  T a, b;
+  if (value_of(theta_sq) > 1e-6) {
     const T theta = sqrt(theta_sq);
-    const T c = cos(theta), s = sin(theta);
-    const T a = s / theta;
-    const T b = (T(1.0) - c) / theta_sq;
-    T wxwxp[3];
-    cross(w, wxp, wxwxp);
-    const T x = p[0] + a * wxp[0] + b * wxwxp[0];
-    const T y = p[1] + a * wxp[1] + b * wxwxp[1];
-    const T z = p[2] + a * wxp[2] + b * wxwxp[2];
-    out[0] = x;
-    out[1] = y;
-    out[2] = z;
-  } else {  // first order: p + w x p
-    const T x = p[0] + wxp[0];
-    const T y = p[1] + wxp[1];
-    const T z = p[2] + wxp[2];
-    out[0] = x;
-    out[1] = y;
-    out[2] = z;
+    a = sin(theta) / theta;
+    b = (T(1.0) - cos(theta)) / theta_sq;
+  } else {
+    a = T(1.0) - theta_sq / T(6.0);
+    b = T(0.5) - theta_sq / T(24.0);
   }
+  T wxp[3], wxwxp[3];
+  cross(w, p, wxp);
+  cross(w, wxp, wxwxp);
+  const T x = p[0] + a * wxp[0] + b * wxwxp[0];
+  const T y = p[1] + a * wxp[1] + b * wxwxp[1];
+  const T z = p[2] + a * wxp[2] + b * wxwxp[2];
+  out[0] = x;
+  out[1] = y;
+  out[2] = z;
 }
 
 /// A rigid transform templated on the scalar: p_to = R p_from + t.
