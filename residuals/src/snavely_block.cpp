@@ -114,7 +114,12 @@ double SnavelyReprojectionBlock::accumulate(ParameterPointers params,
 }
 
 double SnavelyReprojectionBlock::squared_norm(ParameterPointers params) const {
-  return evaluate(params[0], params[1], nullptr).squaredNorm();
+  // The cost alone: the projection without the rotation matrix the Jacobian needs.
+  double image[2];
+  snavely_project(params[0], params[1], image);
+  const double rx = image[0] - observed_.x();
+  const double ry = image[1] - observed_.y();
+  return rx * rx + ry * ry;
 }
 
 }  // namespace carat

@@ -114,6 +114,9 @@ SchurSystem::SchurSystem(const Problem& problem, const std::vector<char>& elimin
   std::vector<RawEdge> raw_edges;
   std::vector<std::tuple<int, std::int32_t, std::int16_t>> raw_pt, raw_cam;
   const auto blocks = problem.blocks();
+  raw_cam.reserve(blocks.size());
+  raw_edges.reserve(blocks.size());
+  raw_pt.reserve(blocks.size());
   std::vector<std::pair<int, int>> cams;  // (camera, local) of one block
   std::vector<char> block_has_point(blocks.size(), 0);
   for (const auto& entry : blocks) block_dims_.push_back(entry.block->tangent_dim());
@@ -167,9 +170,24 @@ SchurSystem::SchurSystem(const Problem& problem, const std::vector<char>& elimin
   }
 
   // Edges, point-major, and their contributions.
-  std::sort(raw_edges.begin(), raw_edges.end(), [](const RawEdge& x, const RawEdge& y) {
-    return std::tie(x.pt, x.cam, x.block) < std::tie(y.pt, y.cam, y.block);
-  });
+  // By point (a stable counting sort: blocks stay in order within a point), then by camera.
+  {
+    std::vector<std::size_t> start(np + 1, 0);
+    for (const RawEdge& r : raw_edges) ++start[at(r.pt) + 1];
+    for (std::size_t p = 0; p < np; ++p) start[p + 1] += start[p];
+    std::vector<RawEdge> by_point(raw_edges.size());
+    for (const RawEdge& r : raw_edges) by_point[start[at(r.pt)]++] = r;
+    raw_edges.swap(by_point);
+    for (std::size_t b = 0, p = 0; p < np; ++p) {
+      const std::size_t e = start[p];
+      std::sort(raw_edges.begin() + static_cast<std::ptrdiff_t>(b),
+                raw_edges.begin() + static_cast<std::ptrdiff_t>(e),
+                [](const RawEdge& x, const RawEdge& y) {
+                  return std::tie(x.cam, x.block) < std::tie(y.cam, y.block);
+                });
+      b = e;
+    }
+  }
   pt_edge_begin_.assign(np + 1, 0);
   std::size_t w_size = 0;
   for (std::size_t k = 0; k < raw_edges.size();) {
