@@ -274,6 +274,22 @@ TEST(SchurSolveTest, ReachesTheWholeSystemOptimumWithARobustLoss) {
   EXPECT_NEAR(a.final_cost, b.final_cost, 1e-9 * b.final_cost);
 }
 
+TEST(SchurSolveTest, GaugeFreedomIsHandledByDampingWithoutNonFiniteValues) {
+  // Nothing held constant: S has the 7-dimensional null space of bundle adjustment's gauge.
+  // Gauss-Newton adds damping only where the undamped system fails; either way every value stays
+  // finite and the cost falls.
+  for (const Method method : {Method::kLevenbergMarquardt, Method::kGaussNewton}) {
+    BundleProblem<9> ba = make_bundle<9>(8, 200, 4, 17, true);
+    SolverOptions options = tight_options(LinearSolver::kSchur);
+    options.method = method;
+    options.max_iterations = 30;
+    const SolverSummary summary = solve(options, ba.problem);
+    ASSERT_TRUE(summary.is_solution_usable()) << to_string(method) << ": " << summary.message;
+    EXPECT_LT(summary.final_cost, 0.1 * summary.initial_cost) << to_string(method);
+    for (const double v : ba.problem.all_values()) ASSERT_TRUE(std::isfinite(v));
+  }
+}
+
 TEST(SchurSolveTest, BitIdenticalForAnyNumberOfThreads) {
   std::vector<double> first;
   for (const int threads : {1, 2}) {
