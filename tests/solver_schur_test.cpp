@@ -145,31 +145,29 @@ void expect_same_step(int num_cameras, int num_points) {
   schur.assemble(blocks, &g_schur);
   full.assemble(blocks, &g_full);
   // Both systems in variable order.
-  const auto to_variable_order = [&](const internal::LinearSystem& system,
-                                     const Eigen::VectorXd& x) {
+  // Between a system's layout and the variables' order (free variables only).
+  const auto reorder = [&](const internal::LinearSystem& system, const Eigen::VectorXd& x,
+                           bool to_variables) {
     Eigen::VectorXd out(x.size());
     Eigen::Index offset = 0;
     for (int v = 0; v < ba.problem.num_variables(); ++v) {
       const int o = system.variable_offset()[static_cast<std::size_t>(v)];
       if (o < 0) continue;
       const int d = ba.problem.manifold(VariableId{v}).tangent_size();
-      out.segment(offset, d) = x.segment(o, d);
+      if (to_variables) {
+        out.segment(offset, d) = x.segment(o, d);
+      } else {
+        out.segment(o, d) = x.segment(offset, d);
+      }
       offset += d;
     }
     return out;
   };
+  const auto to_variable_order = [&](const internal::LinearSystem& system,
+                                     const Eigen::VectorXd& x) { return reorder(system, x, true); };
   const auto from_variable_order = [&](const internal::LinearSystem& system,
                                        const Eigen::VectorXd& x) {
-    Eigen::VectorXd out(x.size());
-    Eigen::Index offset = 0;
-    for (int v = 0; v < ba.problem.num_variables(); ++v) {
-      const int o = system.variable_offset()[static_cast<std::size_t>(v)];
-      if (o < 0) continue;
-      const int d = ba.problem.manifold(VariableId{v}).tangent_size();
-      out.segment(o, d) = x.segment(offset, d);
-      offset += d;
-    }
-    return out;
+    return reorder(system, x, false);
   };
   const Eigen::VectorXd g = to_variable_order(full, g_full);
   EXPECT_LE((to_variable_order(schur, g_schur) - g).norm(), 1e-13 * g.norm());

@@ -1,7 +1,6 @@
 #include "schur_system.hpp"
 
 #include <cholmod.h>
-#include <omp.h>
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
@@ -34,32 +33,11 @@ std::size_t at(int k) { return static_cast<std::size_t>(k); }
 
 }  // namespace
 
-struct SchurSystem::Impl {
-  cholmod_common common{};
-  cholmod_sparse A_storage{};
-  cholmod_factor* L = nullptr;
-  cholmod_dense* B = nullptr;
-  cholmod_dense* X = nullptr;
-  cholmod_dense* Y = nullptr;
-  cholmod_dense* E = nullptr;
-  bool started = false;
-
-  ~Impl() {
-    if (!started) return;
-    cholmod_l_free_dense(&B, &common);
-    cholmod_l_free_dense(&X, &common);
-    cholmod_l_free_dense(&Y, &common);
-    cholmod_l_free_dense(&E, &common);
-    cholmod_l_free_factor(&L, &common);
-    cholmod_l_finish(&common);
-  }
-};
-
 SchurSystem::~SchurSystem() = default;
 
 SchurSystem::SchurSystem(const Problem& problem, const std::vector<char>& eliminate,
                          Ordering ordering)
-    : impl_(std::make_unique<Impl>()) {
+    : cholmod_(std::make_unique<CholmodSession>()) {
   const int num_vars = problem.num_variables();
   var_offset_.assign(at(num_vars), -1);
   std::vector<int> cam_of(at(num_vars), -1), pt_of(at(num_vars), -1), dim(at(num_vars), 0);
@@ -393,47 +371,26 @@ SchurSystem::SchurSystem(const Problem& problem, const std::vector<char>& elimin
   l_inverse_ = HugeArray<double>(v_size);
   z_ = HugeArray<double>(at(n_ - ns_));
 
-  Impl& im = *impl_;
-  cholmod_l_start(&im.common);
-  im.started = true;
-  im.common.print = 0;  // library code never prints
-  im.common.error_handler = nullptr;
+  cholmod_common& common = cholmod_->common();
   std::string ordering_name = "none";
   if (ns_ > 0) {
-    im.A_storage.nrow = at(ns_);
-    im.A_storage.ncol = at(ns_);
-    im.A_storage.nzmax = rows_.size();
-    im.A_storage.p = colptr_.data();
-    im.A_storage.i = rows_.data();
-    im.A_storage.x = values_.data();
-    im.A_storage.stype = -1;  // lower triangle
-    im.A_storage.itype = CHOLMOD_LONG;
-    im.A_storage.xtype = CHOLMOD_REAL;
-    im.A_storage.dtype = CHOLMOD_DOUBLE;
-    im.A_storage.sorted = 1;
-    im.A_storage.packed = 1;
-    im.common.supernodal = CHOLMOD_SUPERNODAL;
+    cholmod_->set_lower_matrix(at(ns_), colptr_.data(), rows_.data(), values_.data(), rows_.size());
+    common.supernodal = CHOLMOD_SUPERNODAL;
     if (ordering == Ordering::kAmd) {
-      im.common.nmethods = 1;
-      im.common.method[0].ordering = CHOLMOD_AMD;
+      common.nmethods = 1;
+      common.method[0].ordering = CHOLMOD_AMD;
     } else if (ordering == Ordering::kMetis) {
-      im.common.nmethods = 1;
-      im.common.method[0].ordering = CHOLMOD_METIS;
+      common.nmethods = 1;
+      common.method[0].ordering = CHOLMOD_METIS;
     } else {
-      im.common.nmethods = 2;  // the one whose factor needs fewer flops wins
-      im.common.method[0].ordering = CHOLMOD_AMD;
-      im.common.method[1].ordering = CHOLMOD_METIS;
+      common.nmethods = 2;  // the one whose factor needs fewer flops wins
+      common.method[0].ordering = CHOLMOD_AMD;
+      common.method[1].ordering = CHOLMOD_METIS;
     }
-    im.L = cholmod_l_analyze(&im.A_storage, &im.common);
-    if (!im.L) {
-      throw Error("Schur complement: CHOLMOD symbolic analysis failed (status " +
-                  std::to_string(im.common.status) + ")");
-    }
-    const int selected = im.common.method[im.common.selected].ordering;
+    cholmod_->analyze("Schur complement");
+    const int selected = common.method[common.selected].ordering;
     ordering_name = selected == CHOLMOD_METIS ? "METIS" : "AMD";
-    factor_nnz_ = static_cast<std::size_t>(im.common.lnz);
-    im.B = cholmod_l_zeros(at(ns_), 1, CHOLMOD_REAL, &im.common);
-    if (!im.B) throw Error("Schur complement: CHOLMOD could not allocate the right-hand side");
+    factor_nnz_ = static_cast<std::size_t>(common.lnz);
   }
   description_ = "schur complement of " + std::to_string(np) + " eliminated variables, " +
                  "cholmod supernodal on the reduced system (" + std::to_string(ns_) + " x " +
@@ -481,8 +438,7 @@ void SchurSystem::plan_chunks(const Problem& problem) {
                  entry.block->reduced_dim() == entry.block->tangent_dim();
   }
   for (std::size_t k = 0; k < num_chunks; ++k) {
-    const std::size_t p0 = k * chunk_points_;
-    const std::size_t p1 = std::min(np, p0 + chunk_points_);
+    const auto [p0, p1] = chunk_range(k);
     for (std::size_t e = pt_edge_begin_[p0]; e < pt_edge_begin_[p1]; ++e) {
       const auto c = at(edge_cam_[e]);
       if (seen_in_chunk[c] != static_cast<int>(k)) {
@@ -611,8 +567,7 @@ CARAT_MULTIVERSION void scatter_rows_6_3(const double* J, const double* r, int n
 template <int DC, int DP, typename HOf, typename BOf>
 void SchurSystem::scatter_chunk_sized(std::size_t k, double* gradient, const HOf& h_of,
                                       const BOf& b_of, bool use_direct) {
-  const std::size_t p0 = k * chunk_points_;
-  const std::size_t p1 = std::min(pt_dim_.size(), p0 + chunk_points_);
+  const auto [p0, p1] = chunk_range(k);
   if (fused_) {
     for (std::size_t e = pt_edge_begin_[p0]; e < pt_edge_begin_[p1]; ++e) {
       const int dc = cam_dim_[at(edge_cam_[e])];
@@ -745,7 +700,7 @@ void SchurSystem::assemble(const BlockLinearizations& blocks, Eigen::VectorXd* g
   const auto b_of = [&](std::size_t q) {
     return blocks.b.data() + blocks.b_offset[static_cast<std::size_t>(pt_contribs_[q].first)];
   };
-  const std::size_t num_chunks = (pt_dim_.size() + chunk_points_ - 1) / chunk_points_;
+  const std::size_t num_chunks = num_point_chunks();
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, num_chunks, 1),
                     [&](const tbb::blocked_range<std::size_t>& range) {
                       for (std::size_t k = range.begin(); k != range.end(); ++k) {
@@ -767,7 +722,7 @@ bool SchurSystem::linearize(const BlockEvaluator& evaluator, int which, Eigen::V
   double* g = gradient->data();
   const std::size_t num_blocks = storage_.dim.size();
   std::atomic<std::size_t> first_bad{num_blocks};
-  const std::size_t num_chunks = (pt_dim_.size() + chunk_points_ - 1) / chunk_points_;
+  const std::size_t num_chunks = num_point_chunks();
   chunk_cost_.assign(num_chunks, 0.0);
   std::vector<double> evaluate_cpu(num_chunks, 0.0), scatter_cpu(num_chunks, 0.0);
   struct ChunkScratch {
@@ -785,8 +740,7 @@ bool SchurSystem::linearize(const BlockEvaluator& evaluator, int which, Eigen::V
         local.b.resize(chunk_b_size_);
         for (std::size_t k = range.begin(); k != range.end(); ++k) {
           Stopwatch t0;
-          const std::size_t p0 = k * chunk_points_;
-          const std::size_t p1 = std::min(pt_dim_.size(), p0 + chunk_points_);
+          const auto [p0, p1] = chunk_range(k);
           double sum = 0.0;
           for (std::size_t q = pt_contrib_begin_[p0]; q < pt_contrib_begin_[p1]; ++q) {
             const auto block = static_cast<std::size_t>(pt_contribs_[q].first);
@@ -1041,8 +995,7 @@ void SchurSystem::form_reduced_system(const Eigen::VectorXd& damping) {
         local.row_offset.resize(kGroupCameras * nc);
         local.y.resize(max_point_y_);
         for (std::size_t group = range.begin(); group != range.end(); ++group) {
-          const std::size_t j0 = group * kGroupCameras;
-          const std::size_t j1 = std::min(nc, j0 + kGroupCameras);
+          const auto [j0, j1] = group_range(group);
           // The group's blocks, stacked, start as A (+ damping on the diagonal blocks).
           std::size_t offset = 0;
           for (std::size_t j = j0; j < j1; ++j) {
@@ -1126,13 +1079,7 @@ bool SchurSystem::factorize(const Eigen::VectorXd& damping) {
   elimination_s_ += t0.elapsed_s();
   if (!ok) return false;
   if (ns_ == 0) return true;
-  Impl& im = *impl_;
-  // As in SparseSystem::factorize: CHOLMOD's OpenMP regions run single-threaded.
-  const int saved_levels = omp_get_max_active_levels();
-  omp_set_max_active_levels(0);
-  const int factorized = cholmod_l_factorize(&im.A_storage, im.L, &im.common);
-  omp_set_max_active_levels(saved_levels);
-  return factorized && im.common.status == CHOLMOD_OK && im.L->minor == at(ns_);
+  return cholmod_->factorize();
 }
 
 /// u = V^-1 rhs_point = L^-T L^-1 rhs_point per point (kept in z_), then reduced =
@@ -1152,14 +1099,12 @@ void SchurSystem::reduce_rhs(const Eigen::VectorXd& rhs, double* reduced) {
                     });
   // Per group of cameras (as in form_reduced_system()): each point's edges read in sequence,
   // each camera's sum in point order.
-  const std::size_t nc = cam_dim_.size();
   const std::size_t num_groups = group_points_begin_.size() - 1;
   tbb::parallel_for(
       tbb::blocked_range<std::size_t>(0, num_groups, 1),
       [&](const tbb::blocked_range<std::size_t>& range) {
         for (std::size_t group = range.begin(); group != range.end(); ++group) {
-          const std::size_t j0 = group * kGroupCameras;
-          const std::size_t j1 = std::min(nc, j0 + kGroupCameras);
+          const auto [j0, j1] = group_range(group);
           for (std::size_t c = j0; c < j1; ++c) {
             const int dc = cam_dim_[c];
             MapVector<DC>(reduced + cam_offset_[c], dc) = rhs.segment(cam_offset_[c], dc);
@@ -1210,7 +1155,6 @@ void SchurSystem::back_substitute(const Eigen::VectorXd& rhs, const double* x_ca
 
 void SchurSystem::solve(const Eigen::VectorXd& rhs, Eigen::VectorXd* x) {
   Stopwatch t0;
-  Impl& im = *impl_;
   Eigen::VectorXd reduced(ns_);
   switch (kernel_) {
     case 1:
@@ -1226,13 +1170,9 @@ void SchurSystem::solve(const Eigen::VectorXd& rhs, Eigen::VectorXd* x) {
   elimination_s_ += t0.elapsed_s();
   const double* x_cameras = reduced.data();
   if (ns_ > 0) {
-    std::copy_n(reduced.data(), ns_, static_cast<double*>(im.B->x));
-    if (!cholmod_l_solve2(CHOLMOD_A, im.L, im.B, nullptr, &im.X, nullptr, &im.Y, &im.E,
-                          &im.common)) {
-      throw Error("Schur complement: CHOLMOD solve failed (status " +
-                  std::to_string(im.common.status) + ")");
-    }
-    x_cameras = static_cast<const double*>(im.X->x);
+    x_cameras_.resize(at(ns_));
+    cholmod_->solve(reduced.data(), x_cameras_.data(), "Schur complement");
+    x_cameras = x_cameras_.data();
   }
   t0.restart();
   x->resize(n_);

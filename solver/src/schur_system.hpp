@@ -9,14 +9,17 @@
 // bit-identical for any number of threads.
 
 #include <Eigen/Core>
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "carat/solver/problem.hpp"
 #include "carat/solver/solver_options.hpp"
+#include "cholmod_session.hpp"
 #include "huge_pages.hpp"
 #include "linear_system.hpp"
 
@@ -74,13 +77,23 @@ class SchurSystem final : public LinearSystem {
                            bool use_direct);
   void gather_cameras(const BlockLinearizations& blocks, double* gradient);
   int block_dim(std::int32_t block) const { return block_dims_[static_cast<std::size_t>(block)]; }
+  std::size_t num_point_chunks() const {
+    return (pt_dim_.size() + chunk_points_ - 1) / chunk_points_;
+  }
+  /// Points [first, end) of chunk k.
+  std::pair<std::size_t, std::size_t> chunk_range(std::size_t k) const {
+    return {k * chunk_points_, std::min(pt_dim_.size(), (k + 1) * chunk_points_)};
+  }
+  /// Cameras [first, end) of group g (form_reduced_system(), reduce_rhs()).
+  std::pair<std::size_t, std::size_t> group_range(std::size_t g) const {
+    return {g * kGroupCameras, std::min(cam_dim_.size(), (g + 1) * kGroupCameras)};
+  }
 
   std::size_t chunk_points_ = 1024;                // points per chunk (see plan_chunks())
   static constexpr int kDirectRows = 4;            // most rows of a direct block
   static constexpr std::size_t kGroupCameras = 8;  // cameras per task forming S
   static constexpr std::size_t kNoEdge = ~std::size_t{0};
 
-  struct Impl;
   int ns_ = 0;
   bool fused_ = true;
   std::vector<int> block_dims_;  // D per residual block      // reduced size
@@ -155,7 +168,8 @@ class SchurSystem final : public LinearSystem {
   // Reduced system: lower-triangular CSC in camera order (CHOLMOD orders it).
   std::vector<std::int64_t> colptr_, rows_;
   std::vector<double> values_;
-  std::unique_ptr<Impl> impl_;
+  std::unique_ptr<CholmodSession> cholmod_;  // S is a header over colptr_, rows_, values_
+  std::vector<double> x_cameras_;            // the reduced solve's solution
 };
 
 }  // namespace carat::internal

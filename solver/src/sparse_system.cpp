@@ -1,7 +1,6 @@
 #include "sparse_system.hpp"
 
 #include <cholmod.h>
-#include <omp.h>
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
@@ -14,33 +13,10 @@
 
 namespace carat::internal {
 
-struct SparseSystem::Impl {
-  cholmod_common common{};
-  cholmod_sparse A_storage{};  ///< header over the system's own arrays (never freed here)
-  cholmod_sparse* A = nullptr;
-  std::vector<double> saved_diagonal;  ///< undamped diagonal during a factorization
-  cholmod_factor* L = nullptr;
-  cholmod_dense* B = nullptr;
-  cholmod_dense* X = nullptr;
-  cholmod_dense* Y = nullptr;
-  cholmod_dense* E = nullptr;
-  bool started = false;
-
-  ~Impl() {
-    if (!started) return;
-    cholmod_l_free_dense(&B, &common);
-    cholmod_l_free_dense(&X, &common);
-    cholmod_l_free_dense(&Y, &common);
-    cholmod_l_free_dense(&E, &common);
-    cholmod_l_free_factor(&L, &common);
-    cholmod_l_finish(&common);
-  }
-};
-
 SparseSystem::~SparseSystem() = default;
 
 SparseSystem::SparseSystem(const Problem& problem, Ordering ordering)
-    : impl_(std::make_unique<Impl>()) {
+    : cholmod_(std::make_unique<CholmodSession>()) {
   const int num_vars = problem.num_variables();
   var_offset_.assign(static_cast<std::size_t>(num_vars), -1);
   var_dim_.assign(static_cast<std::size_t>(num_vars), 0);
@@ -69,11 +45,7 @@ SparseSystem::SparseSystem(const Problem& problem, Ordering ordering)
     block_free_begin.push_back(block_free.size());
   }
 
-  Impl& im = *impl_;
-  cholmod_l_start(&im.common);
-  im.started = true;
-  im.common.print = 0;  // library code never prints
-  im.common.error_handler = nullptr;
+  cholmod_common& common = cholmod_->common();
 
   // 1. Fill-reducing, postordered ordering of the variable-level graph.
   std::vector<int> position(nb);
@@ -96,8 +68,7 @@ SparseSystem::SparseSystem(const Problem& problem, Ordering ordering)
       list.erase(std::unique(list.begin(), list.end()), list.end());
       nnz += list.size();
     }
-    cholmod_sparse* G =
-        cholmod_l_allocate_sparse(nb, nb, nnz, 1, 1, 0, CHOLMOD_PATTERN, &im.common);
+    cholmod_sparse* G = cholmod_l_allocate_sparse(nb, nb, nnz, 1, 1, 0, CHOLMOD_PATTERN, &common);
     if (!G)
       throw Error("sparse system: out of memory while ordering " + std::to_string(nb) +
                   " variables");
@@ -110,34 +81,34 @@ SparseSystem::SparseSystem(const Problem& problem, Ordering ordering)
     }
     adjacency.clear();
     G->stype = 1;  // symmetric, both triangles stored: CHOLMOD uses the upper part
-    im.common.supernodal = CHOLMOD_SIMPLICIAL;
-    im.common.postorder = 1;
+    common.supernodal = CHOLMOD_SIMPLICIAL;
+    common.postorder = 1;
     if (ordering == Ordering::kAmd) {
-      im.common.nmethods = 1;
-      im.common.method[0].ordering = CHOLMOD_AMD;
+      common.nmethods = 1;
+      common.method[0].ordering = CHOLMOD_AMD;
     } else if (ordering == Ordering::kMetis) {
-      im.common.nmethods = 1;
-      im.common.method[0].ordering = CHOLMOD_METIS;
+      common.nmethods = 1;
+      common.method[0].ordering = CHOLMOD_METIS;
     } else {
-      im.common.nmethods = 3;  // all three; the one whose factor needs fewer flops wins
-      im.common.method[0].ordering = CHOLMOD_AMD;
-      im.common.method[1].ordering = CHOLMOD_METIS;
-      im.common.method[2].ordering = CHOLMOD_NESDIS;
+      common.nmethods = 3;  // all three; the one whose factor needs fewer flops wins
+      common.method[0].ordering = CHOLMOD_AMD;
+      common.method[1].ordering = CHOLMOD_METIS;
+      common.method[2].ordering = CHOLMOD_NESDIS;
     }
-    cholmod_factor* LG = cholmod_l_analyze(G, &im.common);
-    cholmod_l_free_sparse(&G, &im.common);
+    cholmod_factor* LG = cholmod_l_analyze(G, &common);
+    cholmod_l_free_sparse(&G, &common);
     if (!LG)
       throw Error("sparse system: ordering failed (CHOLMOD status " +
-                  std::to_string(im.common.status) + ")");
+                  std::to_string(common.status) + ")");
     const auto* perm = static_cast<const SuiteSparse_long*>(LG->Perm);
     for (std::size_t k = 0; k < nb; ++k)
       position[static_cast<std::size_t>(perm[k])] = static_cast<int>(k);
-    const int selected = im.common.method[im.common.selected].ordering;
+    const int selected = common.method[common.selected].ordering;
     ordering_name_ = selected == CHOLMOD_METIS    ? "METIS"
                      : selected == CHOLMOD_NESDIS ? "NESDIS"
                      : selected == CHOLMOD_AMD    ? "AMD"
                                                   : "natural";
-    cholmod_l_free_factor(&LG, &im.common);
+    cholmod_l_free_factor(&LG, &common);
   } else {
     ordering_name_ = "natural";
   }
@@ -251,49 +222,31 @@ SparseSystem::SparseSystem(const Problem& problem, Ordering ordering)
   // A is a header over this object's own arrays (CHOLMOD only reads them): no copy, and the
   // values it factorizes are the assembled ones (factorize() adds the damping to the diagonal
   // in place and restores it).
-  im.A_storage.nrow = static_cast<std::size_t>(n_);
-  im.A_storage.ncol = static_cast<std::size_t>(n_);
-  im.A_storage.nzmax = rows_.size();
-  im.A_storage.p = colptr_.data();
-  im.A_storage.i = rows_.data();
-  im.A_storage.nz = nullptr;
-  im.A_storage.x = values_.data();
-  im.A_storage.z = nullptr;
-  im.A_storage.stype = -1;  // lower triangle
-  im.A_storage.itype = CHOLMOD_LONG;
-  im.A_storage.xtype = CHOLMOD_REAL;
-  im.A_storage.dtype = CHOLMOD_DOUBLE;
-  im.A_storage.sorted = 1;
-  im.A_storage.packed = 1;
-  im.A = &im.A_storage;
-  im.common.supernodal = CHOLMOD_SUPERNODAL;
-  im.common.nmethods = 1;
-  im.common.method[0].ordering = CHOLMOD_NATURAL;
-  im.common.postorder = 0;  // already postordered at the variable level
+  cholmod_->set_lower_matrix(static_cast<std::size_t>(n_), colptr_.data(), rows_.data(),
+                             values_.data(), rows_.size());
+  common.supernodal = CHOLMOD_SUPERNODAL;
+  common.nmethods = 1;
+  common.method[0].ordering = CHOLMOD_NATURAL;
+  common.postorder = 0;  // already postordered at the variable level
   // Larger relaxed supernodes: fewer, bigger BLAS calls for 6x6-block matrices.
-  im.common.nrelax[0] = 16;
-  im.common.nrelax[1] = 48;
-  im.common.nrelax[2] = 96;
-  im.common.zrelax[0] = 0.8;
-  im.common.zrelax[1] = 0.2;
-  im.common.zrelax[2] = 0.1;
-  im.L = cholmod_l_analyze(im.A, &im.common);
-  if (!im.L)
-    throw Error("sparse system: CHOLMOD symbolic analysis failed (status " +
-                std::to_string(im.common.status) + ")");
+  common.nrelax[0] = 16;
+  common.nrelax[1] = 48;
+  common.nrelax[2] = 96;
+  common.zrelax[0] = 0.8;
+  common.zrelax[1] = 0.2;
+  common.zrelax[2] = 0.1;
+  cholmod_->analyze("sparse system");
   // The factor's numeric storage now rather than in the first factorization, so that it can be
   // advised onto huge pages before CHOLMOD first writes it (see huge_pages.hpp).
   if (!cholmod_l_change_factor(CHOLMOD_REAL, /*to_ll=*/1, /*to_super=*/1, /*to_packed=*/1,
-                               /*to_monotonic=*/1, im.L, &im.common)) {
+                               /*to_monotonic=*/1, cholmod_->factor(), &common)) {
     throw Error("sparse system: CHOLMOD could not allocate the factor (status " +
-                std::to_string(im.common.status) + "; out of memory?)");
+                std::to_string(common.status) + "; out of memory?)");
   }
-  advise_huge_pages(im.L->x, im.L->xsize * sizeof(double));
-  factor_nnz_ = static_cast<std::size_t>(im.common.lnz);
-  factor_flops_ = im.common.fl;
+  advise_huge_pages(cholmod_->factor()->x, cholmod_->factor()->xsize * sizeof(double));
+  factor_nnz_ = static_cast<std::size_t>(common.lnz);
+  factor_flops_ = common.fl;
   description_ = "cholmod supernodal, " + ordering_name_ + " ordering on the variable graph";
-  im.B = cholmod_l_zeros(static_cast<std::size_t>(n_), 1, CHOLMOD_REAL, &im.common);
-  if (!im.B) throw Error("sparse system: CHOLMOD could not allocate the right-hand side");
 }
 
 void SparseSystem::assemble(const BlockLinearizations& blocks, Eigen::VectorXd* gradient) {
@@ -365,36 +318,27 @@ Eigen::VectorXd SparseSystem::diagonal() const {
 }
 
 bool SparseSystem::factorize(const Eigen::VectorXd& damping) {
-  Impl& im = *impl_;
   // Damping added to the assembled diagonal in place; the undamped values go back however this
   // function is left.
-  im.saved_diagonal.resize(static_cast<std::size_t>(n_));
+  saved_diagonal_.resize(static_cast<std::size_t>(n_));
   struct RestoreDiagonal {
     SparseSystem& system;
     ~RestoreDiagonal() {
       for (int k = 0; k < system.n_; ++k) {
         system.values_[static_cast<std::size_t>(system.diag_pos_[static_cast<std::size_t>(k)])] =
-            system.impl_->saved_diagonal[static_cast<std::size_t>(k)];
+            system.saved_diagonal_[static_cast<std::size_t>(k)];
       }
     }
   };
   for (int k = 0; k < n_; ++k) {
     double& d = values_[static_cast<std::size_t>(diag_pos_[static_cast<std::size_t>(k)])];
-    im.saved_diagonal[static_cast<std::size_t>(k)] = d;
+    saved_diagonal_[static_cast<std::size_t>(k)] = d;
   }
   const RestoreDiagonal restore{*this};
   for (int k = 0; k < n_; ++k) {
     values_[static_cast<std::size_t>(diag_pos_[static_cast<std::size_t>(k)])] += damping[k];
   }
-  // Debian's CHOLMOD runs some loops of its supernodal factorization under OpenMP with a fixed
-  // team size; on small machines that oversubscribes the cores and costs more in thread wake-ups
-  // than it gains (measured: torus3D 1.6 s vs 1.0 s of factorization). Run those regions
-  // inactive (single-threaded) for this call only.
-  const int saved_levels = omp_get_max_active_levels();
-  omp_set_max_active_levels(0);
-  const int ok = cholmod_l_factorize(im.A, im.L, &im.common);
-  omp_set_max_active_levels(saved_levels);
-  return ok && im.common.status == CHOLMOD_OK && im.L->minor == static_cast<std::size_t>(n_);
+  return cholmod_->factorize();
 }
 
 void SparseSystem::multiply(const Eigen::VectorXd& x, Eigen::VectorXd* y) const {
@@ -421,14 +365,8 @@ void SparseSystem::multiply(const Eigen::VectorXd& x, Eigen::VectorXd* y) const 
 }
 
 void SparseSystem::solve(const Eigen::VectorXd& rhs, Eigen::VectorXd* x) {
-  Impl& im = *impl_;
-  std::copy(rhs.data(), rhs.data() + n_, static_cast<double*>(im.B->x));
-  if (!cholmod_l_solve2(CHOLMOD_A, im.L, im.B, nullptr, &im.X, nullptr, &im.Y, &im.E, &im.common)) {
-    throw Error("sparse system: CHOLMOD solve failed (status " + std::to_string(im.common.status) +
-                ")");
-  }
   x->resize(n_);
-  std::copy_n(static_cast<const double*>(im.X->x), n_, x->data());
+  cholmod_->solve(rhs.data(), x->data(), "sparse system");
 }
 
 }  // namespace carat::internal

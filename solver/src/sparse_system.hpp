@@ -16,6 +16,7 @@
 
 #include "carat/solver/problem.hpp"
 #include "carat/solver/solver_options.hpp"
+#include "cholmod_session.hpp"
 #include "huge_pages.hpp"
 #include "linear_system.hpp"
 
@@ -50,7 +51,6 @@ class SparseSystem final : public LinearSystem {
   void solve(const Eigen::VectorXd& rhs, Eigen::VectorXd* x) override;
 
  private:
-  struct Impl;
   std::size_t factor_nnz_ = 0;
   double factor_flops_ = 0.0;
   std::string ordering_name_;
@@ -81,7 +81,8 @@ class SparseSystem final : public LinearSystem {
   // Gradient gather: per free variable, (block, local offset).
   std::vector<std::size_t> grad_begin_;
   std::vector<std::pair<std::int32_t, std::int16_t>> grad_sources_;
-  std::unique_ptr<Impl> impl_;
+  std::unique_ptr<CholmodSession> cholmod_;  // the matrix is a header over colptr_, rows_, values_
+  std::vector<double> saved_diagonal_;       // undamped diagonal during a factorization
 };
 
 }  // namespace carat::internal
