@@ -11,7 +11,8 @@
 // upper-triangular U with U^T U = information (autodiff), the same solver settings. carat solves
 // its RelativePoseSE2Block (whitened Log(Z^-1 T_a^-1 T_b)), which agrees with Ceres's residual
 // to first order but is not the same function, so each solution is also evaluated under the
-// other's cost ("cost_of_solution_under_*").
+// other's cost ("cost_of_solution_under_*"), and Ceres solves carat's residual too
+// ("ceres_same_cost": the identical cost function, the same settings).
 //
 // Usage: ceres_compare [--repeat N] [FILE.g2o...]  (one JSON object per file and repeat)
 #include <ceres/autodiff_manifold.h>
@@ -23,6 +24,7 @@
 #include <filesystem>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <type_traits>
 #include <variant>
 #include <vector>
 
@@ -166,6 +168,46 @@ struct PoseGraph2dError {
   Eigen::Matrix3d sqrt_information_;
 };
 
+/// carat's RelativePoseSE2Block written for Ceres: whitened Log(Z_ab^-1 T_a^-1 T_b) in the order
+/// (x, y, theta), with the SE(2) logarithm's V^-1 on the translation, so that Ceres minimizes the
+/// identical cost function.
+struct SameAsCaratSE2Error {
+  SameAsCaratSE2Error(const Eigen::Vector2d& p_ab, double yaw_ab,
+                      const Eigen::Matrix3d& sqrt_information)
+      : p_ab_(p_ab), yaw_ab_(yaw_ab), sqrt_information_(sqrt_information) {}
+
+  template <typename T>
+  bool operator()(const T* x_a, const T* y_a, const T* yaw_a, const T* x_b, const T* y_b,
+                  const T* yaw_b, T* residuals) const {
+    const T ca = ceres::cos(*yaw_a), sa = ceres::sin(*yaw_a);
+    const T dx = ca * (*x_b - *x_a) + sa * (*y_b - *y_a);  // T_a^-1 T_b
+    const T dy = -sa * (*x_b - *x_a) + ca * (*y_b - *y_a);
+    const double cz = std::cos(yaw_ab_), sz = std::sin(yaw_ab_);
+    const T ex = cz * (dx - p_ab_.x()) + sz * (dy - p_ab_.y());  // Z_ab^-1 T_a^-1 T_b
+    const T ey = -sz * (dx - p_ab_.x()) + cz * (dy - p_ab_.y());
+    const T w = normalize_angle((*yaw_b - *yaw_a) - T(yaw_ab_));
+    T a, b;  // V(w) = [a -b; b a]: a = sin(w) / w, b = (1 - cos(w)) / w
+    if (ceres::abs(w) < T(1e-6)) {
+      a = T(1.0) - w * w / T(6.0);
+      b = w / T(2.0) - w * w * w / T(24.0);
+    } else {
+      a = ceres::sin(w) / w;
+      b = (T(1.0) - ceres::cos(w)) / w;
+    }
+    const T n = a * a + b * b;
+    Eigen::Map<Eigen::Matrix<T, 3, 1>> r(residuals);
+    r(0) = (a * ex + b * ey) / n;
+    r(1) = (-b * ex + a * ey) / n;
+    r(2) = w;
+    r.applyOnTheLeft(sqrt_information_.template cast<T>());
+    return true;
+  }
+
+  Eigen::Vector2d p_ab_;
+  double yaw_ab_;
+  Eigen::Matrix3d sqrt_information_;
+};
+
 /// 1/2 sum |r|^2 of Ceres's planar residuals at the given poses (x, y, yaw per vertex).
 double ceres_cost_se2(const carat::PoseGraphSE2& graph,
                       const std::vector<std::array<double, 3>>& poses) {
@@ -190,7 +232,7 @@ double carat_cost_se2(carat::PoseGraphSE2 graph, const std::vector<std::array<do
   return carat::build_pose_graph_problem(graph).problem.evaluate_cost();
 }
 
-nlohmann::json run_ceres(const carat::PoseGraphSE2& graph) {
+nlohmann::json run_ceres(const carat::PoseGraphSE2& graph, bool same_cost_as_carat) {
   std::vector<std::array<double, 3>> poses(graph.vertices.size());
   for (std::size_t i = 0; i < graph.vertices.size(); ++i) {
     carat::se2::to_storage(graph.vertices[i].T_world_vertex, poses[i].data());
@@ -201,9 +243,16 @@ nlohmann::json run_ceres(const carat::PoseGraphSE2& graph) {
     auto& a = poses[static_cast<std::size_t>(graph.index_of(edge.from))];
     auto& b = poses[static_cast<std::size_t>(graph.index_of(edge.to))];
     const Eigen::Matrix3d sqrt_info = edge.information.llt().matrixU();
-    auto* cost =
-        new ceres::AutoDiffCostFunction<PoseGraph2dError, 3, 1, 1, 1, 1, 1, 1>(new PoseGraph2dError(
-            edge.T_from_to.translation(), carat::se2::angle(edge.T_from_to), sqrt_info));
+    ceres::CostFunction* cost = nullptr;
+    if (same_cost_as_carat) {
+      cost = new ceres::AutoDiffCostFunction<SameAsCaratSE2Error, 3, 1, 1, 1, 1, 1, 1>(
+          new SameAsCaratSE2Error(edge.T_from_to.translation(), carat::se2::angle(edge.T_from_to),
+                                  sqrt_info));
+    } else {
+      cost = new ceres::AutoDiffCostFunction<PoseGraph2dError, 3, 1, 1, 1, 1, 1, 1>(
+          new PoseGraph2dError(edge.T_from_to.translation(), carat::se2::angle(edge.T_from_to),
+                               sqrt_info));
+    }
     problem.AddResidualBlock(cost, nullptr, &a[0], &a[1], &a[2], &b[0], &b[1], &b[2]);
   }
   for (auto& pose : poses) {
@@ -294,7 +343,14 @@ int main(int argc, char** argv) {
   if (!solver.empty()) {  // child: solve one file with one solver, print one JSON line
     const carat::G2oGraph any = carat::read_g2o_any(files.front());
     const nlohmann::json j = std::visit(
-        [&](const auto& graph) { return solver == "carat" ? run_carat(graph) : run_ceres(graph); },
+        [&](const auto& graph) -> nlohmann::json {
+          if (solver == "carat") return run_carat(graph);
+          if constexpr (std::is_same_v<std::decay_t<decltype(graph)>, carat::PoseGraphSE2>) {
+            return run_ceres(graph, solver == "ceres-same-cost");
+          } else {
+            return run_ceres(graph);  // the 3D residual is already carat's
+          }
+        },
         any);
     std::printf("%s\n", j.dump().c_str());
     return 0;
@@ -333,6 +389,17 @@ int main(int argc, char** argv) {
       j["time_ratio_carat_over_ceres"] = carat_time / j["ceres"]["time_s"].get<double>();
       j["time_ratio_carat_over_ceres_system_blas"] =
           carat_time / j["ceres_system_blas"]["time_s"].get<double>();
+      if (j["dimension"] == 2) {  // Ceres on carat's own residual: the same cost function
+        j["ceres_same_cost"] = run_child(self, "ceres-same-cost", file, "");
+        if (j["ceres_same_cost"].contains("error")) {
+          std::printf("%s\n", j.dump().c_str());
+          return 1;
+        }
+        j["cost_ratio_carat_over_ceres_same_cost"] =
+            carat_cost / j["ceres_same_cost"]["final_cost"].get<double>();
+        j["time_ratio_carat_over_ceres_same_cost"] =
+            carat_time / j["ceres_same_cost"]["time_s"].get<double>();
+      }
       std::printf("%s\n", j.dump().c_str());
       std::fflush(stdout);
     }
