@@ -49,44 +49,4 @@ struct HugePageAllocator {
 template <class T>
 using HugeVector = std::vector<T, HugePageAllocator<T>>;
 
-/// A fixed-size array of trivial T from allocate_huge(), left uninitialized: its pages are first
-/// touched by whoever writes them first (no zero-filling pass over a buffer that is written
-/// before it is read).
-template <class T>
-class HugeArray {
- public:
-  HugeArray() = default;
-  /// n uninitialized elements.
-  explicit HugeArray(std::size_t n) : data_(n ? new T[n] : nullptr), size_(n) {}
-  ~HugeArray() { delete[] data_; }
-  HugeArray(const HugeArray&) = delete;
-  HugeArray& operator=(const HugeArray&) = delete;
-  /// Takes other's storage.
-  HugeArray(HugeArray&& other) noexcept : data_(other.data_), size_(other.size_) {
-    other.data_ = nullptr;
-    other.size_ = 0;
-  }
-  /// Takes other's storage, releasing its own.
-  HugeArray& operator=(HugeArray&& other) noexcept {
-    if (this != &other) {
-      delete[] data_;
-      data_ = other.data_;
-      size_ = other.size_;
-      other.data_ = nullptr;
-      other.size_ = 0;
-    }
-    return *this;
-  }
-  /// The elements.
-  T* data() { return data_; }
-  /// The elements (read-only).
-  const T* data() const { return data_; }
-  /// Number of elements.
-  std::size_t size() const { return size_; }
-
- private:
-  T* data_ = nullptr;
-  std::size_t size_ = 0;
-};
-
 }  // namespace carat::internal

@@ -18,8 +18,6 @@
 namespace carat::internal {
 namespace {
 
-using Index = std::size_t;
-
 template <int R, int C>
 using MapMatrix = Eigen::Map<Eigen::Matrix<double, R, C>>;
 template <int R, int C>
@@ -362,14 +360,11 @@ SchurSystem::SchurSystem(const Problem& problem, const std::vector<char>& elimin
   values_.assign(rows_.size(), 0.0);
   // The assembled values are zeroed here, as SparseSystem zeroes its matrix: their pages are
   // first touched while the system is set up, not in the first assembly.
-  a_ = HugeArray<double>(a_size);
-  w_ = HugeArray<double>(w_size);
-  v_ = HugeArray<double>(v_size);
-  std::fill_n(a_.data(), a_size, 0.0);
-  std::fill_n(w_.data(), w_size, 0.0);
-  std::fill_n(v_.data(), v_size, 0.0);
-  l_inverse_ = HugeArray<double>(v_size);
-  z_ = HugeArray<double>(at(n_ - ns_));
+  a_.assign(a_size, 0.0);
+  w_.assign(w_size, 0.0);
+  v_.assign(v_size, 0.0);
+  l_inverse_.assign(v_size, 0.0);
+  z_.assign(at(n_ - ns_), 0.0);
 
   cholmod_common& common = cholmod_->common();
   std::string ordering_name = "none";
@@ -465,8 +460,7 @@ void SchurSystem::plan_chunks(const Problem& problem) {
     chunk_h_size_ = std::max(chunk_h_size_, h);
     chunk_b_size_ = std::max(chunk_b_size_, b);
   }
-  slots_ = HugeArray<double>(slot_size);
-  std::fill_n(slots_.data(), slot_size, 0.0);
+  slots_.assign(slot_size, 0.0);
   cam_slot_begin_.assign(nc + 1, 0);
   cam_slots_.clear();
   for (std::size_t c = 0; c < nc; ++c) {

@@ -20,7 +20,6 @@
 #include "carat/solver/problem.hpp"
 #include "carat/solver/solver_options.hpp"
 #include "cholmod_session.hpp"
-#include "huge_pages.hpp"
 #include "linear_system.hpp"
 
 namespace carat::internal {
@@ -55,8 +54,6 @@ class SchurSystem final : public LinearSystem {
   int reduced_size() const { return ns_; }
   /// Number of eliminated variables.
   int num_eliminated() const { return static_cast<int>(pt_dim_.size()); }
-  /// Whether linearize() evaluates and scatters in one pass (see above).
-  bool fused() const { return fused_; }
 
  private:
   template <int DC, int DP>
@@ -146,7 +143,7 @@ class SchurSystem final : public LinearSystem {
   // block with a point goes in a chunk's buffer; the blocks without a point.
   std::vector<std::size_t> edge_slot_;
   std::vector<std::size_t> cam_slot_begin_, cam_slots_;
-  HugeArray<double> slots_;
+  std::vector<double> slots_;
   std::vector<std::size_t> pt_contrib_h_local_, pt_contrib_b_local_;
   // Direct blocks (see plan_chunks()): flag, rows, camera offset in the block, edge.
   std::vector<char> direct_;
@@ -161,9 +158,7 @@ class SchurSystem final : public LinearSystem {
   // L^-1 (V + damping = L L^T; Y = W L^-T is formed where needed, not stored); z: V^-1 rhs of
   // the points in the last solve. solve() reads W, so it needs the assembly the factorization
   // was made from: this system does not reuse factorizations.
-  // a_, w_, v_ (and slots_) are zeroed by the constructor; l_inverse_ and z_ are first written by
-  // factorize() and solve().
-  HugeArray<double> a_, w_, v_, l_inverse_, z_;
+  std::vector<double> a_, w_, v_, l_inverse_, z_;
 
   // Reduced system: lower-triangular CSC in camera order (CHOLMOD orders it).
   std::vector<std::int64_t> colptr_, rows_;
