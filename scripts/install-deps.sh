@@ -8,6 +8,9 @@ packages=(
   libeigen3-dev libsuitesparse-dev libtbb-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libcli11-dev nlohmann-json3-dev libnanoflann-dev
+  # The Python module (pybind11) and its tests and example: Debian's interpreter, numpy, pytest,
+  # matplotlib.
+  python3-dev pybind11-dev python3-numpy python3-pytest python3-matplotlib
   # BLAS/LAPACK for CHOLMOD's supernodal factorization: OpenBLAS, single-threaded
   # (measured faster than ATLAS and reference BLAS on carat's pose-graph benchmark; see README).
   libopenblas0-serial

@@ -34,6 +34,23 @@ foreach(project consumer consumer_solver)
   endif()
 endforeach()
 
+# The Python package, when it is built: installed under the prefix (a relative
+# CARAT_PYTHON_INSTALL_DIR), it imports from there and computes.
+if(PYTHON)
+  if(IS_ABSOLUTE "${PYTHON_INSTALL_DIR}")
+    message(FATAL_ERROR "CARAT_PYTHON_INSTALL_DIR is outside the prefix (${PYTHON_INSTALL_DIR}): "
+                        "this test installs into a scratch prefix only")
+  endif()
+  set(site "${WORK_DIR}/prefix/${PYTHON_INSTALL_DIR}")
+  execute_process(COMMAND ${CMAKE_COMMAND} -E env PYTHONPATH=${site} ${PYTHON} -c
+                          "import carat, numpy as np; assert carat.__file__.startswith('${site}'), carat.__file__; J = np.random.default_rng(0).normal(size=(500, 6)); e = np.ones(500); i, w = carat.coreset(J, e); assert np.allclose((J[i].T * w) @ J[i], J.T @ J); print('python: ok', carat.__version__)"
+                  RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+  message("${out}${err}")
+  if(NOT rc EQUAL 0 OR NOT out MATCHES "python: ok")
+    message(FATAL_ERROR "the installed Python package did not import and compute (${rc})")
+  endif()
+endif()
+
 # An unknown component is refused by name.
 file(WRITE "${WORK_DIR}/unknown/CMakeLists.txt"
      "cmake_minimum_required(VERSION 3.25)\nproject(unknown LANGUAGES CXX)\n"

@@ -5,6 +5,7 @@
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
+#include <atomic>
 #include <cstddef>
 #include <exception>
 #include <vector>
@@ -13,15 +14,22 @@ namespace carat::internal {
 
 /// Runs body(i) for i in [0, n) in parallel; each body runs isolated (a thread waiting inside
 /// it on nested TBB work never picks up another index). If bodies throw, the exception of the
-/// lowest failing index is rethrown after the loop, whatever the scheduling was.
+/// lowest failing index is rethrown after the loop, whatever the scheduling was; once an index
+/// has failed, bodies of higher indices that have not started are skipped (every lower index
+/// still runs, so the exception is the same), which ends a failed or interrupted loop early.
 template <class Body>
 void parallel_for_each_index(std::size_t n, const Body& body) {
   std::vector<std::exception_ptr> errors(n);
+  std::atomic<std::size_t> first_failure{n};
   tbb::parallel_for(std::size_t{0}, n, [&](std::size_t i) {
+    if (i > first_failure.load(std::memory_order_relaxed)) return;
     try {
       tbb::this_task_arena::isolate([&] { body(i); });
     } catch (...) {
       errors[i] = std::current_exception();
+      std::size_t seen = first_failure.load(std::memory_order_relaxed);
+      while (i < seen && !first_failure.compare_exchange_weak(seen, i, std::memory_order_relaxed)) {
+      }
     }
   });
   for (const std::exception_ptr& error : errors)

@@ -1,0 +1,56 @@
+# Finds pybind11 and the interpreter for the Python module (python/) when CARAT_PYTHON is AUTO or
+# ON. The interpreter is Debian's /usr/bin/python3 unless Python_EXECUTABLE says otherwise: the
+# python3 first on PATH may be another installation without numpy or Python's headers.
+string(TOUPPER "${CARAT_PYTHON}" _want)
+if(_want STREQUAL "AUTO")
+  if(CARAT_SANITIZE OR CARAT_BUILD_FUZZERS)
+    set(_want OFF)
+  endif()
+elseif(CARAT_PYTHON)
+  set(_want ON)
+else()
+  set(_want OFF)
+endif()
+if(_want STREQUAL "OFF")
+  set(CARAT_PYTHON_ENABLED OFF)
+  return()
+endif()
+
+if(NOT DEFINED Python_EXECUTABLE AND EXISTS /usr/bin/python3)
+  set(Python_EXECUTABLE /usr/bin/python3 CACHE FILEPATH "Interpreter the Python module is built for")
+endif()
+set(PYBIND11_FINDPYTHON ON)
+if(_want STREQUAL "AUTO")
+  find_package(Python 3.8 COMPONENTS Interpreter Development.Module)
+  if(Python_FOUND)
+    find_package(pybind11 2.6 CONFIG QUIET)
+  endif()
+  if(NOT Python_FOUND OR NOT pybind11_FOUND)
+    message(STATUS "carat: the Python module is not built (pybind11 or Python's headers not found; "
+                   "Debian: pybind11-dev python3-dev)")
+    set(CARAT_PYTHON_ENABLED OFF)
+    return()
+  endif()
+else()
+  find_package(Python 3.8 REQUIRED COMPONENTS Interpreter Development.Module)
+  find_package(pybind11 2.6 CONFIG REQUIRED)
+endif()
+set(CARAT_PYTHON_ENABLED ON)
+
+# Where `cmake --install` puts the package: the interpreter's own platform site-packages, relative
+# to the install prefix when it lies under it (so that --prefix moves it along), else as it is.
+if(NOT DEFINED CARAT_PYTHON_INSTALL_DIR)
+  execute_process(COMMAND "${Python_EXECUTABLE}" -c "import sysconfig; print(sysconfig.get_path('platlib'))"
+                  OUTPUT_VARIABLE _platlib OUTPUT_STRIP_TRAILING_WHITESPACE RESULT_VARIABLE _rc)
+  if(NOT _rc EQUAL 0 OR _platlib STREQUAL "")
+    message(FATAL_ERROR "carat: could not ask ${Python_EXECUTABLE} for its site-packages folder")
+  endif()
+  cmake_path(IS_PREFIX CMAKE_INSTALL_PREFIX "${_platlib}" NORMALIZE _under_prefix)
+  if(_under_prefix)
+    cmake_path(RELATIVE_PATH _platlib BASE_DIRECTORY "${CMAKE_INSTALL_PREFIX}")
+  endif()
+  set(CARAT_PYTHON_INSTALL_DIR "${_platlib}" CACHE PATH
+      "Where cmake --install puts the carat Python package (relative: under the install prefix)")
+endif()
+set(CARAT_PYTHON_BUILD_DIR "${PROJECT_BINARY_DIR}/python")
+add_subdirectory(python)

@@ -1,0 +1,79 @@
+// carat.coreset: the exact quadratic coreset of least-squares rows, from numpy.
+#include <pybind11/numpy.h>
+#include <pybind11/stl.h>
+
+#include <Eigen/Core>
+#include <optional>
+#include <string>
+
+#include "arrays.hpp"
+#include "bindings.hpp"
+#include "carat/coreset/row_coreset.hpp"
+#include "interrupt.hpp"
+
+namespace carat::python {
+
+namespace {
+
+using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
+py::tuple coreset(const py::handle& J_in, const py::handle& e_in, std::optional<int> target,
+                  std::optional<int> clusters, std::uint64_t seed) {
+  const auto J = as_float64(J_in, "J");
+  const auto e = as_float64(e_in, "e");
+  if (J.ndim() != 2 || J.shape(1) < 1) {
+    throw py::value_error("J: expected an N x D array of Jacobian rows (D >= 1)");
+  }
+  const py::ssize_t n = J.shape(0);
+  const bool column = e.ndim() == 2 && e.shape(1) == 1;
+  if (!(e.ndim() == 1 || column) || e.shape(0) != n) {
+    throw py::value_error("e: expected " + std::to_string(n) +
+                          " residuals (one per row of J), got shape (" +
+                          std::to_string(e.ndim() ? e.shape(0) : 0) +
+                          (e.ndim() == 2 ? ", " + std::to_string(e.shape(1)) : "") + ")");
+  }
+  if (n == 0) throw py::value_error("J: no rows");
+  RowCoresetOptions options;
+  if (target) {
+    if (*target < 1) throw py::value_error("target: must be >= 1, got " + std::to_string(*target));
+    options.target_rows = *target;
+  }
+  if (clusters) {
+    if (*clusters < 1) {
+      throw py::value_error("clusters: must be >= 1, got " + std::to_string(*clusters));
+    }
+    options.clusters = *clusters;
+  }
+  options.seed = seed;
+  const Eigen::Map<const RowMajor> J_map(J.data(), n, J.shape(1));
+  const Eigen::Map<const Eigen::VectorXd> e_map(e.data(), n);
+  RowCoreset result =
+      run_released([&](InterruptCheck&) { return select_coreset_rows(J_map, e_map, options); });
+  py::array_t<std::int64_t> indices(static_cast<py::ssize_t>(result.rows.size()));
+  std::copy(result.rows.begin(), result.rows.end(), indices.mutable_data());
+  return py::make_tuple(indices, array_from_vector(result.weights));
+}
+
+}  // namespace
+
+void bind_coreset(py::module_& m) {
+  m.def("coreset", &coreset, py::arg("J"), py::arg("e"), py::arg("target") = py::none(),
+        py::arg("clusters") = py::none(), py::arg("seed") = 0,
+        R"(Exact quadratic coreset of least-squares rows.
+
+Selects M rows k of J (N x D) and e (N) with weights w_k > 0 such that
+sum w_k J_k^T J_k = J^T J, sum w_k J_k^T e_k = J^T e and sum w_k e_k^2 = e^T e
+to rounding (Fast-Caratheodory, time linear in N).
+
+target: M, at least D(D+1)/2 + D + 2 (None: that minimum, 29 for D = 6).
+clusters: clusters per level (None: max(64, 2(L + 1)), L = D(D+1)/2 + D + 1).
+seed: seed of the row shuffle.
+Returns (indices, weights): ascending row indices (int64) and their weights. N <= M returns
+every row with weight 1. J and e are used in place when they are C-contiguous float64.
+Raises carat.Error for a non-finite row (naming it) or a target below the minimum.)");
+  m.def(
+      "minimum_coreset_rows", [](int columns) { return minimum_coreset_rows(columns); },
+      py::arg("columns"), "Smallest coreset target for D Jacobian columns: D(D+1)/2 + D + 2.");
+}
+
+}  // namespace carat::python

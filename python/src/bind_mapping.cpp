@@ -1,0 +1,335 @@
+// The dense global-registration pipeline from Python: frames, trajectories, the dense graph,
+// optimize (full / exact / lossless / random rows), the pose-graph baselines and the ATE.
+#include <pybind11/numpy.h>
+#include <pybind11/stl.h>
+#include <pybind11/stl/filesystem.h>
+
+#include <cmath>
+#include <filesystem>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "arrays.hpp"
+#include "bindings.hpp"
+#include "carat/registration/dense_graph.hpp"
+#include "carat/registration/frame.hpp"
+#include "carat/registration/global_registration.hpp"
+#include "carat/registration/io/scan_folder.hpp"
+#include "carat/registration/io/trajectory_io.hpp"
+#include "carat/registration/pair_registration.hpp"
+#include "carat/registration/pose_graph_baseline.hpp"
+#include "carat/registration/trajectory_error.hpp"
+#include "frame_list.hpp"
+#include "interrupt.hpp"
+#include "mapping_types.hpp"
+
+namespace carat::python {
+
+pybind11::dict summary_dict(const SolverSummary& summary) {
+  return py::module_::import("json").attr("loads")(summary.to_json());
+}
+
+namespace {
+
+PreprocessOptions preprocess_options(double voxel_size, int neighbors, int min_points,
+                                     int threads) {
+  PreprocessOptions options;
+  options.voxel_size = voxel_size;
+  options.covariance_neighbors = neighbors;
+  options.min_points = min_points;
+  options.num_threads = threads;
+  return options;
+}
+
+/// Pairs from a DenseGraph or a P x 2 array of (target, source) frame indices, target < source.
+std::vector<FramePair> pairs_argument(const py::handle& obj, std::size_t num_frames) {
+  if (py::isinstance<DenseGraph>(obj)) return obj.cast<const DenseGraph&>().pairs;
+  const auto array = as_float64(obj, "pairs");
+  if (array.ndim() != 2 || array.shape(1) != 2) {
+    throw py::value_error("pairs: expected a carat.DenseGraph or a P x 2 array of frame indices");
+  }
+  std::vector<FramePair> pairs(static_cast<std::size_t>(array.shape(0)));
+  for (std::size_t k = 0; k < pairs.size(); ++k) {
+    const double i = array.data()[2 * k];
+    const double j = array.data()[2 * k + 1];
+    const auto n = static_cast<double>(num_frames);
+    if (!(i >= 0 && i < n && j >= 0 && j < n) || i != std::floor(i) || j != std::floor(j)) {
+      throw py::value_error("pairs[" + std::to_string(k) +
+                            "]: frame indices must be integers in [0, " +
+                            std::to_string(num_frames) + ")");
+    }
+    if (!(i < j)) {
+      throw py::value_error("pairs[" + std::to_string(k) +
+                            "]: the target index must be below the source index");
+    }
+    pairs[k] = {static_cast<int>(i), static_cast<int>(j), 0.0};
+  }
+  return pairs;
+}
+
+std::vector<Eigen::Isometry3d> poses_for_frames(const py::handle& obj, std::size_t num_frames) {
+  auto poses = poses_from_array(obj, "poses");
+  if (poses.size() != num_frames) {
+    throw py::value_error("poses: " + std::to_string(poses.size()) + " poses for " +
+                          std::to_string(num_frames) + " frames");
+  }
+  return poses;
+}
+
+SolverOptions mapping_solver(int max_iterations, int threads) {
+  SolverOptions options;
+  options.max_iterations = max_iterations;
+  options.num_threads = threads;
+  return options;
+}
+
+MappingResult optimize(const py::handle& frames_in, const py::handle& graph,
+                       const py::handle& poses_in, const std::string& sampling, int residuals,
+                       double max_correspondence_distance, std::uint64_t seed, int threads,
+                       int rounds, int max_iterations, double factor_cauchy_scale,
+                       double factor_excess_cauchy_scale) {
+  const auto frames = frames_from_sequence(frames_in, "frames");
+  const auto pairs = pairs_argument(graph, frames.size());
+  const auto poses = poses_for_frames(poses_in, frames.size());
+  GlobalRegistrationOptions options;
+  options.sampling = parse_residual_sampling(sampling);
+  options.residuals = residuals;
+  options.max_correspondence_distance = max_correspondence_distance;
+  options.seed = seed;
+  options.num_threads = threads;
+  options.rounds = rounds;
+  options.factor_cauchy_scale = factor_cauchy_scale;
+  options.factor_excess_cauchy_scale = factor_excess_cauchy_scale;
+  options.solver = mapping_solver(max_iterations, threads);
+  const GlobalRegistrationResult result = run_released([&](InterruptCheck& check) {
+    return optimize_registration(frames, pairs, poses, options, check.progress());
+  });
+  MappingResult out;
+  out.poses = array_from_poses(result.T_world_frame);
+  out.summary = summary_dict(result.summary);
+  const RegistrationFactorStats& s = result.stats;
+  out.stats["factors"] = s.num_factors;
+  out.stats["correspondences"] = s.num_correspondences;
+  out.stats["rows"] = s.num_rows;
+  out.stats["correspondence_bytes"] = s.correspondence_bytes;
+  out.stats["residual_bytes"] = s.residual_bytes;
+  out.stats["correspondence_s"] = s.correspondence_s;
+  out.stats["compression_s"] = s.compression_s;
+  out.stats["minimum_s"] = s.minimum_s;
+  out.factor_costs = array_from_vector(result.factor_costs);
+  out.rounds = result.rounds;
+  return out;
+}
+
+MappingResult pose_graph(const py::handle& frames_in, const py::handle& graph,
+                         const py::handle& poses_in, const std::string& information,
+                         double cauchy_scale, double max_correspondence_distance,
+                         int max_iterations, int threads) {
+  const auto frames = frames_from_sequence(frames_in, "frames");
+  const auto pairs = pairs_argument(graph, frames.size());
+  const auto poses = poses_for_frames(poses_in, frames.size());
+  PoseGraphBaselineOptions options;
+  options.information = parse_pose_graph_information(information);
+  options.cauchy_scale = cauchy_scale;
+  options.solver = mapping_solver(max_iterations, threads);
+  AlignSettings settings;
+  settings.max_correspondence_distance = max_correspondence_distance;
+  double registration_s = 0.0;
+  const PoseGraphBaselineResult result = run_released([&](InterruptCheck& check) {
+    const auto registrations =
+        register_pairs(frames, pairs, poses, settings, threads, check.progress());
+    for (const PairRegistration& r : registrations) registration_s += r.align_s;
+    return optimize_pose_graph_baseline(poses, registrations, options);
+  });
+  MappingResult out;
+  out.poses = array_from_poses(result.T_world_frame);
+  out.summary = summary_dict(result.summary);
+  out.stats["factors"] = pairs.size();
+  out.stats["registration_s"] = registration_s;
+  out.factor_costs = py::array_t<double>(0);
+  return out;
+}
+
+py::dict ate(const py::handle& estimate_in, const py::handle& reference_in, bool align) {
+  const auto estimate = poses_from_array(estimate_in, "estimate");
+  const auto reference = poses_from_array(reference_in, "reference");
+  AteOptions options;
+  options.align = align;
+  const AteStatistics s = compute_ate(estimate, reference, options);
+  py::dict out;
+  out["rmse"] = s.rmse;
+  out["mean"] = s.mean;
+  out["median"] = s.median;
+  out["std"] = s.std;
+  out["min"] = s.min;
+  out["max"] = s.max;
+  out["rotation_rmse_deg"] = s.rotation_rmse_deg;
+  out["rotation_mean_deg"] = s.rotation_mean_deg;
+  out["rotation_max_deg"] = s.rotation_max_deg;
+  out["num_poses"] = s.num_poses;
+  out["T_reference_estimate"] = array_from_pose(s.T_reference_estimate);
+  return out;
+}
+
+}  // namespace
+
+void bind_mapping(py::module_& m) {
+  m.def(
+      "load_frames",
+      [](const std::filesystem::path& folder, double voxel_size, int neighbors, int min_points,
+         int threads, const std::string& layout) {
+        const auto scans = list_scan_folder(folder, parse_bin_layout(layout));
+        const PreprocessOptions options =
+            preprocess_options(voxel_size, neighbors, min_points, threads);
+        auto frames = run_released([&](InterruptCheck& check) {
+          return preprocess_frames(
+              scans.size(), [&](std::size_t k) { return read_scan(scans[k]); },
+              [&](std::size_t k) { return scans[k].path.string(); }, options, threads,
+              check.progress());
+        });
+        return list_from_frames(frames);
+      },
+      py::arg("folder"), py::arg("voxel_size") = 0.25, py::arg("neighbors") = 10,
+      py::arg("min_points") = 29, py::arg("threads") = 1, py::arg("layout") = "auto",
+      "Reads and preprocesses every scan of a folder (DIR/*.bin|*.pcd|*.ply or "
+      "DIR/<frame>/points.bin, natural name order) into a list of carat.Frame.");
+  m.def(
+      "preprocess_frames",
+      [](const py::handle& clouds_in, double voxel_size, int neighbors, int min_points,
+         int threads) {
+        if (!py::isinstance<py::sequence>(clouds_in)) {
+          throw py::type_error("clouds: expected a sequence of N x 3 arrays");
+        }
+        const auto sequence = py::reinterpret_borrow<py::sequence>(clouds_in);
+        std::vector<PointCloud> clouds;
+        clouds.reserve(sequence.size());
+        for (std::size_t k = 0; k < sequence.size(); ++k) {
+          clouds.push_back(cloud_from_array(sequence[k], "clouds[" + std::to_string(k) + "]"));
+        }
+        const PreprocessOptions options =
+            preprocess_options(voxel_size, neighbors, min_points, threads);
+        auto frames = run_released([&](InterruptCheck& check) {
+          return preprocess_frames(
+              clouds.size(), [&](std::size_t k) { return std::move(clouds[k]); },
+              [](std::size_t k) { return "clouds[" + std::to_string(k) + "]"; }, options, threads,
+              check.progress());
+        });
+        return list_from_frames(frames);
+      },
+      py::arg("clouds"), py::arg("voxel_size") = 0.25, py::arg("neighbors") = 10,
+      py::arg("min_points") = 29, py::arg("threads") = 1,
+      "Preprocesses a sequence of N x 3 arrays (metres, each in its own frame) in parallel into "
+      "a list of carat.Frame.");
+
+  m.def(
+      "read_trajectory",
+      [](const std::filesystem::path& path, const std::string& format) {
+        const Trajectory t = read_trajectory(path, parse_trajectory_format(format));
+        return array_from_poses(t.poses);
+      },
+      py::arg("path"), py::arg("format") = "kitti",
+      "Reads T_world_frame poses ('kitti', 'tum' or 'graph') as an N x 4 x 4 array.");
+  m.def(
+      "write_trajectory",
+      [](const std::filesystem::path& path, const py::handle& poses, const std::string& format,
+         const std::optional<std::vector<double>>& stamps) {
+        Trajectory t;
+        t.poses = poses_from_array(poses, "poses");
+        if (stamps) {
+          t.stamps = *stamps;
+        } else {
+          for (std::size_t i = 0; i < t.poses.size(); ++i)
+            t.stamps.push_back(static_cast<double>(i));
+        }
+        write_trajectory(path, t, parse_trajectory_format(format));
+      },
+      py::arg("path"), py::arg("poses"), py::arg("format") = "kitti",
+      py::arg("stamps") = py::none(),
+      "Writes N x 4 x 4 poses atomically (stamps default to 0, 1, 2, ...).");
+
+  py::class_<DenseGraph>(m, "DenseGraph",
+                         "Frame pairs with a factor: every consecutive pair and every pair "
+                         "whose scans overlap enough.")
+      .def_property_readonly(
+          "pairs",
+          [](const DenseGraph& g) {
+            py::array_t<std::int64_t> out(
+                {static_cast<py::ssize_t>(g.pairs.size()), py::ssize_t{2}});
+            for (std::size_t k = 0; k < g.pairs.size(); ++k) {
+              out.mutable_data()[2 * k] = g.pairs[k].target;
+              out.mutable_data()[2 * k + 1] = g.pairs[k].source;
+            }
+            return out;
+          },
+          "P x 2 array of (target, source) frame indices, target < source")
+      .def_property_readonly(
+          "overlaps",
+          [](const DenseGraph& g) {
+            py::array_t<double> out(static_cast<py::ssize_t>(g.pairs.size()));
+            for (std::size_t k = 0; k < g.pairs.size(); ++k)
+              out.mutable_data()[k] = g.pairs[k].overlap;
+            return out;
+          },
+          "Overlap fraction of each pair at the poses the graph was built at")
+      .def("__len__", [](const DenseGraph& g) { return g.pairs.size(); });
+
+  m.def(
+      "dense_graph",
+      [](const py::handle& frames_in, const py::handle& poses_in, double overlap_threshold,
+         double voxel_size, double max_distance, int overlap_stride, int threads) {
+        const auto frames = frames_from_sequence(frames_in, "frames");
+        const auto poses = poses_for_frames(poses_in, frames.size());
+        DenseGraphOptions options;
+        options.overlap_threshold = overlap_threshold;
+        options.voxel_size = voxel_size;
+        options.max_distance = max_distance;
+        options.overlap_stride = overlap_stride;
+        options.num_threads = threads;
+        return run_released([&](InterruptCheck& check) {
+          return DenseGraph{build_dense_graph(frames, poses, options, check.progress())};
+        });
+      },
+      py::arg("frames"), py::arg("poses"), py::arg("overlap_threshold") = 0.2,
+      py::arg("voxel_size") = 1.0, py::arg("max_distance") = 100.0, py::arg("overlap_stride") = 4,
+      py::arg("threads") = 1,
+      "The dense graph at poses (N x 4 x 4 T_world_frame): consecutive pairs and pairs whose "
+      "overlap is at least overlap_threshold.");
+
+  py::class_<MappingResult>(m, "MappingResult", "Optimized poses and the solve.")
+      .def_readonly("poses", &MappingResult::poses, "Optimized T_world_frame, N x 4 x 4")
+      .def_readonly("summary", &MappingResult::summary,
+                    "The solver summary: termination, initial_cost, final_cost, iterations, "
+                    "time_s, time_breakdown, ...")
+      .def_readonly("stats", &MappingResult::stats, "What building the problem cost")
+      .def_readonly("factor_costs", &MappingResult::factor_costs,
+                    "Per factor (global registration): squared error / correspondences")
+      .def_readonly("rounds", &MappingResult::rounds, "Correspondence rounds run");
+
+  m.def("optimize", &optimize, py::arg("frames"), py::arg("graph"), py::arg("poses"),
+        py::arg("sampling") = "exact", py::arg("residuals") = 29,
+        py::arg("max_correspondence_distance") = 1.0, py::arg("seed") = 1, py::arg("threads") = 1,
+        py::arg("rounds") = 1, py::arg("max_iterations") = 100,
+        py::arg("factor_cauchy_scale") = 0.0, py::arg("factor_excess_cauchy_scale") = 0.0,
+        R"(Global registration error minimization over the dense graph.
+
+frames: list of carat.Frame; graph: carat.DenseGraph or P x 2 frame indices; poses: the
+initial T_world_frame (N x 4 x 4; the first pose is held constant). sampling: 'full' (every
+row), 'exact' (a coreset of `residuals` rows per factor, same H, b, c at the initial poses),
+'lossless' (at most 13 rows with the same cost at every pose) or 'random'.
+Returns a carat.MappingResult.)");
+  m.def("pose_graph", &pose_graph, py::arg("frames"), py::arg("graph"), py::arg("poses"),
+        py::arg("information") = "hessian", py::arg("cauchy_scale") = 1.0,
+        py::arg("max_correspondence_distance") = 1.0, py::arg("max_iterations") = 100,
+        py::arg("threads") = 1,
+        "The pose-graph baseline: GICP for every graph pair from the initial poses, then one "
+        "relative-pose factor per pair ('hessian' or 'identity' information, Cauchy kernel). "
+        "Returns a carat.MappingResult.");
+  m.def("ate", &ate, py::arg("estimate"), py::arg("reference"), py::arg("align") = true,
+        "Absolute trajectory error of N x 4 x 4 poses against a reference (pose k with pose k): "
+        "rmse, mean, median, std, min, max (metres), rotation errors (degrees), after a rigid "
+        "Umeyama alignment unless align is False.");
+}
+
+}  // namespace carat::python

@@ -1,0 +1,124 @@
+// The synthetic world from Python: a whole mapping setup (carat.simulate) or raw scans.
+#include <pybind11/numpy.h>
+#include <pybind11/stl.h>
+
+#include <string>
+#include <vector>
+
+#include "arrays.hpp"
+#include "bindings.hpp"
+#include "carat/sim/pipeline.hpp"
+#include "carat/sim/sequence.hpp"
+#include "carat/sim/world.hpp"
+#include "frame_list.hpp"
+#include "interrupt.hpp"
+#include "mapping_types.hpp"
+
+namespace carat::python {
+
+namespace {
+
+/// What carat.simulate returns.
+struct Simulation {
+  py::array_t<double> truth;    ///< ground truth T_world_frame
+  py::array_t<double> drift;    ///< the drifting guess
+  py::array_t<double> initial;  ///< drift refined by odometry (the drift without odometry)
+  py::list frames;              ///< carat.Frame per pose
+  py::object graph;             ///< carat.DenseGraph at `initial`, or None
+  std::size_t raw_points = 0;   ///< points of all scans before downsampling
+  py::dict timings;             ///< seconds per stage
+};
+
+SyntheticWorldOptions world_options(std::uint64_t seed, int beams, int circuit_blocks) {
+  SyntheticWorldOptions world;
+  world.seed = seed;
+  world.beams = beams;
+  world.blocks_x = circuit_blocks + 1;  // a row of buildings beyond the circuit's end
+  return world;
+}
+
+SyntheticTrajectoryOptions drive_options(int frames, int laps, int circuit_blocks) {
+  SyntheticTrajectoryOptions drive;
+  drive.frames = frames;
+  drive.laps = laps;
+  drive.circuit_blocks_x = circuit_blocks;
+  return drive;
+}
+
+Simulation simulate(int frames, int laps, std::uint64_t seed, int beams, int circuit_blocks,
+                    double voxel_size, double drift_translation, double drift_rotation_deg,
+                    bool odometry, bool dense_graph, int threads) {
+  SyntheticPipelineOptions options;
+  options.world = world_options(seed, beams, circuit_blocks);
+  options.drive = drive_options(frames, laps, circuit_blocks);
+  options.preprocess.voxel_size = voxel_size;
+  options.preprocess.num_threads = threads;
+  options.drift.translation_sigma = drift_translation;
+  options.drift.rotation_sigma_deg = drift_rotation_deg;
+  options.odometry = odometry;
+  options.dense_graph = dense_graph;
+  options.threads = threads;
+  const SyntheticPipeline pipeline = run_released([&](InterruptCheck& check) {
+    return simulate_pipeline(options, [&](SyntheticPipelineStage, std::size_t done,
+                                          std::size_t total) { check.progress()(done, total); });
+  });
+  Simulation out;
+  out.truth = array_from_poses(pipeline.T_world_truth);
+  out.drift = array_from_poses(pipeline.T_world_drift);
+  out.initial = array_from_poses(pipeline.T_world_initial);
+  out.frames = list_from_frames(pipeline.frames);
+  if (dense_graph) {
+    out.graph = py::cast(DenseGraph{pipeline.pairs});
+  } else {
+    out.graph = py::none();
+  }
+  out.raw_points = pipeline.raw_points;
+  out.timings["simulate_s"] = pipeline.timings.simulate_s;
+  out.timings["preprocess_s"] = pipeline.timings.preprocess_s;
+  out.timings["initial_guess_s"] = pipeline.timings.initial_guess_s;
+  out.timings["dense_graph_s"] = pipeline.timings.dense_graph_s;
+  return out;
+}
+
+py::tuple simulate_scans(int frames, int laps, std::uint64_t seed, int beams, int circuit_blocks) {
+  const SyntheticWorldOptions options = world_options(seed, beams, circuit_blocks);
+  const SyntheticTrajectoryOptions drive = drive_options(frames, laps, circuit_blocks);
+  SyntheticSequence sequence = run_released([&](InterruptCheck&) {
+    const SyntheticWorld world(options);
+    return make_synthetic_sequence(world, drive);
+  });
+  py::list scans;
+  for (PointCloud& scan : sequence.scans) scans.append(array_from_cloud(std::move(scan)));
+  return py::make_tuple(scans, array_from_poses(sequence.T_world_frame));
+}
+
+}  // namespace
+
+void bind_sim(py::module_& m) {
+  py::class_<Simulation>(m, "Simulation", "A simulated drive, ready to map.")
+      .def_readonly("truth", &Simulation::truth, "Ground-truth T_world_frame, N x 4 x 4")
+      .def_readonly("drift", &Simulation::drift, "The drifting initial guess, N x 4 x 4")
+      .def_readonly("initial", &Simulation::initial,
+                    "The guess refined by GICP odometry (the drift when odometry is off)")
+      .def_readonly("frames", &Simulation::frames, "The preprocessed scans (carat.Frame)")
+      .def_readonly("graph", &Simulation::graph,
+                    "The dense graph at `initial` (carat.DenseGraph), or None")
+      .def_readonly("raw_points", &Simulation::raw_points,
+                    "Points of all scans before downsampling")
+      .def_readonly("timings", &Simulation::timings, "Seconds per stage");
+  m.def("simulate", &simulate, py::arg("frames") = 100, py::arg("laps") = 2, py::arg("seed") = 1,
+        py::arg("beams") = 32, py::arg("circuit_blocks") = 1, py::arg("voxel_size") = 0.5,
+        py::arg("drift_translation") = 0.02, py::arg("drift_rotation_deg") = 0.1,
+        py::arg("odometry") = true, py::arg("dense_graph") = true, py::arg("threads") = 1,
+        R"(Simulates a spinning LiDAR driving `laps` times around a synthetic city block: ground
+truth, preprocessed frames, a drifting initial guess (drift_translation metres and
+drift_rotation_deg degrees of std-dev per metre travelled), refined by GICP odometry, and the
+dense graph at it; the defaults are `carat demo`'s. Deterministic in seed.
+Returns a carat.Simulation.)");
+  m.def("simulate_scans", &simulate_scans, py::arg("frames") = 100, py::arg("laps") = 2,
+        py::arg("seed") = 1, py::arg("beams") = 32, py::arg("circuit_blocks") = 1,
+        "Raw scans of a simulated drive: (list of N x 3 float32 arrays in the sensor frame, "
+        "ground-truth T_world_frame N x 4 x 4).");
+}
+
+}  // namespace carat::python
