@@ -4,7 +4,9 @@
 
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <random>
+#include <string>
 
 #include "carat/base/error.hpp"
 #include "carat/coreset/compress.hpp"
@@ -140,6 +142,37 @@ TEST(AlignTest, MissingCovariancesAndNoOverlapAreErrors) {
   Eigen::Isometry3d far = Eigen::Isometry3d::Identity();
   far.translation() = Eigen::Vector3d(1000, 0, 0);
   EXPECT_THROW(align(target.cloud, *target.tree, target.cloud, far), Error);
+}
+
+TEST(AlignTest, SettingsOutOfRangeAreNamed) {
+  const Prepared target = prepare(make_scene(12, 2000), 0.2);
+  const auto message = [&](const std::function<void(AlignSettings&)>& change,
+                           const Eigen::Isometry3d& T = Eigen::Isometry3d::Identity()) {
+    AlignSettings settings;
+    change(settings);
+    try {
+      align(target.cloud, *target.tree, target.cloud, T, settings);
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_EQ(message([](AlignSettings& s) { s.max_correspondence_distance = -1.0; }),
+            "align: max_correspondence_distance must be finite and > 0 (metres), got -1");
+  EXPECT_EQ(message([](AlignSettings& s) { s.max_correspondence_distance = NAN; }),
+            "align: max_correspondence_distance must be finite and > 0 (metres), got nan");
+  EXPECT_EQ(message([](AlignSettings& s) { s.max_iterations = -2; }),
+            "align: max_iterations must be >= 0, got -2");
+  EXPECT_EQ(message([](AlignSettings& s) { s.rotation_tolerance = -1e-3; }),
+            "align: rotation_tolerance must be finite and >= 0 (radians), got -0.001");
+  EXPECT_EQ(message([](AlignSettings& s) { s.min_correspondences = 0; }),
+            "align: min_correspondences must be >= 1, got 0");
+  EXPECT_EQ(message([](AlignSettings& s) { s.num_threads = 0; }),
+            "align: num_threads must be >= 1, got 0");
+  Eigen::Isometry3d nan_pose = Eigen::Isometry3d::Identity();
+  nan_pose.translation().x() = NAN;
+  EXPECT_EQ(message([](AlignSettings&) {}, nan_pose),
+            "align: the initial pose T_target_source is not finite");
 }
 
 TEST(AlignTest, Kitti00PairMatchesTheReference) {

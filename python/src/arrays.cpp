@@ -137,6 +137,11 @@ std::vector<Eigen::Isometry3d> poses_from_array(const py::handle& obj, const std
   return poses;
 }
 
+int threads_argument(int threads) {
+  if (threads < 1) throw py::value_error("threads: must be >= 1, got " + std::to_string(threads));
+  return threads;
+}
+
 py::array_t<double> array_from_poses(std::span<const Eigen::Isometry3d> poses) {
   py::array_t<double> out({static_cast<py::ssize_t>(poses.size()), py::ssize_t{4}, py::ssize_t{4}});
   for (std::size_t i = 0; i < poses.size(); ++i) {

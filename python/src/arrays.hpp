@@ -1,7 +1,8 @@
 #pragma once
 
 /// numpy <-> carat conversions of the Python module: point arrays, poses and trajectories, with
-/// the checks that turn a wrong dtype, shape or value into a Python exception naming the argument.
+/// the checks that turn a wrong dtype, shape or value into a Python exception naming the argument
+/// (and the thread-count check every call shares).
 
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
@@ -45,6 +46,10 @@ std::vector<Eigen::Isometry3d> poses_from_array(const py::handle& obj, const std
 
 /// The poses as an N x 4 x 4 float64 array.
 py::array_t<double> array_from_poses(std::span<const Eigen::Isometry3d> poses);
+
+/// `threads` as given; ValueError "threads: must be >= 1, got N" otherwise (carat itself would
+/// quietly run on one thread).
+int threads_argument(int threads);
 
 /// A copy of a vector as a 1-D numpy array.
 template <typename T>

@@ -50,7 +50,7 @@ std::shared_ptr<Frame> make_frame(const py::handle& points, double voxel_size, i
   options.voxel_size = voxel_size;
   options.covariance_neighbors = neighbors;
   options.min_points = min_points;
-  options.num_threads = threads;
+  options.num_threads = threads_argument(threads);
   auto frame = run_released([&](InterruptCheck&) {
     return preprocess_frame(raw, options, name.empty() ? "points" : name);
   });
@@ -138,7 +138,7 @@ void bind_clouds(py::module_& m) {
           const KdTree tree(cloud);
           CovarianceOptions options;
           options.neighbors = neighbors;
-          options.num_threads = threads;
+          options.num_threads = threads_argument(threads);
           estimate_covariances(cloud, tree, options);
         });
         return covariances_array(cloud);

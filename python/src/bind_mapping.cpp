@@ -39,7 +39,7 @@ PreprocessOptions preprocess_options(double voxel_size, int neighbors, int min_p
   options.voxel_size = voxel_size;
   options.covariance_neighbors = neighbors;
   options.min_points = min_points;
-  options.num_threads = threads;
+  options.num_threads = threads_argument(threads);
   return options;
 }
 
@@ -81,7 +81,7 @@ std::vector<Eigen::Isometry3d> poses_for_frames(const py::handle& obj, std::size
 SolverOptions mapping_solver(int max_iterations, int threads) {
   SolverOptions options;
   options.max_iterations = max_iterations;
-  options.num_threads = threads;
+  options.num_threads = threads_argument(threads);
   return options;
 }
 
@@ -98,7 +98,7 @@ MappingResult optimize(const py::handle& frames_in, const py::handle& graph,
   options.residuals = residuals;
   options.max_correspondence_distance = max_correspondence_distance;
   options.seed = seed;
-  options.num_threads = threads;
+  options.num_threads = threads_argument(threads);
   options.rounds = rounds;
   options.factor_cauchy_scale = factor_cauchy_scale;
   options.factor_excess_cauchy_scale = factor_excess_cauchy_scale;
@@ -286,7 +286,7 @@ void bind_mapping(py::module_& m) {
         options.voxel_size = voxel_size;
         options.max_distance = max_distance;
         options.overlap_stride = overlap_stride;
-        options.num_threads = threads;
+        options.num_threads = threads_argument(threads);
         return run_released([&](InterruptCheck& check) {
           return DenseGraph{build_dense_graph(frames, poses, options, check.progress())};
         });

@@ -32,7 +32,7 @@ std::shared_ptr<const Frame> frame_argument(const py::handle& obj, const std::st
   PreprocessOptions options;
   options.voxel_size = voxel_size;
   options.covariance_neighbors = neighbors;
-  options.num_threads = threads;
+  options.num_threads = threads_argument(threads);
   return run_released([&](InterruptCheck&) { return preprocess_frame(raw, options, what); });
 }
 
@@ -105,7 +105,7 @@ py::object align_frames(const py::handle& target_in, const py::handle& source_in
   settings.method = parse_registration_method(method);
   settings.max_correspondence_distance = max_correspondence_distance;
   settings.max_iterations = max_iterations;
-  settings.num_threads = threads;
+  settings.num_threads = threads_argument(threads);
   const Eigen::Isometry3d T0 =
       T_init.is_none() ? Eigen::Isometry3d::Identity() : pose_from_array(T_init, "T_init");
   const auto target = frame_argument(target_in, "target", voxel_size, neighbors, threads);

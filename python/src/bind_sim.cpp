@@ -52,12 +52,12 @@ Simulation simulate(int frames, int laps, std::uint64_t seed, int beams, int cir
   options.world = world_options(seed, beams, circuit_blocks);
   options.drive = drive_options(frames, laps, circuit_blocks);
   options.preprocess.voxel_size = voxel_size;
-  options.preprocess.num_threads = threads;
+  options.preprocess.num_threads = threads_argument(threads);
   options.drift.translation_sigma = drift_translation;
   options.drift.rotation_sigma_deg = drift_rotation_deg;
   options.odometry = odometry;
   options.dense_graph = dense_graph;
-  options.threads = threads;
+  options.threads = threads_argument(threads);
   const SyntheticPipeline pipeline = run_released([&](InterruptCheck& check) {
     return simulate_pipeline(options, [&](SyntheticPipelineStage, std::size_t done,
                                           std::size_t total) { check.progress()(done, total); });

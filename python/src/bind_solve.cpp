@@ -8,6 +8,7 @@
 #include <type_traits>
 #include <variant>
 
+#include "arrays.hpp"
 #include "bindings.hpp"
 #include "carat/base/error.hpp"
 #include "carat/residuals/io/g2o_io.hpp"
@@ -28,7 +29,7 @@ py::dict solve_g2o(const std::filesystem::path& path, int max_iterations, int th
                    const std::optional<std::filesystem::path>& out) {
   SolverOptions options;
   options.max_iterations = max_iterations;
-  options.num_threads = threads;
+  options.num_threads = threads_argument(threads);
   options.method = parse_method(method_name);
   options.ordering = parse_ordering(ordering);
   const LossKind loss = parse_loss_kind(loss_name);

@@ -115,5 +115,7 @@ def test_point_arrays_are_checked(cloud):
     xyzi = np.hstack([cloud, np.zeros((len(cloud), 1), np.float32)])
     assert np.array_equal(carat.voxel_downsample(xyzi[::1], 3.0), carat.voxel_downsample(cloud, 3.0))
     assert np.array_equal(carat.voxel_downsample(cloud.astype(np.float64)[::-1], 3.0).shape, carat.voxel_downsample(cloud, 3.0).shape)
+    with pytest.raises(ValueError, match="threads: must be >= 1, got 0"):
+        carat.Frame(cloud, threads=0)
     with pytest.raises(carat.Error, match="points: only 10 points after downsampling"):
         carat.Frame(cloud[:10], voxel_size=0.1)

@@ -48,6 +48,10 @@ def test_align_methods_and_bad_arguments(scans):
     nan[0, 3] = np.nan
     with pytest.raises(ValueError, match="T_init: the pose is not finite"):
         carat.align(target, source, T_init=nan)
+    with pytest.raises(carat.Error, match=r"align: max_correspondence_distance must be finite and > 0 \(metres\), got -1"):
+        carat.align(target, source, max_correspondence_distance=-1)
+    with pytest.raises(ValueError, match="threads: must be >= 1, got -2"):
+        carat.align(target, source, threads=-2)
     with pytest.raises(ValueError, match="source: point 3 is not finite"):
         broken = source.copy()
         broken[3, 1] = np.inf

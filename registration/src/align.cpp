@@ -43,6 +43,28 @@ std::shared_ptr<const ResidualBlock> make_block(RegistrationMethod method,
   return std::make_shared<PointToPointBlock>(target, source);
 }
 
+std::string format_number(double value) {
+  char text[32];
+  std::snprintf(text, sizeof(text), "%g", value);
+  return text;
+}
+
+/// Throws carat::Error naming the first setting out of range.
+void check_settings(const AlignSettings& s) {
+  const auto fail = [](const std::string& what, const std::string& rule, double value) {
+    throw Error("align: " + what + " must be " + rule + ", got " + format_number(value));
+  };
+  if (!(std::isfinite(s.max_correspondence_distance) && s.max_correspondence_distance > 0.0))
+    fail("max_correspondence_distance", "finite and > 0 (metres)", s.max_correspondence_distance);
+  if (s.max_iterations < 0) fail("max_iterations", ">= 0", s.max_iterations);
+  if (!(std::isfinite(s.translation_tolerance) && s.translation_tolerance >= 0.0))
+    fail("translation_tolerance", "finite and >= 0 (metres)", s.translation_tolerance);
+  if (!(std::isfinite(s.rotation_tolerance) && s.rotation_tolerance >= 0.0))
+    fail("rotation_tolerance", "finite and >= 0 (radians)", s.rotation_tolerance);
+  if (s.min_correspondences < 1) fail("min_correspondences", ">= 1", s.min_correspondences);
+  if (s.num_threads < 1) fail("num_threads", ">= 1", s.num_threads);
+}
+
 }  // namespace
 
 AlignResult align(const PointCloud& target, const KdTree& target_tree, const PointCloud& source,
@@ -51,6 +73,9 @@ AlignResult align(const PointCloud& target, const KdTree& target_tree, const Poi
     throw Error("align: the target cloud has no covariances (run estimate_covariances)");
   if (!source.has_covariances())
     throw Error("align: the source cloud has no covariances (run estimate_covariances)");
+  check_settings(settings);
+  if (!T_target_source_init.matrix().allFinite())
+    throw Error("align: the initial pose T_target_source is not finite");
   AlignResult result;
   result.T_target_source = T_target_source_init;
   const int threads = std::clamp(settings.num_threads, 1, tbb::info::default_concurrency());
