@@ -11,6 +11,7 @@
 #include <limits>
 #include <memory>
 #include <random>
+#include <vector>
 
 #include "../solver/src/block_evaluator.hpp"
 #include "../solver/src/sparse_system.hpp"
@@ -185,6 +186,67 @@ TEST(SolveTest, RosenbrockFromTheClassicStart) {
   EXPECT_NEAR(problem.value(x)[1], 1.0, 1e-8);
   EXPECT_LT(summary.final_cost, 1e-16);
   EXPECT_GT(summary.num_successful_steps, 3);
+}
+
+TEST(SolveTest, IterationCallbackSeesEveryRowAndCanAbort) {
+  struct Seen {
+    int iteration;
+    double cost;
+    Eigen::Vector2d x;
+  };
+  const auto run = [](int abort_at, bool update_state, std::vector<Seen>* seen,
+                      Eigen::Vector2d* final_x) {
+    Problem problem;
+    const VariableId x = problem.add_euclidean(Eigen::Vector2d(-1.2, 1.0));
+    problem.add_residual_block(std::make_shared<RosenbrockBlock>(), {x});
+    SolverOptions options;
+    options.max_iterations = 100;
+    options.update_state_every_iteration = update_state;
+    options.iteration_callback = [&](const IterationSummary& row) {
+      seen->push_back(
+          {row.iteration, row.cost, Eigen::Vector2d(problem.value(x)[0], problem.value(x)[1])});
+      return row.iteration == abort_at ? CallbackResult::kAbort : CallbackResult::kContinue;
+    };
+    const SolverSummary summary = solve(options, problem);
+    *final_x = Eigen::Vector2d(problem.value(x)[0], problem.value(x)[1]);
+    return summary;
+  };
+  std::vector<Seen> seen;
+  Eigen::Vector2d final_x;
+  const SolverSummary full = run(-1, true, &seen, &final_x);
+  ASSERT_EQ(full.termination, TerminationType::kConvergence);
+  ASSERT_EQ(seen.size(), full.iterations.size());
+  for (std::size_t k = 0; k < seen.size(); ++k) {
+    EXPECT_EQ(seen[k].iteration, full.iterations[k].iteration);
+    EXPECT_EQ(seen[k].cost, full.iterations[k].cost);
+  }
+  EXPECT_EQ(seen.back().x, final_x);  // the state at the last call is the result
+
+  // Abort at the first accepted step: the solve stops there and keeps that iterate.
+  int first_step = 1;
+  while (!full.iterations[static_cast<std::size_t>(first_step)].step_is_successful) ++first_step;
+  seen.clear();
+  const SolverSummary aborted = run(first_step, true, &seen, &final_x);
+  EXPECT_EQ(aborted.termination, TerminationType::kUserAbort);
+  EXPECT_EQ(aborted.message, "the iteration callback asked to stop");
+  EXPECT_STREQ(to_string(aborted.termination), "USER_ABORT");
+  ASSERT_EQ(seen.size(), static_cast<std::size_t>(first_step + 1));
+  EXPECT_EQ(aborted.iterations.size(), seen.size());
+  EXPECT_EQ(final_x, seen.back().x);  // the last accepted iterate is kept
+  EXPECT_EQ(aborted.final_cost, full.iterations[static_cast<std::size_t>(first_step)].cost);
+  EXPECT_NE(final_x, Eigen::Vector2d(-1.2, 1.0));
+
+  seen.clear();
+  const SolverSummary at_start = run(0, false, &seen, &final_x);
+  EXPECT_EQ(at_start.termination, TerminationType::kUserAbort);
+  ASSERT_EQ(seen.size(), 1u);
+  EXPECT_EQ(seen[0].x, Eigen::Vector2d(-1.2, 1.0));
+  EXPECT_EQ(final_x, Eigen::Vector2d(-1.2, 1.0));
+
+  // Without update_state_every_iteration the variables keep the start until the solve ends.
+  seen.clear();
+  run(-1, false, &seen, &final_x);
+  for (const Seen& s : seen) EXPECT_EQ(s.x, Eigen::Vector2d(-1.2, 1.0));
 }
 
 TEST(SolveTest, ConstantVariablesDoNotMove) {

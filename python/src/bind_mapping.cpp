@@ -104,6 +104,7 @@ MappingResult optimize(const py::handle& frames_in, const py::handle& graph,
   options.factor_excess_cauchy_scale = factor_excess_cauchy_scale;
   options.solver = mapping_solver(max_iterations, threads);
   const GlobalRegistrationResult result = run_released([&](InterruptCheck& check) {
+    options.solver.iteration_callback = check.iteration_callback();
     return optimize_registration(frames, pairs, poses, options, check.progress());
   });
   MappingResult out;
@@ -138,6 +139,7 @@ MappingResult pose_graph(const py::handle& frames_in, const py::handle& graph,
   settings.max_correspondence_distance = max_correspondence_distance;
   double registration_s = 0.0;
   const PoseGraphBaselineResult result = run_released([&](InterruptCheck& check) {
+    options.solver.iteration_callback = check.iteration_callback();
     const auto registrations =
         register_pairs(frames, pairs, poses, settings, threads, check.progress());
     for (const PairRegistration& r : registrations) registration_s += r.align_s;

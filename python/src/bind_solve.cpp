@@ -44,7 +44,8 @@ py::dict solve_g2o(const std::filesystem::path& path, int max_iterations, int th
     std::size_t edges = 0;
     int dimension = 3;
   };
-  const Solved solved = run_released([&](InterruptCheck&) {
+  const Solved solved = run_released([&](InterruptCheck& check) {
+    options.iteration_callback = check.iteration_callback();
     G2oGraph any = read_g2o_any(path, read_options);
     return std::visit(
         [&](auto& graph) {
@@ -59,6 +60,7 @@ py::dict solve_g2o(const std::filesystem::path& path, int max_iterations, int th
           }
           Solved s;
           s.summary = solve(options, built.problem);
+          if (s.summary.termination == TerminationType::kUserAbort) throw Interrupted{};
           if (s.summary.termination == TerminationType::kFailure) {
             throw Error(path.string() + ": the solve failed: " + s.summary.message);
           }

@@ -9,11 +9,21 @@ std::function<void(std::size_t, std::size_t)> InterruptCheck::progress() {
   return [this](std::size_t, std::size_t) { check(); };
 }
 
+IterationCallback InterruptCheck::iteration_callback() {
+  return [this](const IterationSummary&) {
+    return poll() ? CallbackResult::kAbort : CallbackResult::kContinue;
+  };
+}
+
 void InterruptCheck::check() {
-  if (interrupted_.load(std::memory_order_relaxed)) throw Interrupted{};
-  if (std::this_thread::get_id() != caller_) return;
+  if (poll()) throw Interrupted{};
+}
+
+bool InterruptCheck::poll() {
+  if (interrupted_.load(std::memory_order_relaxed)) return true;
+  if (std::this_thread::get_id() != caller_) return false;
   const auto now = std::chrono::steady_clock::now();
-  if (now - last_ < std::chrono::milliseconds(50)) return;
+  if (now - last_ < std::chrono::milliseconds(50)) return false;
   last_ = now;
   py::gil_scoped_acquire acquire;
   if (PyErr_CheckSignals() != 0) {
@@ -23,8 +33,9 @@ void InterruptCheck::check() {
     value_ = py::reinterpret_steal<py::object>(value);
     trace_ = py::reinterpret_steal<py::object>(trace);
     interrupted_.store(true, std::memory_order_relaxed);
-    throw Interrupted{};
+    return true;
   }
+  return false;
 }
 
 void InterruptCheck::raise() {

@@ -15,6 +15,8 @@
 #include <type_traits>
 #include <utility>
 
+#include "carat/solver/solver_options.hpp"
+
 namespace carat::python {
 
 namespace py = pybind11;
@@ -31,8 +33,18 @@ class InterruptCheck {
   /// A progress callback for carat's stages: throws Interrupted once a signal handler raised.
   std::function<void(std::size_t, std::size_t)> progress();
 
-  /// Checks now (the GIL is taken for it); throws Interrupted when a handler raised.
+  /// An iteration callback for carat's solver: kAbort once a signal handler raised.
+  IterationCallback iteration_callback();
+
+  /// Checks (at most every 50 ms, on the calling thread, taking the GIL): true once a signal
+  /// handler has raised.
+  bool poll();
+
+  /// poll(), throwing Interrupted when it is true.
   void check();
+
+  /// Whether a signal handler has raised during the call.
+  bool interrupted() const { return interrupted_.load(std::memory_order_relaxed); }
 
   /// With the GIL held: restores the exception a signal handler raised and throws it to Python.
   [[noreturn]] void raise();
@@ -45,8 +57,9 @@ class InterruptCheck {
 };
 
 /// Runs f(check) with the GIL released, where check is an InterruptCheck whose progress() f
-/// hands to carat; an interruption comes back as the Python exception its handler raised
-/// (KeyboardInterrupt for Ctrl-C). Any other exception propagates as it is.
+/// (or iteration_callback()) hands to carat; an interruption comes back as the Python exception
+/// its handler raised (KeyboardInterrupt for Ctrl-C), whether f ended by Interrupted or returned
+/// after a solve aborted. Any other exception propagates as it is.
 template <typename F>
 auto run_released(F&& f) {
   InterruptCheck check;
@@ -61,7 +74,7 @@ auto run_released(F&& f) {
         interrupted = true;
       }
     }
-    if (interrupted) check.raise();
+    if (interrupted || check.interrupted()) check.raise();
   } else {
     std::optional<Result> result;
     {
@@ -71,7 +84,7 @@ auto run_released(F&& f) {
       } catch (const Interrupted&) {
       }
     }
-    if (!result) check.raise();
+    if (!result || check.interrupted()) check.raise();
     return std::move(*result);
   }
 }

@@ -86,6 +86,8 @@ class Solver {
                                 const Stopwatch& iteration_time, bool* stop);
   void record(IterationSummary row, const Stopwatch& iteration_time);
   bool finish(TerminationType type, std::string message);
+  /// Ends the solve with kUserAbort when the iteration callback asked for it: then true.
+  bool abort_if_requested();
   bool finish(internal::StopReason reason) {
     return finish(reason.type, std::move(reason.message));
   }
@@ -98,6 +100,7 @@ class Solver {
   std::unique_ptr<internal::BlockEvaluator> evaluator_;
   std::vector<double> buffers_[2];
   int current_ = 0;
+  bool abort_requested_ = false;  ///< the iteration callback returned kAbort
   double cost_ = 0.0;
   double fresh_decrease_ = 0.0;  ///< cost decrease of the last step from a fresh factorization
   Eigen::VectorXd gradient_;
@@ -117,6 +120,15 @@ void Solver::record(IterationSummary row, const Stopwatch& iteration_time) {
   row.iteration_time_s = iteration_time.elapsed_s();
   row.cumulative_time_s = solve_time_.elapsed_s();
   if (options_.record_iterations) summary_.iterations.push_back(row);
+  if (options_.iteration_callback) {
+    if (options_.update_state_every_iteration) write_back();
+    if (options_.iteration_callback(row) == CallbackResult::kAbort) abort_requested_ = true;
+  }
+}
+
+bool Solver::abort_if_requested() {
+  if (!abort_requested_) return false;
+  return finish(TerminationType::kUserAbort, "the iteration callback asked to stop");
 }
 
 bool Solver::linearize() {
@@ -131,6 +143,7 @@ bool Solver::linearize() {
 /// Starts iteration `iteration` (counted, its row begun) unless the gradient tolerance or the
 /// iteration limit ends the solve first: then false.
 bool Solver::begin_iteration(int iteration, IterationSummary* row) {
+  if (abort_if_requested()) return false;
   const double gradient_max = gradient_.cwiseAbs().maxCoeff();
   std::optional<internal::StopReason> stop =
       internal::check_gradient_tolerance(gradient_max, options_.gradient_tolerance);
@@ -445,6 +458,7 @@ bool Solver::initialize() {
   row0.trust_region_radius = options_.initial_trust_region_radius;
   row0.step_is_successful = true;
   record(row0, iteration0);
+  if (abort_if_requested()) return false;
 
   if (system_->size() == 0) {
     finish(TerminationType::kConvergence, "no free variables: nothing to optimize");

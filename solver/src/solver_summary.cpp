@@ -22,6 +22,8 @@ const char* to_string(TerminationType type) {
       return "CONVERGENCE";
     case TerminationType::kNoConvergence:
       return "NO_CONVERGENCE";
+    case TerminationType::kUserAbort:
+      return "USER_ABORT";
     case TerminationType::kFailure:
       return "FAILURE";
   }

@@ -2,8 +2,11 @@
 
 /// Settings of the nonlinear least-squares solver (defaults follow Ceres where it has one).
 
+#include <functional>
 #include <string>
 #include <string_view>
+
+#include "carat/solver/solver_summary.hpp"
 
 namespace carat {
 
@@ -45,6 +48,16 @@ const char* to_string(LinearSolver solver);
 /// Parses "auto", "schur" or "cholesky"; throws carat::Error listing them otherwise.
 LinearSolver parse_linear_solver(std::string_view name);
 
+/// What an iteration callback asks of the solver.
+enum class CallbackResult {
+  kContinue,  ///< go on
+  kAbort,     ///< stop before the next iteration: TerminationType::kUserAbort, the last
+              ///< accepted iterate kept (as Ceres's SOLVER_ABORT)
+};
+
+/// Called after every iteration with its row (iteration 0 is the initial evaluation).
+using IterationCallback = std::function<CallbackResult(const IterationSummary&)>;
+
 /// What solve() does and when it stops.
 struct SolverOptions {
   Method method = Method::kLevenbergMarquardt;       ///< nonlinear method
@@ -71,6 +84,14 @@ struct SolverOptions {
   double factor_reuse_ratio = 1.1;  ///< LM: gain ratio above which a reuse is tried
   int num_threads = 1;  ///< threads for linearization (>= 1; capped at the machine's cores)
   bool record_iterations = true;  ///< keep one IterationSummary per iteration
+  /// Called after every iteration, on the thread that called solve(), whether or not rows are
+  /// recorded; kAbort ends the solve. An exception it throws propagates out of solve(), and the
+  /// problem keeps the values it had before the solve (or the iterate last written for a
+  /// callback). Empty: none.
+  IterationCallback iteration_callback;
+  /// During each iteration_callback call the problem's variables hold the current iterate (the
+  /// last accepted one), as Ceres's update_state_every_iteration; else only after the solve.
+  bool update_state_every_iteration = false;
 
   /// True if every setting is in range; otherwise false with a message in *error.
   bool validate(std::string* error) const;

@@ -13,9 +13,10 @@ enum class TerminationType {
   kConvergence,    ///< a function, gradient or parameter tolerance was met
   kNoConvergence,  ///< max_iterations reached, or the trust region collapsed
   kFailure,        ///< invalid options or problem, or no usable step could be computed
+  kUserAbort,      ///< SolverOptions::iteration_callback asked to stop (last accepted iterate kept)
 };
 
-/// Name of a termination type ("CONVERGENCE", "NO_CONVERGENCE", "FAILURE").
+/// Name of a termination type ("CONVERGENCE", "NO_CONVERGENCE", "FAILURE", "USER_ABORT").
 const char* to_string(TerminationType type);
 
 /// One row of the iteration table.
