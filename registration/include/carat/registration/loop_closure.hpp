@@ -1,0 +1,108 @@
+#pragma once
+
+/// Loop closure from an odometry guess: Scan Context candidates (scan_context.hpp), each
+/// validated by GICP from the yaw its descriptor gives and from the guess, and a pose graph of
+/// the odometry and the accepted loops solved from the guess.
+
+#include <Eigen/Geometry>
+#include <functional>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "carat/registration/frame.hpp"
+#include "carat/registration/pair_registration.hpp"
+#include "carat/registration/pose_graph_baseline.hpp"
+#include "carat/registration/scan_context.hpp"
+
+namespace carat {
+
+/// Settings of close_loops() and its two stages.
+struct LoopClosureOptions {
+  ScanContextOptions descriptor;    ///< the descriptor of every frame
+  double exclude_recent_m = 100.0;  ///< a frame's candidates lie at least this far back along
+                                    ///< the guess's path (metres), so that the scans just
+                                    ///< before it are not proposed as loops
+  int ring_key_candidates = 10;     ///< nearest ring keys whose descriptors are compared (>= 1)
+  double max_descriptor_distance = 0.35;     ///< candidates must match at least this well
+  double max_correspondence_distance = 1.0;  ///< metres: GICP's last stage (a first stage uses
+                                             ///< three times this); the inlier distance
+  double min_inlier_fraction = 0.8;  ///< share of the source's points within that distance of
+                                     ///< the target at the result, for a loop to be accepted;
+                                     ///< high because the ground matches almost anywhere (in
+                                     ///< the synthetic city true loops reach 0.94 or more, a
+                                     ///< neighbouring corner aligned wrongly up to 0.68)
+  PoseGraphBaselineOptions graph;    ///< the loop-closure pose graph (GICP-Hessian information,
+                                     ///< Cauchy kernel), solved after a kernel-free pass
+  int num_threads = 1;               ///< threads over frames and candidates (>= 1)
+};
+
+/// A frame pair whose descriptors match: a possible loop.
+struct LoopCandidate {
+  FramePair pair;                    ///< target: the older frame, source: the newer one
+  double descriptor_distance = 1.0;  ///< ScanContextMatch::distance
+  double yaw = 0.0;                  ///< radians: the rotation about z of T_target_source that
+                                     ///< the descriptors' best shift stands for
+};
+
+/// Why a candidate was accepted or not.
+enum class LoopVerdict {
+  kAccepted,      ///< converged, fully constrained, enough inliers
+  kNotConverged,  ///< GICP did not converge from either start, or found too few pairs
+  kDegenerate,    ///< the pair constrains fewer than 6 directions (a corridor, a plane)
+  kFewInliers,    ///< converged, but too few of the source's points match the target
+};
+
+/// Name of a verdict: "accepted", "not converged", "degenerate", "few inliers".
+const char* to_string(LoopVerdict verdict);
+
+/// The validation of one candidate.
+struct LoopCheck {
+  LoopCandidate candidate;                           ///< what was checked
+  LoopVerdict verdict = LoopVerdict::kNotConverged;  ///< the outcome
+  double inlier_fraction = 0.0;                      ///< of the better of the two starts
+  PairRegistration registration;                     ///< GICP's result from the better start
+};
+
+/// Everything close_loops() found.
+struct LoopClosureResult {
+  std::vector<int> sparse_frames;                ///< frames too sparse for a descriptor
+  std::vector<LoopCandidate> candidates;         ///< at most one per frame, by source frame
+  std::vector<LoopCheck> checks;                 ///< parallel to candidates
+  std::vector<PairRegistration> odometry;        ///< consecutive pairs registered from the guess
+  std::vector<PairRegistration> loops;           ///< the accepted loops
+  std::vector<Eigen::Isometry3d> T_world_frame;  ///< the pose graph's result; the guess when no
+                                                 ///< loop was accepted
+  SolverSummary summary;                         ///< the last pose-graph solve (empty: none)
+};
+
+/// Scan Context candidates: for every frame with a descriptor, the best-matching older frame
+/// (among the ring_key_candidates nearest ring keys of frames at least exclude_recent_m back
+/// along T_world_guess's path) when it matches within max_descriptor_distance. Deterministic,
+/// parallel over frames; frames too sparse for a descriptor are listed in *sparse_frames (may be
+/// null). Throws carat::Error for mismatched counts or options out of range.
+std::vector<LoopCandidate> find_loop_candidates(
+    std::span<const std::shared_ptr<const Frame>> frames,
+    std::span<const Eigen::Isometry3d> T_world_guess, const LoopClosureOptions& options,
+    std::vector<int>* sparse_frames = nullptr);
+
+/// GICP for every candidate from two starts: the descriptor's yaw (no translation) and the
+/// guess's relative pose; the start whose result matches more of the source's points counts.
+/// Parallel over candidates; results do not depend on the thread count.
+std::vector<LoopCheck> validate_loop_candidates(
+    std::span<const std::shared_ptr<const Frame>> frames,
+    std::span<const Eigen::Isometry3d> T_world_guess, std::span<const LoopCandidate> candidates,
+    const LoopClosureOptions& options);
+
+/// Candidates, their validation, GICP of every consecutive pair from the guess, and (when a loop
+/// was accepted) the pose graph of odometry and loops solved from the guess: first without a
+/// kernel, then with options.graph. Throws carat::Error as the stages do (fewer than 2 frames,
+/// mismatched counts, a consecutive pair GICP cannot align). `progress`, if set, gets (steps
+/// done, steps) from any thread.
+LoopClosureResult close_loops(std::span<const std::shared_ptr<const Frame>> frames,
+                              std::span<const Eigen::Isometry3d> T_world_guess,
+                              const LoopClosureOptions& options,
+                              const std::function<void(std::size_t, std::size_t)>& progress = {});
+
+}  // namespace carat
