@@ -137,6 +137,13 @@ std::vector<Eigen::Isometry3d> poses_from_array(const py::handle& obj, const std
   return poses;
 }
 
+int neighbors_argument(int neighbors) {
+  if (neighbors < 4 || neighbors > 1000) {
+    throw py::value_error("neighbors: must be in [4, 1000], got " + std::to_string(neighbors));
+  }
+  return neighbors;
+}
+
 int threads_argument(int threads) {
   if (threads < 1) throw py::value_error("threads: must be >= 1, got " + std::to_string(threads));
   return threads;

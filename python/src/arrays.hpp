@@ -51,6 +51,17 @@ py::array_t<double> array_from_poses(std::span<const Eigen::Isometry3d> poses);
 /// quietly run on one thread).
 int threads_argument(int threads);
 
+/// `neighbors` as given; ValueError unless it is in [4, 1000] (the covariance of each point
+/// costs time linear in it, and beyond a few dozen it stops describing the local surface).
+int neighbors_argument(int neighbors);
+
+/// `array`, marked read-only (results that are stored in a result object and handed out).
+template <typename T>
+py::array_t<T> read_only(py::array_t<T> array) {
+  array.attr("setflags")(py::arg("write") = false);
+  return array;
+}
+
 /// A copy of a vector as a 1-D numpy array.
 template <typename T>
 py::array_t<T> array_from_vector(const std::vector<T>& values) {

@@ -48,7 +48,7 @@ std::shared_ptr<Frame> make_frame(const py::handle& points, double voxel_size, i
   const PointCloud raw = cloud_from_array(points, name.empty() ? "points" : name);
   PreprocessOptions options;
   options.voxel_size = voxel_size;
-  options.covariance_neighbors = neighbors;
+  options.covariance_neighbors = neighbors_argument(neighbors);
   options.min_points = min_points;
   options.num_threads = threads_argument(threads);
   auto frame = run_released([&](InterruptCheck&) {
@@ -134,11 +134,11 @@ void bind_clouds(py::module_& m) {
       "estimate_covariances",
       [](const py::handle& points, int neighbors, int threads) {
         PointCloud cloud = cloud_from_array(points, "points");
+        CovarianceOptions options;
+        options.neighbors = neighbors_argument(neighbors);
+        options.num_threads = threads_argument(threads);
         run_released([&](InterruptCheck&) {
           const KdTree tree(cloud);
-          CovarianceOptions options;
-          options.neighbors = neighbors;
-          options.num_threads = threads_argument(threads);
           estimate_covariances(cloud, tree, options);
         });
         return covariances_array(cloud);

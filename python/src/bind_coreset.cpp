@@ -17,20 +17,33 @@ namespace {
 
 using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 
+/// Most Jacobian columns the binding accepts: D = 128 lifts rows to 8,384 numbers.
+constexpr py::ssize_t kMaxColumns = 128;
+
+/// "(2, 3)": an array's shape as numpy prints it.
+std::string shape_text(const py::array& a) {
+  std::string out = "(";
+  for (py::ssize_t d = 0; d < a.ndim(); ++d) out += (d ? ", " : "") + std::to_string(a.shape(d));
+  return out + (a.ndim() == 1 ? ",)" : ")");
+}
+
 py::tuple coreset(const py::handle& J_in, const py::handle& e_in, std::optional<int> target,
                   std::optional<int> clusters, std::uint64_t seed) {
   const auto J = as_float64(J_in, "J");
   const auto e = as_float64(e_in, "e");
   if (J.ndim() != 2 || J.shape(1) < 1) {
-    throw py::value_error("J: expected an N x D array of Jacobian rows (D >= 1)");
+    throw py::value_error("J: expected an N x D array of Jacobian rows (D >= 1), got shape " +
+                          shape_text(J));
+  }
+  if (J.shape(1) > kMaxColumns) {
+    throw py::value_error("J: at most " + std::to_string(kMaxColumns) + " columns (the lifted " +
+                          "dimension grows as D^2 / 2), got " + std::to_string(J.shape(1)));
   }
   const py::ssize_t n = J.shape(0);
   const bool column = e.ndim() == 2 && e.shape(1) == 1;
   if (!(e.ndim() == 1 || column) || e.shape(0) != n) {
     throw py::value_error("e: expected " + std::to_string(n) +
-                          " residuals (one per row of J), got shape (" +
-                          std::to_string(e.ndim() ? e.shape(0) : 0) +
-                          (e.ndim() == 2 ? ", " + std::to_string(e.shape(1)) : "") + ")");
+                          " residuals (one per row of J), got shape " + shape_text(e));
   }
   if (n == 0) throw py::value_error("J: no rows");
   RowCoresetOptions options;
@@ -39,8 +52,9 @@ py::tuple coreset(const py::handle& J_in, const py::handle& e_in, std::optional<
     options.target_rows = *target;
   }
   if (clusters) {
-    if (*clusters < 1) {
-      throw py::value_error("clusters: must be >= 1, got " + std::to_string(*clusters));
+    if (*clusters < 0) {
+      throw py::value_error("clusters: must be >= 0 (0: the default), got " +
+                            std::to_string(*clusters));
     }
     options.clusters = *clusters;
   }
@@ -66,13 +80,21 @@ sum w_k J_k^T J_k = J^T J, sum w_k J_k^T e_k = J^T e and sum w_k e_k^2 = e^T e
 to rounding (Fast-Caratheodory, time linear in N).
 
 target: M, at least D(D+1)/2 + D + 2 (None: that minimum, 29 for D = 6).
-clusters: clusters per level (None: max(64, 2(L + 1)), L = D(D+1)/2 + D + 1).
+clusters: clusters per level (None or 0: max(64, 2(L + 1)), L = D(D+1)/2 + D + 1).
+J has at most 128 columns.
 seed: seed of the row shuffle.
 Returns (indices, weights): ascending row indices (int64) and their weights. N <= M returns
 every row with weight 1. J and e are used in place when they are C-contiguous float64.
 Raises carat.Error for a non-finite row (naming it) or a target below the minimum.)");
   m.def(
-      "minimum_coreset_rows", [](int columns) { return minimum_coreset_rows(columns); },
+      "minimum_coreset_rows",
+      [](int columns) {
+        if (columns < 1 || columns > kMaxColumns) {
+          throw py::value_error("columns: must be in [1, " + std::to_string(kMaxColumns) +
+                                "], got " + std::to_string(columns));
+        }
+        return minimum_coreset_rows(columns);
+      },
       py::arg("columns"), "Smallest coreset target for D Jacobian columns: D(D+1)/2 + D + 2.");
 }
 

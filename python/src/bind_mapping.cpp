@@ -37,7 +37,7 @@ PreprocessOptions preprocess_options(double voxel_size, int neighbors, int min_p
                                      int threads) {
   PreprocessOptions options;
   options.voxel_size = voxel_size;
-  options.covariance_neighbors = neighbors;
+  options.covariance_neighbors = neighbors_argument(neighbors);
   options.min_points = min_points;
   options.num_threads = threads_argument(threads);
   return options;
@@ -108,7 +108,7 @@ MappingResult optimize(const py::handle& frames_in, const py::handle& graph,
     return optimize_registration(frames, pairs, poses, options, check.progress());
   });
   MappingResult out;
-  out.poses = array_from_poses(result.T_world_frame);
+  out.poses = read_only(array_from_poses(result.T_world_frame));
   out.summary = summary_dict(result.summary);
   const RegistrationFactorStats& s = result.stats;
   out.stats["factors"] = s.num_factors;
@@ -119,7 +119,7 @@ MappingResult optimize(const py::handle& frames_in, const py::handle& graph,
   out.stats["correspondence_s"] = s.correspondence_s;
   out.stats["compression_s"] = s.compression_s;
   out.stats["minimum_s"] = s.minimum_s;
-  out.factor_costs = array_from_vector(result.factor_costs);
+  out.factor_costs = read_only(array_from_vector(result.factor_costs));
   out.rounds = result.rounds;
   return out;
 }
@@ -146,7 +146,7 @@ MappingResult pose_graph(const py::handle& frames_in, const py::handle& graph,
     return optimize_pose_graph_baseline(poses, registrations, options);
   });
   MappingResult out;
-  out.poses = array_from_poses(result.T_world_frame);
+  out.poses = read_only(array_from_poses(result.T_world_frame));
   out.summary = summary_dict(result.summary);
   out.stats["factors"] = pairs.size();
   out.stats["registration_s"] = registration_s;

@@ -4,6 +4,8 @@
 #include <pybind11/stl.h>
 
 #include <array>
+#include <cmath>
+#include <cstdio>
 #include <memory>
 #include <numeric>
 #include <string>
@@ -24,6 +26,13 @@ namespace carat::python {
 
 namespace {
 
+/// A number as printf's %g writes it.
+std::string py_number(double value) {
+  char text[32];
+  std::snprintf(text, sizeof(text), "%g", value);
+  return text;
+}
+
 /// A frame argument: a carat.Frame as it is, or an array of points preprocessed here.
 std::shared_ptr<const Frame> frame_argument(const py::handle& obj, const std::string& what,
                                             double voxel_size, int neighbors, int threads) {
@@ -31,7 +40,7 @@ std::shared_ptr<const Frame> frame_argument(const py::handle& obj, const std::st
   const PointCloud raw = cloud_from_array(obj, what);
   PreprocessOptions options;
   options.voxel_size = voxel_size;
-  options.covariance_neighbors = neighbors;
+  options.covariance_neighbors = neighbors_argument(neighbors);
   options.num_threads = threads_argument(threads);
   return run_released([&](InterruptCheck&) { return preprocess_frame(raw, options, what); });
 }
@@ -81,26 +90,26 @@ GicpFactor make_gicp_factor(const std::shared_ptr<Frame>& target,
                             const std::shared_ptr<Frame>& source, const py::handle& T,
                             double max_correspondence_distance) {
   const Eigen::Isometry3d T_target_source = pose_from_array(T, "T_target_source");
-  if (!(max_correspondence_distance > 0.0)) {
-    throw py::value_error("max_correspondence_distance: must be > 0 (metres)");
+  if (!(std::isfinite(max_correspondence_distance) && max_correspondence_distance > 0.0)) {
+    throw py::value_error("max_correspondence_distance: must be finite and > 0 (metres)");
   }
   return run_released([&](InterruptCheck&) {
     const auto correspondences =
         find_correspondences(target->cloud(), target->tree(), source->cloud(), T_target_source,
                              max_correspondence_distance);
     if (correspondences.empty()) {
-      throw Error(source->name() + " onto " + target->name() + ": no correspondences within " +
-                  std::to_string(max_correspondence_distance) + " m at the given pose");
+      throw Error("GicpFactor: no source point has a target point within " +
+                  py_number(max_correspondence_distance) + " m at the given pose");
     }
     return GicpFactor{std::make_shared<const GicpBlock>(correspondences, T_target_source),
                       T_target_source};
   });
 }
 
-py::object align_frames(const py::handle& target_in, const py::handle& source_in,
-                        const py::object& T_init, const std::string& method,
-                        double max_correspondence_distance, int max_iterations, double voxel_size,
-                        int neighbors, int threads) {
+AlignResult align_frames(const py::handle& target_in, const py::handle& source_in,
+                         const py::object& T_init, const std::string& method,
+                         double max_correspondence_distance, int max_iterations, double voxel_size,
+                         int neighbors, int threads) {
   AlignSettings settings;
   settings.method = parse_registration_method(method);
   settings.max_correspondence_distance = max_correspondence_distance;
@@ -110,10 +119,9 @@ py::object align_frames(const py::handle& target_in, const py::handle& source_in
       T_init.is_none() ? Eigen::Isometry3d::Identity() : pose_from_array(T_init, "T_init");
   const auto target = frame_argument(target_in, "target", voxel_size, neighbors, threads);
   const auto source = frame_argument(source_in, "source", voxel_size, neighbors, threads);
-  AlignResult result = run_released([&](InterruptCheck&) {
+  return run_released([&](InterruptCheck&) {
     return align(target->cloud(), target->tree(), source->cloud(), T0, settings);
   });
-  return py::cast(result);
 }
 
 }  // namespace
@@ -155,13 +163,37 @@ voxel_size and given covariances from `neighbors` nearest points.
 T_init: 4 x 4 initial T_target_source (None: identity).
 Returns a carat.AlignResult (T_target_source, H, error, iterations, converged, ...).)");
 
+  py::class_<LosslessFactor>(
+      m, "LosslessFactor",
+      "At most 13 rows whose cost, gradient and Gauss-Newton Hessian equal a registration "
+      "factor's at every relative pose.")
+      .def_property_readonly(
+          "num_rows", [](const LosslessFactor& f) { return f.block->num_rows(); },
+          "Rows (the numerical rank of the Gram matrix, at most 13)")
+      .def_property_readonly(
+          "original_rows", [](const LosslessFactor& f) { return f.block->original_rows(); },
+          "Rows of the factor it replaces")
+      .def(
+          "evaluate",
+          [](const LosslessFactor& f, const py::handle& T) {
+            return evaluate_block(*f.block, pose_from_array(T, "T_target_source"));
+          },
+          py::arg("T_target_source"), "(residuals, J (rows x 6)) at a relative pose")
+      .def(
+          "cost",
+          [](const LosslessFactor& f, const py::handle& T) {
+            return block_cost(*f.block, pose_from_array(T, "T_target_source"));
+          },
+          py::arg("T_target_source"), "Sum of squared residuals at a relative pose");
+
   py::class_<GicpFactor>(
       m, "GicpFactor",
       "The GICP residual block of a frame pair, correspondences fixed at a relative pose: three "
       "rows per correspondence, Jacobians with respect to the right tangent [w, v] of "
       "T_target_source.")
-      .def(py::init(&make_gicp_factor), py::arg("target"), py::arg("source"),
-           py::arg("T_target_source"), py::arg("max_correspondence_distance") = 1.0,
+      .def(py::init(&make_gicp_factor), py::arg("target").none(false),
+           py::arg("source").none(false), py::arg("T_target_source"),
+           py::arg("max_correspondence_distance") = 1.0,
            "Nearest-neighbour correspondences of source in target under T_target_source (up to "
            "max_correspondence_distance metres) with fused covariances.")
       .def_property_readonly(
@@ -194,29 +226,6 @@ Returns a carat.AlignResult (T_target_source, H, error, iterations, converged, .
           "At most 13 rows with the same cost as the factor at every relative pose (the "
           "factored Gram matrix; T_reference only conditions the numbers; None: the pose the "
           "factor was built at)");
-
-  py::class_<LosslessFactor>(
-      m, "LosslessFactor",
-      "At most 13 rows whose cost, gradient and Gauss-Newton Hessian equal a registration "
-      "factor's at every relative pose.")
-      .def_property_readonly(
-          "num_rows", [](const LosslessFactor& f) { return f.block->num_rows(); },
-          "Rows (the numerical rank of the Gram matrix, at most 13)")
-      .def_property_readonly(
-          "original_rows", [](const LosslessFactor& f) { return f.block->original_rows(); },
-          "Rows of the factor it replaces")
-      .def(
-          "evaluate",
-          [](const LosslessFactor& f, const py::handle& T) {
-            return evaluate_block(*f.block, pose_from_array(T, "T_target_source"));
-          },
-          py::arg("T_target_source"), "(residuals, J (rows x 6)) at a relative pose")
-      .def(
-          "cost",
-          [](const LosslessFactor& f, const py::handle& T) {
-            return block_cost(*f.block, pose_from_array(T, "T_target_source"));
-          },
-          py::arg("T_target_source"), "Sum of squared residuals at a relative pose");
 }
 
 }  // namespace carat::python

@@ -1,6 +1,7 @@
 // The synthetic world from Python: a whole mapping setup (carat.simulate) or raw scans.
 #include <pybind11/numpy.h>
 #include <pybind11/stl.h>
+#include <tbb/parallel_for.h>
 
 #include <string>
 #include <vector>
@@ -23,7 +24,7 @@ struct Simulation {
   py::array_t<double> truth;    ///< ground truth T_world_frame
   py::array_t<double> drift;    ///< the drifting guess
   py::array_t<double> initial;  ///< drift refined by odometry (the drift without odometry)
-  py::list frames;              ///< carat.Frame per pose
+  py::tuple frames;             ///< carat.Frame per pose
   py::object graph;             ///< carat.DenseGraph at `initial`, or None
   std::size_t raw_points = 0;   ///< points of all scans before downsampling
   py::dict timings;             ///< seconds per stage
@@ -63,10 +64,10 @@ Simulation simulate(int frames, int laps, std::uint64_t seed, int beams, int cir
                                           std::size_t total) { check.progress()(done, total); });
   });
   Simulation out;
-  out.truth = array_from_poses(pipeline.T_world_truth);
-  out.drift = array_from_poses(pipeline.T_world_drift);
-  out.initial = array_from_poses(pipeline.T_world_initial);
-  out.frames = list_from_frames(pipeline.frames);
+  out.truth = read_only(array_from_poses(pipeline.T_world_truth));
+  out.drift = read_only(array_from_poses(pipeline.T_world_drift));
+  out.initial = read_only(array_from_poses(pipeline.T_world_initial));
+  out.frames = py::tuple(list_from_frames(pipeline.frames));
   if (dense_graph) {
     out.graph = py::cast(DenseGraph{pipeline.pairs});
   } else {
@@ -83,13 +84,22 @@ Simulation simulate(int frames, int laps, std::uint64_t seed, int beams, int cir
 py::tuple simulate_scans(int frames, int laps, std::uint64_t seed, int beams, int circuit_blocks) {
   const SyntheticWorldOptions options = world_options(seed, beams, circuit_blocks);
   const SyntheticTrajectoryOptions drive = drive_options(frames, laps, circuit_blocks);
-  SyntheticSequence sequence = run_released([&](InterruptCheck&) {
+  // Frame by frame (each scan parallel inside), so that Ctrl-C is seen between frames.
+  std::vector<PointCloud> scans_out;
+  std::vector<Eigen::Isometry3d> truth;
+  run_released([&](InterruptCheck& check) {
     const SyntheticWorld world(options);
-    return make_synthetic_sequence(world, drive);
+    truth = world.trajectory(drive);
+    const auto progress = check.progress();
+    scans_out.resize(truth.size());
+    tbb::parallel_for(std::size_t{0}, truth.size(), [&](std::size_t k) {
+      scans_out[k] = world.scan(truth[k], synthetic_frame_noise_seed(seed, k));
+      progress(k + 1, truth.size());
+    });
   });
   py::list scans;
-  for (PointCloud& scan : sequence.scans) scans.append(array_from_cloud(std::move(scan)));
-  return py::make_tuple(scans, array_from_poses(sequence.T_world_frame));
+  for (PointCloud& scan : scans_out) scans.append(array_from_cloud(std::move(scan)));
+  return py::make_tuple(scans, array_from_poses(truth));
 }
 
 }  // namespace

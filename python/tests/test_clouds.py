@@ -115,6 +115,8 @@ def test_point_arrays_are_checked(cloud):
     xyzi = np.hstack([cloud, np.zeros((len(cloud), 1), np.float32)])
     assert np.array_equal(carat.voxel_downsample(xyzi[::1], 3.0), carat.voxel_downsample(cloud, 3.0))
     assert np.array_equal(carat.voxel_downsample(cloud.astype(np.float64)[::-1], 3.0).shape, carat.voxel_downsample(cloud, 3.0).shape)
+    with pytest.raises(ValueError, match=r"neighbors: must be in \[4, 1000\], got 100000"):
+        carat.Frame(cloud, neighbors=100000)
     with pytest.raises(ValueError, match="threads: must be >= 1, got 0"):
         carat.Frame(cloud, threads=0)
     with pytest.raises(carat.Error, match="points: only 10 points after downsampling"):

@@ -93,6 +93,13 @@ def test_bad_input_raises():
         carat.coreset(J.astype(complex), e)
     with pytest.raises(carat.Error, match="29"):
         carat.coreset(J, e, target=20)
+    with pytest.raises(ValueError, match=r"J: at most 128 columns .*got 140000"):
+        carat.coreset(np.ones((3, 140000)), np.ones(3))
+    with pytest.raises(ValueError, match=r"columns: must be in \[1, 128\], got 0"):
+        carat.minimum_coreset_rows(0)
+    with pytest.raises(ValueError, match=r"e: expected 1000 residuals \(one per row of J\), got shape \(1000, 1, 1\)"):
+        carat.coreset(J, e[:, None, None])
+    assert np.array_equal(carat.coreset(J, e, clusters=0)[0], carat.coreset(J, e)[0])
     with pytest.raises(ValueError, match="J: no rows"):
         carat.coreset(np.zeros((0, 6)), np.zeros(0))
     assert issubclass(carat.Error, RuntimeError)

@@ -102,5 +102,9 @@ def test_mapping_arguments_are_checked(small_drive):
         carat.optimize([s.frames[0], np.zeros((3, 3))], np.array([[0, 1]]), s.initial[:2])
     with pytest.raises(carat.Error, match="full, exact, random, lossless|'full'"):
         carat.optimize(s.frames, s.graph, s.initial, sampling="everything")
+    with pytest.raises(carat.Error, match="cauchy_scale must be finite and >= 0"):
+        carat.pose_graph(s.frames, s.graph, s.initial, cauchy_scale=float("nan"))
+    with pytest.raises(ValueError, match="read-only"):
+        s.truth[0, 0, 0] = 5.0
     with pytest.raises(carat.Error, match="3 poses"):
         carat.ate(s.truth[:3], s.truth)

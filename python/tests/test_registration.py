@@ -118,5 +118,9 @@ def test_coreset_of_a_factor_is_exact_at_its_point(scans):
     assert abs(w @ e[idx] ** 2 - e @ e) <= 1e-11 * (e @ e)
     far = np.eye(4)
     far[0, 3] = 1e4
-    with pytest.raises(carat.Error, match="no correspondences"):
+    with pytest.raises(carat.Error, match="GicpFactor: no source point has a target point within 1 m"):
         carat.GicpFactor(target, source, far)
+    with pytest.raises(TypeError):
+        carat.GicpFactor(target, None, T)
+    with pytest.raises(ValueError, match="max_correspondence_distance: must be finite and > 0"):
+        carat.GicpFactor(target, source, T, max_correspondence_distance=float("inf"))

@@ -1,6 +1,7 @@
 #include "carat/registration/pose_graph_baseline.hpp"
 
 #include <memory>
+#include <cmath>
 #include <string>
 
 #include "carat/base/error.hpp"
@@ -44,6 +45,10 @@ se3::Matrix6d relative_pose_information(const Eigen::Isometry3d& T_target_source
 PoseGraphBaselineResult optimize_pose_graph_baseline(
     std::span<const Eigen::Isometry3d> T_world_initial,
     std::span<const PairRegistration> registrations, const PoseGraphBaselineOptions& options) {
+  if (!(std::isfinite(options.cauchy_scale) && options.cauchy_scale >= 0.0)) {
+    throw Error("pose graph: cauchy_scale must be finite and >= 0 (0: no kernel), got " +
+                std::to_string(options.cauchy_scale));
+  }
   PoseGraph graph;
   for (std::size_t i = 0; i < T_world_initial.size(); ++i)
     graph.vertices.push_back({static_cast<std::int64_t>(i), T_world_initial[i]});
