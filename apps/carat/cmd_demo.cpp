@@ -17,8 +17,10 @@
 #include "carat/base/atomic_file.hpp"
 #include "carat/base/error.hpp"
 #include "carat/base/output_folder.hpp"
+#include "carat/base/stopwatch.hpp"
 #include "carat/registration/dense_graph.hpp"
 #include "carat/registration/frame.hpp"
+#include "carat/registration/loop_closure.hpp"
 #include "carat/registration/trajectory_error.hpp"
 #include "carat/sim/pipeline.hpp"
 #include "cli_support.hpp"
@@ -51,6 +53,9 @@ struct DemoArgs {
   int threads = 0;
   bool json = false;
 };
+
+/// Heading drift of `--initial drift`, degrees per metre travelled.
+constexpr double kDriftHeadingBiasDeg = 0.1;
 
 /// A setting as printf's %g writes it.
 std::string number(double value) {
@@ -134,6 +139,14 @@ int run_demo(const DemoArgs& args) {
   pipeline_options.drive.laps = 2;
   pipeline_options.drift.seed = args.seed;
   pipeline_options.odometry = args.initial == "odometry";
+  const bool drift = args.initial == "drift";
+  if (drift) {
+    // Wheel odometry whose heading drifts by 10 degrees per 100 m: the second lap starts metres
+    // away from the first, so loops are closed (Scan Context, GICP, a pose graph) before the
+    // dense graph is built at the result.
+    pipeline_options.drift.heading_bias_deg = kDriftHeadingBiasDeg;
+    pipeline_options.dense_graph = false;
+  }
   pipeline_options.graph.overlap_threshold = args.overlap;
   pipeline_options.threads = threads;
   SyntheticPipeline pipeline;
@@ -171,6 +184,47 @@ int run_demo(const DemoArgs& args) {
   input.frames = std::move(pipeline.frames);
   input.T_world_initial = std::move(pipeline.T_world_initial);
   input.pairs = std::move(pipeline.pairs);
+  const std::vector<Eigen::Isometry3d> guess = input.T_world_initial;  // before any loop step
+  nlohmann::json loops_json = {{"ran", drift}};
+  std::string loops_line;
+  if (drift) {
+    LoopClosureOptions loop_options;
+    loop_options.num_threads = threads;
+    const Stopwatch loop_time;
+    LoopClosureResult closed;
+    {
+      ProgressBar bar("closing loops", !args.json);
+      closed = close_loops(input.frames, input.T_world_initial, loop_options, bar.callback());
+    }
+    // Precision of the candidates against the ground truth: a true loop's GICP result agrees
+    // with the true relative pose.
+    std::size_t correct = 0;
+    for (const PairRegistration& loop : closed.loops) {
+      const Eigen::Isometry3d error = (truth[static_cast<std::size_t>(loop.pair.target)].inverse() *
+                                       truth[static_cast<std::size_t>(loop.pair.source)])
+                                          .inverse() *
+                                      loop.T_target_source;
+      correct += error.translation().norm() < 0.5;
+    }
+    loops_json["candidates"] = closed.candidates.size();
+    loops_json["accepted"] = closed.loops.size();
+    loops_json["accepted_correct"] = correct;
+    loops_json["ate_rmse_before"] = compute_ate(input.T_world_initial, truth).rmse;
+    if (!closed.loops.empty()) input.T_world_initial = closed.T_world_frame;
+    loops_json["ate_rmse_after"] = compute_ate(input.T_world_initial, truth).rmse;
+    loops_json["time_s"] = loop_time.elapsed_s();
+    stages["loops_s"] = loop_time.elapsed_s();
+    loops_line = "  loops: " + std::to_string(closed.loops.size()) + " of " +
+                 std::to_string(closed.candidates.size()) + " Scan Context candidates accepted (" +
+                 std::to_string(correct) + " match the ground truth); ATE of the guess " +
+                 number(loops_json["ate_rmse_before"].get<double>()) + " m -> " +
+                 number(loops_json["ate_rmse_after"].get<double>()) + " m after the pose graph";
+    const Stopwatch graph_time;
+    DenseGraphOptions graph_options = pipeline_options.graph;
+    graph_options.num_threads = threads;
+    input.pairs = build_dense_graph(input.frames, input.T_world_initial, graph_options);
+    stages["dense_graph_s"] = graph_time.elapsed_s();
+  }
   const std::size_t raw_points = pipeline.raw_points;
   std::size_t points = 0;
   for (const auto& frame : input.frames) points += frame->size();
@@ -184,20 +238,18 @@ int run_demo(const DemoArgs& args) {
   for (ResidualSampling sampling : {ResidualSampling::kFull, ResidualSampling::kExact,
                                     ResidualSampling::kRandom, ResidualSampling::kLossless})
     results.push_back(run_registration(input, sampling));
-  const AteStatistics initial_ate = compute_ate(input.T_world_initial, truth);
+  const AteStatistics initial_ate = compute_ate(guess, truth);
   for (MethodResult& r : results) r.ate = compute_ate(r.T_world_frame, truth);
 
   // Files, into the temporary folder that becomes --out when all are written.
   const std::filesystem::path dir = folder.path();
   std::vector<std::filesystem::path> written;
   for (const auto& p : write_trajectory_pair(dir, "ground_truth", truth)) written.push_back(p);
-  for (const auto& p : write_trajectory_pair(dir, "initial", input.T_world_initial))
-    written.push_back(p);
+  for (const auto& p : write_trajectory_pair(dir, "initial", guess)) written.push_back(p);
   for (const MethodResult& r : results)
     for (const auto& p : write_trajectory_pair(dir, r.key, r.T_world_frame)) written.push_back(p);
   const MethodResult* exact = &results[3];
-  for (const auto& p :
-       write_mapping_pictures(dir, truth, input.T_world_initial, results, input.pairs, exact))
+  for (const auto& p : write_mapping_pictures(dir, truth, guess, results, input.pairs, exact))
     written.push_back(p);
 
   nlohmann::json j;
@@ -213,6 +265,7 @@ int run_demo(const DemoArgs& args) {
   j["gre_excess_cauchy"] = args.gre_excess_cauchy;
   j["gre_cauchy"] = args.gre_cauchy;
   j["pgo_cauchy"] = args.pgo_cauchy;
+  j["loops"] = loops_json;
   j["initial_ate_rmse"] = initial_ate.rmse;
   j["initial_ate_mean"] = initial_ate.mean;
   j["initial_ate_std"] = initial_ate.std;
@@ -237,6 +290,7 @@ int run_demo(const DemoArgs& args) {
   std::printf("  %zu points simulated, %zu after 0.5 m downsampling\n", raw_points, points);
   std::printf("  initial guess (%s): ATE %.4f ± %.4f m (RMSE %.4f)\n", args.initial.c_str(),
               initial_ate.mean, initial_ate.std, initial_ate.rmse);
+  if (!loops_line.empty()) std::printf("%s\n", loops_line.c_str());
   std::printf("  dense graph: %zu factors (overlap >= %.2f, plus consecutive pairs)\n",
               input.pairs.size(), args.overlap);
   std::printf("  GRE: %s\n\n", gre_setting(args).c_str());
@@ -275,7 +329,9 @@ void register_demo(CLI::App& app, CommandRegistry& registry) {
                   "is replaced whole)")
       ->check(path_value())
       ->capture_default_str();
-  cmd->add_option("--initial", args->initial, "initial guess: GICP odometry or the drift model")
+  cmd->add_option("--initial", args->initial,
+                  "initial guess: GICP odometry from a drifting prior, or the drift itself (10 "
+                  "degrees of heading drift per 100 m), whose loops are closed first")
       ->check(CLI::IsMember({"odometry", "drift"}))
       ->capture_default_str();
   cmd->add_option("--overlap", args->overlap, "overlap threshold of the dense graph")

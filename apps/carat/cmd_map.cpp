@@ -1,11 +1,14 @@
-// carat map --frames DIR --poses FILE [--poses-format kitti|tum|graph] [--method gre|pgo]
+// carat map --frames DIR (--poses FILE | --initial FILE | both) [--poses-format kitti|tum|graph]
+//           [--initial-format F] [--loops | --no-loops] [--method gre|pgo]
 //           [--sampling exact|random|full|lossless] [--residuals M] [--perturb-m X --perturb-deg Y]
 //           [--seed S] [--out FILE] [--json]
-// Global trajectory optimization on real scans: reads the frames and their poses, optionally
-// perturbs the poses (frame 0 stays: it is the gauge), builds the dense graph of overlapping
-// pairs at the starting poses and optimizes the registration errors of all pairs (gre) or a
-// pose graph of pairwise GICP results (pgo). Reports the ATE of the start and of the result
-// against the given poses, and writes the optimized trajectory to --out.
+// Global trajectory optimization on real scans. The start is --initial (an odometry file), or
+// the reference --poses, optionally perturbed (frame 0 stays: it is the gauge). With --loops
+// (the default when --initial is given) loops are closed first: Scan Context candidates
+// validated by GICP and a pose graph of odometry and loops. Then the dense graph of overlapping
+// pairs at the start, and the registration errors of all pairs (gre) or a pose graph of pairwise
+// GICP results (pgo) optimized. Reports the ATE against --poses when given, and writes the
+// optimized trajectory to --out.
 #include <tbb/info.h>
 
 #include <algorithm>
@@ -13,6 +16,7 @@
 #include <filesystem>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -26,6 +30,7 @@
 #include "carat/registration/io/point_cloud_io.hpp"
 #include "carat/registration/io/scan_folder.hpp"
 #include "carat/registration/io/trajectory_io.hpp"
+#include "carat/registration/loop_closure.hpp"
 #include "carat/registration/pose_graph_baseline.hpp"
 #include "carat/registration/pose_perturbation.hpp"
 #include "carat/registration/trajectory_error.hpp"
@@ -43,6 +48,10 @@ struct MapArgs {
   std::string frames;
   std::string poses;
   std::string poses_format = "kitti";
+  std::string initial;
+  std::string initial_format;  // empty: --poses-format
+  bool loops = false;
+  bool no_loops = false;
   std::string bin_format = "auto";
   std::string method = "gre";
   std::string sampling = "exact";
@@ -108,12 +117,31 @@ int run_map(const CLI::App& command, const MapArgs& args) {
   const PoseGraphInformation information = parse_pose_graph_information(args.information);
   check_applicable(command, args, sampling);
   const int threads = thread_count(args.threads);
+  const bool has_reference = !args.poses.empty();
+  const bool has_initial = !args.initial.empty();
+  if (!has_reference && !has_initial) {
+    throw UsageError(
+        "give --poses (a reference trajectory), --initial (a starting trajectory, "
+        "e.g. from `carat odometry`), or both");
+  }
+  for (const char* option : {"--perturb-m", "--perturb-deg"}) {
+    refuse_unused(command, option, !has_initial, "with --initial (the start is given)");
+  }
+  if (args.loops && args.no_loops) throw UsageError("--loops and --no-loops exclude each other");
+  refuse_unused(command, "--no-loops", has_initial,
+                "without --initial (the loop step is off unless --loops asks for it)");
+  refuse_unused(command, "--initial-format", has_initial, "without --initial");
+  const bool run_loops = has_initial ? !args.no_loops : args.loops;
   const TrajectoryFormat format = parse_trajectory_format(args.poses_format);
+  const TrajectoryFormat initial_format = parse_trajectory_format(
+      args.initial_format.empty() ? args.poses_format : args.initial_format);
   const std::vector<ScanFile> files =
       list_scan_folder(args.frames, parse_bin_layout(args.bin_format));
   std::unique_ptr<OutputFile> out_file;
   if (!args.out.empty()) {
-    std::vector<NamedInput> inputs{{"--poses", args.poses}};
+    std::vector<NamedInput> inputs;
+    if (has_reference) inputs.push_back({"--poses", args.poses});
+    if (has_initial) inputs.push_back({"--initial", args.initial});
     for (const ScanFile& file : files) inputs.push_back({"--frames", file.path.string()});
     check_output_file("--out", args.out, inputs);
     const fs::path out_path = fs::absolute(args.out).lexically_normal();
@@ -124,17 +152,29 @@ int run_map(const CLI::App& command, const MapArgs& args) {
                        "; write the result elsewhere");
     }
   }
-  const Trajectory given = read_trajectory(args.poses, format);
-  if (files.size() != given.poses.size()) {
-    throw Error(args.frames + " holds " + std::to_string(files.size()) + " frames but " +
-                args.poses + " has " + std::to_string(given.poses.size()) + " poses");
-  }
   if (files.size() < 2) throw Error(args.frames + ": at least 2 frames are needed");
-  const Trajectory reference = poses_in_scan_order(given, format, files, args.poses);
+  // A trajectory file with one pose per frame, in scan order.
+  const auto read_for_frames = [&](const std::string& option, const std::string& path,
+                                   TrajectoryFormat fmt) {
+    const Trajectory given = read_trajectory(path, fmt);
+    if (files.size() != given.poses.size()) {
+      throw Error(option + " " + path + " has " + std::to_string(given.poses.size()) +
+                  " poses but --frames " + args.frames + " holds " + std::to_string(files.size()) +
+                  " frames");
+    }
+    return poses_in_scan_order(given, fmt, files, path);
+  };
+  Trajectory reference;
+  if (has_reference) reference = read_for_frames("--poses", args.poses, format);
+  Trajectory initial;
+  if (has_initial) initial = read_for_frames("--initial", args.initial, initial_format);
   if (!args.out.empty()) out_file = std::make_unique<OutputFile>(args.out);
-  const Eigen::Isometry3d T_world_anchor = reference.poses.front();
-  const std::vector<Eigen::Isometry3d> reference_poses =
-      relative_to(T_world_anchor, reference.poses);
+  // Results are written in the frame of the start (the --initial file, else the reference).
+  const Trajectory& start = has_initial ? initial : reference;
+  const TrajectoryFormat out_format = has_initial ? initial_format : format;
+  const Eigen::Isometry3d T_world_anchor = start.poses.front();
+  std::vector<Eigen::Isometry3d> reference_poses;
+  if (has_reference) reference_poses = relative_to(T_world_anchor, reference.poses);
 
   const Stopwatch preprocess_time;
   MappingInput input;
@@ -174,7 +214,59 @@ int run_map(const CLI::App& command, const MapArgs& args) {
     }
   }
   input.T_world_initial =
-      perturb_poses(reference_poses, args.perturb_m, args.perturb_deg, args.seed);
+      has_initial ? relative_to(T_world_anchor, initial.poses)
+                  : perturb_poses(reference_poses, args.perturb_m, args.perturb_deg, args.seed);
+
+  // Loops: Scan Context candidates, GICP validation, the pose graph of odometry and loops.
+  nlohmann::json loops_json = {{"ran", run_loops}};
+  std::vector<Eigen::Isometry3d> start_poses = input.T_world_initial;
+  std::string loops_line = "  loops: not searched (--loops searches them)";
+  if (run_loops) {
+    LoopClosureOptions loop_options;
+    loop_options.num_threads = threads;
+    loop_options.max_correspondence_distance = args.max_distance;
+    const Stopwatch loop_time;
+    LoopClosureResult closed;
+    {
+      ProgressBar bar("closing loops", !args.json);
+      closed = close_loops(input.frames, input.T_world_initial, loop_options, bar.callback());
+    }
+    nlohmann::json rejected = nlohmann::json::object();
+    for (LoopVerdict v :
+         {LoopVerdict::kNotConverged, LoopVerdict::kDegenerate, LoopVerdict::kFewInliers}) {
+      std::size_t count = 0;
+      for (const LoopCheck& check : closed.checks) count += check.verdict == v;
+      rejected[to_string(v)] = count;
+    }
+    loops_json["candidates"] = closed.candidates.size();
+    loops_json["accepted"] = closed.loops.size();
+    loops_json["rejected"] = rejected;
+    loops_json["sparse_frames"] = closed.sparse_frames.size();
+    loops_json["time_s"] = loop_time.elapsed_s();
+    nlohmann::json accepted = nlohmann::json::array();
+    for (const PairRegistration& loop : closed.loops)
+      accepted.push_back({loop.pair.target, loop.pair.source});
+    loops_json["pairs"] = accepted;
+    if (!closed.loops.empty()) {
+      loops_json["pgo"] = {{"termination", to_string(closed.summary.termination)},
+                           {"iterations", closed.summary.num_iterations},
+                           {"final_cost", closed.summary.final_cost},
+                           {"time_s", closed.summary.time.total_s}};
+      input.T_world_initial = closed.T_world_frame;
+      loops_line = "  loops: " + std::to_string(closed.loops.size()) + " of " +
+                   std::to_string(closed.candidates.size()) +
+                   " Scan Context candidates accepted by GICP; pose graph " +
+                   to_string(closed.summary.termination);
+    } else {
+      loops_line = "  loops: none found (" + std::to_string(closed.candidates.size()) +
+                   " candidates, none validated): the start is left as it is, and a drive "
+                   "whose loops are not closed may stay inconsistent";
+    }
+    if (!closed.sparse_frames.empty()) {
+      loops_line += "; " + std::to_string(closed.sparse_frames.size()) +
+                    " frames too sparse for a descriptor";
+    }
+  }
 
   DenseGraphOptions graph_options;
   graph_options.overlap_threshold = args.overlap;
@@ -194,17 +286,23 @@ int run_map(const CLI::App& command, const MapArgs& args) {
   const bool can_align = reference_poses.size() >= 3;
   AteOptions ate_options;
   ate_options.align = can_align;
-  const AteStatistics initial_ate =
-      compute_ate(input.T_world_initial, reference_poses, ate_options);
-  result.ate = compute_ate(result.T_world_frame, reference_poses, ate_options);
+  std::optional<AteStatistics> initial_ate;
+  if (has_reference) {
+    initial_ate = compute_ate(start_poses, reference_poses, ate_options);
+    result.ate = compute_ate(result.T_world_frame, reference_poses, ate_options);
+    if (run_loops) {
+      loops_json["ate_rmse"] =
+          compute_ate(input.T_world_initial, reference_poses, ate_options).rmse;
+    }
+  }
 
   if (out_file) {
     Trajectory optimized;
-    optimized.stamps = reference.stamps;
+    optimized.stamps = start.stamps;
     for (const Eigen::Isometry3d& T : result.T_world_frame)
       optimized.poses.push_back(T_world_anchor * T);
     try {
-      out_file->stream() << format_trajectory(optimized, format);
+      out_file->stream() << format_trajectory(optimized, out_format);
     } catch (const Error& e) {
       throw Error(args.out + ": " + e.what());
     }
@@ -213,21 +311,38 @@ int run_map(const CLI::App& command, const MapArgs& args) {
     nlohmann::json j = to_json(result);
     j["frames"] = input.frames.size();
     j["factors"] = input.pairs.size();
-    j["initial_ate_rmse"] = initial_ate.rmse;
-    j["initial_ate_mean"] = initial_ate.mean;
-    j["initial_ate_rotation_rmse_deg"] = initial_ate.rotation_rmse_deg;
-    j["ate_aligned"] = can_align;
+    j["start"] = has_initial ? "initial" : "reference";
+    j["loops"] = loops_json;
+    if (initial_ate) {
+      j["initial_ate_rmse"] = initial_ate->rmse;
+      j["initial_ate_mean"] = initial_ate->mean;
+      j["initial_ate_rotation_rmse_deg"] = initial_ate->rotation_rmse_deg;
+      j["ate_aligned"] = can_align;
+    }
     j["preprocess_s"] = preprocess_s;
     if (!args.out.empty()) j["out"] = args.out;
     std::printf("%s\n", j.dump(2).c_str());
   } else {
     std::printf("carat map: %zu frames from %s, %zu factors in the dense graph\n",
                 input.frames.size(), args.frames.c_str(), input.pairs.size());
-    std::printf("  start (perturbed by %.3g m / %.3g deg): ATE RMSE %.4f m, %.3f deg\n",
-                args.perturb_m, args.perturb_deg, initial_ate.rmse, initial_ate.rotation_rmse_deg);
+    if (initial_ate && has_initial) {
+      std::printf("  start (%s): ATE RMSE %.4f m, %.3f deg\n", args.initial.c_str(),
+                  initial_ate->rmse, initial_ate->rotation_rmse_deg);
+    } else if (initial_ate) {
+      std::printf("  start (perturbed by %.3g m / %.3g deg): ATE RMSE %.4f m, %.3f deg\n",
+                  args.perturb_m, args.perturb_deg, initial_ate->rmse,
+                  initial_ate->rotation_rmse_deg);
+    } else {
+      std::printf("  start: %s (no --poses: no ATE)\n", args.initial.c_str());
+    }
+    std::printf("%s\n", loops_line.c_str());
     std::printf("%s", results_table({result}).c_str());
-    std::printf("  rotation ATE RMSE %.4f deg; termination %s\n", result.ate->rotation_rmse_deg,
-                result.termination.c_str());
+    if (result.ate) {
+      std::printf("  rotation ATE RMSE %.4f deg; termination %s\n", result.ate->rotation_rmse_deg,
+                  result.termination.c_str());
+    } else {
+      std::printf("  termination %s\n", result.termination.c_str());
+    }
     if (!args.out.empty()) std::printf("  wrote %s\n", args.out.c_str());
   }
   flush_standard_output();  // the report is out: now the trajectory goes into place
@@ -246,10 +361,21 @@ void register_map(CLI::App& app, CommandRegistry& registry) {
       ->check(path_value())
       ->required();
   cmd->add_option("--poses", args->poses,
-                  "trajectory file: T_world_frame per frame (graph.txt: by vertex id)")
-      ->check(path_value())
-      ->required();
-  cmd->add_option("--poses-format", args->poses_format, "format of --poses and --out")
+                  "reference trajectory: T_world_frame per frame (graph.txt: by vertex id); the "
+                  "start unless --initial is given, and the reference of the ATE")
+      ->check(path_value());
+  cmd->add_option("--initial", args->initial,
+                  "start from this trajectory (odometry: `carat odometry`, KITTI / TUM / graph)")
+      ->check(path_value());
+  cmd->add_option("--initial-format", args->initial_format,
+                  "format of --initial and of --out (default: --poses-format)")
+      ->check(CLI::IsMember({"kitti", "tum", "graph"}));
+  cmd->add_flag("--loops", args->loops,
+                "close loops first: Scan Context candidates, GICP validation, a pose graph "
+                "(default with --initial)");
+  cmd->add_flag("--no-loops", args->no_loops, "do not search for loops (with --initial)");
+  cmd->add_option("--poses-format", args->poses_format,
+                  "format of --poses (and of --out when there is no --initial)")
       ->check(CLI::IsMember({"kitti", "tum", "graph"}))
       ->capture_default_str();
   cmd->add_option("--bin-format", args->bin_format,

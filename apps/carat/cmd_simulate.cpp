@@ -1,4 +1,5 @@
-// carat simulate --out DIR [--frames N] [--laps L] [--circuit-blocks N] [--seed S] [--beams B]:
+// carat simulate --out DIR [--frames N] [--laps L] [--circuit-blocks N] [--seed S] [--beams B]
+//                [--drift-heading D]:
 // simulates a LiDAR drive through the synthetic city and writes it KITTI-style: DIR/NNNNNN.bin (x y
 // z intensity float32, intensity 0) and DIR/poses.txt (ground truth T_world_frame, KITTI pose
 // format), for `carat map` and for benchmarks of any size. Frames are written as they are
@@ -8,11 +9,14 @@
 #include <tbb/task_arena.h>
 
 #include <cstdio>
+#include <filesystem>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <string>
 
 #include "carat/base/output_folder.hpp"
+#include "carat/registration/io/trajectory_io.hpp"
+#include "carat/sim/drift.hpp"
 #include "carat/sim/kitti_writer.hpp"
 #include "carat/sim/sequence.hpp"
 #include "carat/sim/world.hpp"
@@ -30,6 +34,7 @@ struct SimulateArgs {
   int circuit_blocks = 1;
   int beams = 32;
   std::uint64_t seed = 1;
+  double drift_heading = -1.0;  // < 0: no initial.txt
   int threads = 0;
   bool json = false;
 };
@@ -69,9 +74,25 @@ int run_simulate(const SimulateArgs& args) {
     arena.execute(
         [&] { points = write_synthetic_drive(folder.path(), world, drive, bar.callback()); });
   }
+  if (args.drift_heading >= 0.0) {
+    // A drifting odometry guess beside the ground truth: the drift model of `carat demo` plus a
+    // systematic heading drift, for `carat map --initial`.
+    DriftOptions drift;
+    drift.seed = args.seed;
+    drift.translation_sigma = 0.005;
+    drift.rotation_sigma_deg = 0.02;
+    drift.heading_bias_deg = args.drift_heading;
+    Trajectory initial;
+    initial.poses = apply_drift(world.trajectory(drive), drift);
+    for (std::size_t k = 0; k < initial.poses.size(); ++k)
+      initial.stamps.push_back(static_cast<double>(k));
+    write_trajectory(folder.path() / "initial.txt", initial, TrajectoryFormat::kKitti);
+  }
   if (args.json) {
     nlohmann::json j;
     j["out"] = args.out;
+    if (args.drift_heading >= 0.0)
+      j["initial"] = (std::filesystem::path(args.out) / "initial.txt").string();
     j["frames"] = args.frames;
     j["points"] = points;
     j["seed"] = args.seed;
@@ -112,6 +133,10 @@ void register_simulate(CLI::App& app, CommandRegistry& registry) {
   cmd->add_option("--seed", args->seed, "seed of the world and the noise")
       ->check(seed_value())
       ->capture_default_str();
+  cmd->add_option("--drift-heading", args->drift_heading,
+                  "also write initial.txt: a drifting odometry guess whose heading drifts by this "
+                  "many degrees per metre (0.1: 10 degrees per 100 m), for `carat map --initial`")
+      ->check(real_in(0.0, 10.0));
   cmd->add_option("--threads", args->threads, "threads (0: all cores)")
       ->check(integer_in(0, 1024))
       ->capture_default_str();

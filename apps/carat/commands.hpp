@@ -39,6 +39,8 @@ void register_coreset_check(CLI::App& app, CommandRegistry& registry);
 void register_ate(CLI::App& app, CommandRegistry& registry);
 /// `carat map`: dense global registration on real scans.
 void register_map(CLI::App& app, CommandRegistry& registry);
+/// `carat odometry`: GICP odometry from a folder of scans.
+void register_odometry(CLI::App& app, CommandRegistry& registry);
 /// `carat simulate`: write a simulated LiDAR drive to disk.
 void register_simulate(CLI::App& app, CommandRegistry& registry);
 /// `carat simulate-bal`: write a synthetic bundle-adjustment problem in the BAL format.

@@ -37,6 +37,7 @@ int main(int argc, char** argv) {
   carat::cli::register_align(app, registry);
   carat::cli::register_ate(app, registry);
   carat::cli::register_map(app, registry);
+  carat::cli::register_odometry(app, registry);
   carat::cli::register_simulate(app, registry);
   carat::cli::register_simulate_bal(app, registry);
   carat::cli::register_solve_bal(app, registry);

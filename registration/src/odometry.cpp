@@ -27,4 +27,42 @@ OdometryResult run_odometry(std::span<const std::shared_ptr<const Frame>> frames
   return out;
 }
 
+OdometryResult run_scan_odometry(std::span<const std::shared_ptr<const Frame>> frames,
+                                 const AlignSettings& settings,
+                                 const std::function<void(std::size_t, std::size_t)>& progress) {
+  if (frames.size() < 2)
+    throw Error("odometry: at least 2 frames are needed, got " + std::to_string(frames.size()));
+  OdometryResult out;
+  out.T_world_frame.push_back(Eigen::Isometry3d::Identity());
+  Eigen::Isometry3d motion = Eigen::Isometry3d::Identity();
+  for (std::size_t k = 0; k + 1 < frames.size(); ++k) {
+    const Frame& target = *frames[k];
+    const Frame& source = *frames[k + 1];
+    AlignSettings coarse = settings;
+    coarse.max_correspondence_distance = 3.0 * settings.max_correspondence_distance;
+    AlignResult result;
+    try {
+      const AlignResult first =
+          align(target.cloud(), target.tree(), source.cloud(), motion, coarse);
+      result =
+          align(target.cloud(), target.tree(), source.cloud(), first.T_target_source, settings);
+    } catch (const Error& e) {
+      throw Error("aligning " + source.name() + " to " + target.name() + ": " + e.what());
+    }
+    PairRegistration step;
+    step.pair = FramePair{static_cast<int>(k), static_cast<int>(k + 1), 0.0};
+    step.T_target_source = result.T_target_source;
+    step.H = result.H;
+    step.error = result.error;
+    step.num_correspondences = result.num_correspondences;
+    step.iterations = result.iterations;
+    step.converged = result.converged;
+    out.steps.push_back(step);
+    out.T_world_frame.push_back(out.T_world_frame.back() * result.T_target_source);
+    motion = result.T_target_source;
+    if (progress) progress(k + 1, frames.size() - 1);
+  }
+  return out;
+}
+
 }  // namespace carat

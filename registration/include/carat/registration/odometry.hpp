@@ -27,4 +27,14 @@ OdometryResult run_odometry(std::span<const std::shared_ptr<const Frame>> frames
                             const AlignSettings& settings, int num_threads,
                             const std::function<void(std::size_t, std::size_t)>& progress = {});
 
+/// Odometry from scans alone: aligns frame k+1 to frame k in order, each from the motion of the
+/// step before (constant velocity; identity for the first), first with correspondences up to
+/// three times settings.max_correspondence_distance, then with it, and chains the results from
+/// the identity. Each alignment uses settings.num_threads. Throws carat::Error for fewer than 2
+/// frames or a failed alignment (naming the frames). `progress`, if set, gets (steps done,
+/// steps).
+OdometryResult run_scan_odometry(
+    std::span<const std::shared_ptr<const Frame>> frames, const AlignSettings& settings,
+    const std::function<void(std::size_t, std::size_t)>& progress = {});
+
 }  // namespace carat
