@@ -30,12 +30,14 @@
 #include <carat/registration/io/scan_folder.hpp>
 #include <carat/registration/io/trajectory_io.hpp>
 #include <carat/registration/kdtree.hpp>
+#include <carat/registration/loop_closure.hpp>
 #include <carat/registration/odometry.hpp>
 #include <carat/registration/overlap.hpp>
 #include <carat/registration/pair_registration.hpp>
 #include <carat/registration/point_cloud.hpp>
 #include <carat/registration/pose_graph_baseline.hpp>
 #include <carat/registration/pose_perturbation.hpp>
+#include <carat/registration/scan_context.hpp>
 #include <carat/registration/trajectory_error.hpp>
 #include <carat/registration/voxel_grid.hpp>
 #include <carat/residuals/bal_problem.hpp>

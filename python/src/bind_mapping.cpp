@@ -18,6 +18,8 @@
 #include "carat/registration/global_registration.hpp"
 #include "carat/registration/io/scan_folder.hpp"
 #include "carat/registration/io/trajectory_io.hpp"
+#include "carat/registration/loop_closure.hpp"
+#include "carat/registration/odometry.hpp"
 #include "carat/registration/pair_registration.hpp"
 #include "carat/registration/pose_graph_baseline.hpp"
 #include "carat/registration/trajectory_error.hpp"
@@ -152,6 +154,60 @@ MappingResult pose_graph(const py::handle& frames_in, const py::handle& graph,
   out.stats["registration_s"] = registration_s;
   out.factor_costs = py::array_t<double>(0);
   return out;
+}
+
+py::dict close_loops_py(const py::handle& frames_in, const py::handle& poses_in,
+                        double exclude_recent_m, double max_descriptor_distance,
+                        double min_inlier_fraction, double max_correspondence_distance,
+                        int threads) {
+  const auto frames = frames_from_sequence(frames_in, "frames");
+  const auto poses = poses_for_frames(poses_in, frames.size());
+  LoopClosureOptions options;
+  options.exclude_recent_m = exclude_recent_m;
+  options.max_descriptor_distance = max_descriptor_distance;
+  options.min_inlier_fraction = min_inlier_fraction;
+  options.max_correspondence_distance = max_correspondence_distance;
+  options.num_threads = threads_argument(threads);
+  const LoopClosureResult result = run_released([&](InterruptCheck& check) {
+    options.graph.solver.iteration_callback = check.iteration_callback();
+    return close_loops(frames, poses, options, check.progress());
+  });
+  py::dict out;
+  out["poses"] = array_from_poses(result.T_world_frame);
+  py::list candidates;
+  for (const LoopCheck& c : result.checks) {
+    py::dict d;
+    d["target"] = c.candidate.pair.target;
+    d["source"] = c.candidate.pair.source;
+    d["descriptor_distance"] = c.candidate.descriptor_distance;
+    d["yaw"] = c.candidate.yaw;
+    d["verdict"] = to_string(c.verdict);
+    d["inlier_fraction"] = c.inlier_fraction;
+    d["T_target_source"] = array_from_pose(c.registration.T_target_source);
+    candidates.append(d);
+  }
+  out["candidates"] = candidates;
+  py::array_t<std::int64_t> loops({static_cast<py::ssize_t>(result.loops.size()), py::ssize_t{2}});
+  for (std::size_t k = 0; k < result.loops.size(); ++k) {
+    loops.mutable_data()[2 * k] = result.loops[k].pair.target;
+    loops.mutable_data()[2 * k + 1] = result.loops[k].pair.source;
+  }
+  out["loops"] = loops;
+  out["sparse_frames"] = result.sparse_frames;
+  out["summary"] =
+      result.loops.empty() ? py::object(py::none()) : py::object(summary_dict(result.summary));
+  return out;
+}
+
+py::array_t<double> odometry_py(const py::handle& frames_in, double max_correspondence_distance,
+                                int threads) {
+  const auto frames = frames_from_sequence(frames_in, "frames");
+  AlignSettings settings;
+  settings.max_correspondence_distance = max_correspondence_distance;
+  settings.num_threads = threads_argument(threads);
+  const OdometryResult result = run_released(
+      [&](InterruptCheck& check) { return run_scan_odometry(frames, settings, check.progress()); });
+  return array_from_poses(result.T_world_frame);
 }
 
 py::dict ate(const py::handle& estimate_in, const py::handle& reference_in, bool align) {
@@ -328,6 +384,22 @@ Returns a carat.MappingResult.)");
         "The pose-graph baseline: GICP for every graph pair from the initial poses, then one "
         "relative-pose factor per pair ('hessian' or 'identity' information, Cauchy kernel). "
         "Returns a carat.MappingResult.");
+  m.def("close_loops", &close_loops_py, py::arg("frames"), py::arg("poses"),
+        py::arg("exclude_recent_m") = 100.0, py::arg("max_descriptor_distance") = 0.35,
+        py::arg("min_inlier_fraction") = 0.8, py::arg("max_correspondence_distance") = 1.0,
+        py::arg("threads") = 1,
+        R"(Closes the loops of a drive from a drifting guess (N x 4 x 4 T_world_frame).
+
+Scan Context candidates (each frame's best match at least exclude_recent_m back along the
+path), validated by GICP (converged, 6 directions fixed, min_inlier_fraction of the source's
+points within max_correspondence_distance), then a pose graph of consecutive GICP and the
+accepted loops. Returns a dict: poses (the pose graph's result; the guess when no loop was
+accepted), candidates (target, source, descriptor_distance, yaw, verdict, inlier_fraction,
+T_target_source each), loops (K x 2), sparse_frames, summary (None without loops).)");
+  m.def("odometry", &odometry_py, py::arg("frames"), py::arg("max_correspondence_distance") = 1.0,
+        py::arg("threads") = 1,
+        "GICP odometry of frames in order (each from the previous motion, a coarse then a fine "
+        "pass), chained from the identity: N x 4 x 4 T_world_frame.");
   m.def("ate", &ate, py::arg("estimate"), py::arg("reference"), py::arg("align") = true,
         "Absolute trajectory error of N x 4 x 4 poses against a reference (pose k with pose k): "
         "rmse, mean, median, std, min, max (metres), rotation errors (degrees), after a rigid "

@@ -48,7 +48,7 @@ SyntheticTrajectoryOptions drive_options(int frames, int laps, int circuit_block
 
 Simulation simulate(int frames, int laps, std::uint64_t seed, int beams, int circuit_blocks,
                     double voxel_size, double drift_translation, double drift_rotation_deg,
-                    bool odometry, bool dense_graph, int threads) {
+                    double drift_heading_deg, bool odometry, bool dense_graph, int threads) {
   SyntheticPipelineOptions options;
   options.world = world_options(seed, beams, circuit_blocks);
   options.drive = drive_options(frames, laps, circuit_blocks);
@@ -56,6 +56,7 @@ Simulation simulate(int frames, int laps, std::uint64_t seed, int beams, int cir
   options.preprocess.num_threads = threads_argument(threads);
   options.drift.translation_sigma = drift_translation;
   options.drift.rotation_sigma_deg = drift_rotation_deg;
+  options.drift.heading_bias_deg = drift_heading_deg;
   options.odometry = odometry;
   options.dense_graph = dense_graph;
   options.threads = threads_argument(threads);
@@ -119,10 +120,12 @@ void bind_sim(py::module_& m) {
   m.def("simulate", &simulate, py::arg("frames") = 100, py::arg("laps") = 2, py::arg("seed") = 1,
         py::arg("beams") = 32, py::arg("circuit_blocks") = 1, py::arg("voxel_size") = 0.5,
         py::arg("drift_translation") = 0.02, py::arg("drift_rotation_deg") = 0.1,
-        py::arg("odometry") = true, py::arg("dense_graph") = true, py::arg("threads") = 1,
+        py::arg("drift_heading_deg") = 0.0, py::arg("odometry") = true,
+        py::arg("dense_graph") = true, py::arg("threads") = 1,
         R"(Simulates a spinning LiDAR driving `laps` times around a synthetic city block: ground
 truth, preprocessed frames, a drifting initial guess (drift_translation metres and
-drift_rotation_deg degrees of std-dev per metre travelled), refined by GICP odometry, and the
+drift_rotation_deg degrees of std-dev per metre travelled, plus a steady heading drift of
+drift_heading_deg degrees per metre), refined by GICP odometry, and the
 dense graph at it; the defaults are `carat demo`'s. Deterministic in seed.
 Returns a carat.Simulation.)");
   m.def("simulate_scans", &simulate_scans, py::arg("frames") = 100, py::arg("laps") = 2,

@@ -108,3 +108,24 @@ def test_mapping_arguments_are_checked(small_drive):
         s.truth[0, 0, 0] = 5.0
     with pytest.raises(carat.Error, match="3 poses"):
         carat.ate(s.truth[:3], s.truth)
+
+
+def test_loops_close_a_drifting_drive_and_odometry_follows_a_lap():
+    s = carat.simulate(frames=40, laps=2, drift_heading_deg=0.1, drift_translation=0.005, drift_rotation_deg=0.02, odometry=False, dense_graph=False, threads=2)
+    closed = carat.close_loops(s.frames, s.drift, threads=2)
+    assert len(closed["loops"]) >= 15
+    for c in closed["candidates"]:
+        if c["verdict"] != "accepted":
+            continue
+        truth = np.linalg.inv(s.truth[c["target"]]) @ s.truth[c["source"]]
+        assert np.linalg.norm(truth[:3, 3] - c["T_target_source"][:3, 3]) < 0.2
+    assert carat.ate(s.drift, s.truth)["rmse"] > 2.0
+    assert carat.ate(closed["poses"], s.truth)["rmse"] < 0.5
+    assert closed["summary"]["termination"] != "FAILURE"
+
+    lap = carat.simulate(frames=50, laps=1, odometry=False, dense_graph=False, threads=2)
+    poses = carat.odometry(lap.frames, threads=2)
+    assert poses.shape == (50, 4, 4)
+    assert carat.ate(poses, lap.truth)["rmse"] < 0.2
+    with pytest.raises(ValueError, match="poses: 3 poses for 40 frames"):
+        carat.close_loops(s.frames, s.drift[:3])
