@@ -432,8 +432,10 @@ void SchurSystem::plan_chunks(const Problem& problem) {
     direct_[q] = !entry.loss && entry.block->num_rows() <= kDirectRows &&
                  entry.block->reduced_dim() == entry.block->tangent_dim();
   }
+  chunk_slot_begin_.assign(num_chunks + 1, 0);
   for (std::size_t k = 0; k < num_chunks; ++k) {
     const auto [p0, p1] = chunk_range(k);
+    chunk_slot_begin_[k] = slot_size;
     for (std::size_t e = pt_edge_begin_[p0]; e < pt_edge_begin_[p1]; ++e) {
       const auto c = at(edge_cam_[e]);
       if (seen_in_chunk[c] != static_cast<int>(k)) {
@@ -460,6 +462,7 @@ void SchurSystem::plan_chunks(const Problem& problem) {
     chunk_h_size_ = std::max(chunk_h_size_, h);
     chunk_b_size_ = std::max(chunk_b_size_, b);
   }
+  chunk_slot_begin_[num_chunks] = slot_size;
   slots_.assign(slot_size, 0.0);
   cam_slot_begin_.assign(nc + 1, 0);
   cam_slots_.clear();
@@ -562,19 +565,17 @@ template <int DC, int DP, typename HOf, typename BOf>
 void SchurSystem::scatter_chunk_sized(std::size_t k, double* gradient, const HOf& h_of,
                                       const BOf& b_of, bool use_direct) {
   const auto [p0, p1] = chunk_range(k);
-  if (fused_) {
-    for (std::size_t e = pt_edge_begin_[p0]; e < pt_edge_begin_[p1]; ++e) {
-      const int dc = cam_dim_[at(edge_cam_[e])];
-      std::fill_n(slots_.data() + edge_slot_[e], at(dc) * at(dc + 1), 0.0);
-    }
+  if (fused_) {  // the chunk's slots lie together
+    std::fill(slots_.data() + chunk_slot_begin_[k], slots_.data() + chunk_slot_begin_[k + 1], 0.0);
   }
   for (std::size_t p = p0; p < p1; ++p) {
-    const int dp = pt_dim_[p];
+    const int dp = DP > 0 ? DP : pt_dim_[p];
     double* V = v_.data() + pt_v_offset_[p];
     std::fill_n(V, at(dp) * at(dp), 0.0);
     double* g = gradient + pt_offset_[p];
     for (std::size_t e = pt_edge_begin_[p]; e < pt_edge_begin_[p + 1]; ++e) {
-      std::fill_n(w_.data() + edge_w_offset_[e], at(cam_dim_[at(edge_cam_[e])]) * at(dp), 0.0);
+      const int dc = DC > 0 ? DC : cam_dim_[at(edge_cam_[e])];
+      std::fill_n(w_.data() + edge_w_offset_[e], at(dc) * at(dp), 0.0);
     }
     for (std::size_t q = pt_contrib_begin_[p]; q < pt_contrib_begin_[p + 1]; ++q) {
       const auto [block, local] = pt_contribs_[q];

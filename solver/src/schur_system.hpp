@@ -20,6 +20,7 @@
 #include "carat/solver/problem.hpp"
 #include "carat/solver/solver_options.hpp"
 #include "cholmod_session.hpp"
+#include "huge_pages.hpp"
 #include "linear_system.hpp"
 
 namespace carat::internal {
@@ -143,6 +144,7 @@ class SchurSystem final : public LinearSystem {
   // block with a point goes in a chunk's buffer; the blocks without a point.
   std::vector<std::size_t> edge_slot_;
   std::vector<std::size_t> cam_slot_begin_, cam_slots_;
+  std::vector<std::size_t> chunk_slot_begin_;  // chunk k's slots: [begin[k], begin[k + 1])
   std::vector<double> slots_;
   std::vector<std::size_t> pt_contrib_h_local_, pt_contrib_b_local_;
   // Direct blocks (see plan_chunks()): flag, rows, camera offset in the block, edge.
@@ -158,7 +160,9 @@ class SchurSystem final : public LinearSystem {
   // L^-1 (V + damping = L L^T; Y = W L^-T is formed where needed, not stored); z: V^-1 rhs of
   // the points in the last solve. solve() reads W, so it needs the assembly the factorization
   // was made from: this system does not reuse factorizations.
-  std::vector<double> a_, w_, v_, l_inverse_, z_;
+  // The large ones on huge pages (see huge_pages.hpp): fewer page faults on first touch.
+  std::vector<double> a_, z_;
+  HugeVector<double> w_, v_, l_inverse_;
 
   // Reduced system: lower-triangular CSC in camera order (CHOLMOD orders it).
   std::vector<std::int64_t> colptr_, rows_;
