@@ -432,6 +432,11 @@ void SchurSystem::plan_chunks(const Problem& problem) {
     direct_[q] = !entry.loss && entry.block->num_rows() <= kDirectRows &&
                  entry.block->reduced_dim() == entry.block->tangent_dim();
   }
+  edge_assigned_.assign(edge_cam_.size(), 0);
+  for (std::size_t e = 0; e < edge_cam_.size(); ++e) {
+    edge_assigned_[e] = edge_contrib_begin_[e + 1] == edge_contrib_begin_[e] + 1 &&
+                        direct_[edge_contrib_source_[edge_contrib_begin_[e]]];
+  }
   chunk_slot_begin_.assign(num_chunks + 1, 0);
   for (std::size_t k = 0; k < num_chunks; ++k) {
     const auto [p0, p1] = chunk_range(k);
@@ -495,10 +500,11 @@ void SchurSystem::plan_chunks(const Problem& problem) {
 /// The points of chunk k: V, their gradients, W per edge and, fused, the chunk's slots.
 /// h_of(q) / b_of(q): packed H and b of the block of pt_contribs_[q].
 /// The contributions of a direct block (see plan_chunks()) from its n Jacobian rows J (n x D,
-/// row-major) and residuals r: V += J_p^T J_p, g_p += J_p^T r and, with a camera, W += J_c^T J_p,
-/// the lower triangle of slot += J_c^T J_c, slot gradient += J_c^T r. Each output element sums
-/// over the rows first and touches memory once.
-template <int DC, int DP, int N = 0>
+/// row-major) and residuals r: V += J_p^T J_p, g_p += J_p^T r and, with a camera, W += J_c^T J_p
+/// (W = J_c^T J_p with kAssignW: the edge's only contribution, W not zeroed first), the lower
+/// triangle of slot += J_c^T J_c, slot gradient += J_c^T r. Each output element sums over the
+/// rows first and touches memory once.
+template <int DC, int DP, int N = 0, bool kAssignW = false>
 __attribute__((always_inline)) inline void scatter_rows(const double* __restrict J,
                                                         const double* __restrict r, int rows, int D,
                                                         int pt_local, int cam_local, int dc, int dp,
@@ -524,7 +530,11 @@ __attribute__((always_inline)) inline void scatter_rows(const double* __restrict
     for (int a = 0; a < C; ++a) {
       double sum = 0.0;
       for (int k = 0; k < n; ++k) sum += row(k)[cam_local + a] * row(k)[pt_local + b];
-      W[b * C + a] += sum;
+      if constexpr (kAssignW) {
+        W[b * C + a] = sum;
+      } else {
+        W[b * C + a] += sum;
+      }
     }
   }
   for (int b = 0; b < C; ++b) {  // the lower triangle (gather_cameras() mirrors it)
@@ -544,8 +554,10 @@ __attribute__((always_inline)) inline void scatter_rows(const double* __restrict
 
 CARAT_MULTIVERSION void scatter_rows_9_3(const double* J, const double* r, int n, int D,
                                          int pt_local, int cam_local, double* V, double* g,
-                                         double* W, double* slot) {
-  if (n == 2) {
+                                         double* W, double* slot, bool assign_w) {
+  if (n == 2 && assign_w) {
+    scatter_rows<9, 3, 2, true>(J, r, n, D, pt_local, cam_local, 9, 3, V, g, W, slot);
+  } else if (n == 2) {
     scatter_rows<9, 3, 2>(J, r, n, D, pt_local, cam_local, 9, 3, V, g, W, slot);
   } else {
     scatter_rows<9, 3>(J, r, n, D, pt_local, cam_local, 9, 3, V, g, W, slot);
@@ -553,8 +565,10 @@ CARAT_MULTIVERSION void scatter_rows_9_3(const double* J, const double* r, int n
 }
 CARAT_MULTIVERSION void scatter_rows_6_3(const double* J, const double* r, int n, int D,
                                          int pt_local, int cam_local, double* V, double* g,
-                                         double* W, double* slot) {
-  if (n == 2) {
+                                         double* W, double* slot, bool assign_w) {
+  if (n == 2 && assign_w) {
+    scatter_rows<6, 3, 2, true>(J, r, n, D, pt_local, cam_local, 6, 3, V, g, W, slot);
+  } else if (n == 2) {
     scatter_rows<6, 3, 2>(J, r, n, D, pt_local, cam_local, 6, 3, V, g, W, slot);
   } else {
     scatter_rows<6, 3>(J, r, n, D, pt_local, cam_local, 6, 3, V, g, W, slot);
@@ -574,6 +588,7 @@ void SchurSystem::scatter_chunk_sized(std::size_t k, double* gradient, const HOf
     std::fill_n(V, at(dp) * at(dp), 0.0);
     double* g = gradient + pt_offset_[p];
     for (std::size_t e = pt_edge_begin_[p]; e < pt_edge_begin_[p + 1]; ++e) {
+      if (use_direct && edge_assigned_[e]) continue;  // its one direct block writes W
       const int dc = DC > 0 ? DC : cam_dim_[at(edge_cam_[e])];
       std::fill_n(w_.data() + edge_w_offset_[e], at(dc) * at(dp), 0.0);
     }
@@ -589,10 +604,14 @@ void SchurSystem::scatter_chunk_sized(std::size_t k, double* gradient, const HOf
         const int cam_local = has_camera ? direct_cam_local_[q] : -1;
         double* W = has_camera ? w_.data() + edge_w_offset_[e] : nullptr;
         double* slot = has_camera ? slots_.data() + edge_slot_[e] : nullptr;
+        const bool assign_w = has_camera && edge_assigned_[e];
         if constexpr (DC == 9 && DP == 3) {
-          scatter_rows_9_3(J, J + n * D, n, D, local, cam_local, V, g, W, slot);
+          scatter_rows_9_3(J, J + n * D, n, D, local, cam_local, V, g, W, slot, assign_w);
         } else if constexpr (DC == 6 && DP == 3) {
-          scatter_rows_6_3(J, J + n * D, n, D, local, cam_local, V, g, W, slot);
+          scatter_rows_6_3(J, J + n * D, n, D, local, cam_local, V, g, W, slot, assign_w);
+        } else if (assign_w) {
+          std::fill_n(W, at(dc) * at(dp), 0.0);
+          scatter_rows<DC, DP>(J, J + n * D, n, D, local, cam_local, dc, dp, V, g, W, slot);
         } else {
           scatter_rows<DC, DP>(J, J + n * D, n, D, local, cam_local, dc, dp, V, g, W, slot);
         }

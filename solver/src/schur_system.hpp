@@ -152,6 +152,8 @@ class SchurSystem final : public LinearSystem {
   std::vector<int> direct_rows_;
   std::vector<int> direct_cam_local_;
   std::vector<std::size_t> direct_edge_;
+  // Edges whose one contribution is a direct block: it writes W (not zeroed before).
+  std::vector<char> edge_assigned_;
   std::size_t chunk_h_size_ = 0, chunk_b_size_ = 0;
   std::vector<std::size_t> other_blocks_;
   std::vector<double> chunk_cost_;
