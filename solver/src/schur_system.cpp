@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstring>
 #include <string>
 #include <tuple>
 
@@ -552,10 +553,80 @@ __attribute__((always_inline)) inline void scatter_rows(const double* __restrict
   }
 }
 
+// The helpers below pass 32-byte vectors by value; they are always inlined into the kernels
+// (never called across a translation unit), so GCC's note on the AVX calling convention does not
+// apply.
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wpsabi"
+#endif
+
+/// Four doubles as one vector (GCC / Clang vector extension; unaligned loads and stores).
+using Double4 = double __attribute__((vector_size(32), aligned(8)));
+
+__attribute__((always_inline)) inline Double4 load4(const double* p) {
+  Double4 v;
+  std::memcpy(&v, p, sizeof(v));
+  return v;
+}
+__attribute__((always_inline)) inline void store4(double* p, Double4 v) {
+  std::memcpy(p, &v, sizeof(v));
+}
+
+/// column[0, 9) (+)= x0 * y0 + x1 * y1, x0 / x1 two 9-vectors held as two Double4 and a tail.
+template <bool kAssign>
+__attribute__((always_inline)) inline void update_column_9(double* __restrict column,
+                                                           const Double4 (&x0)[2], double x0_8,
+                                                           const Double4 (&x1)[2], double x1_8,
+                                                           double y0, double y1) {
+  for (int h = 0; h < 2; ++h) {
+    const Double4 sum = x0[h] * y0 + x1[h] * y1;
+    store4(column + 4 * h, kAssign ? sum : load4(column + 4 * h) + sum);
+  }
+  const double tail = x0_8 * y0 + x1_8 * y1;
+  column[8] = kAssign ? tail : column[8] + tail;
+}
+
+/// scatter_rows<9, 3, 2> for the common layout: two rows of 12 columns, the camera's 9 first,
+/// the point's 3 last. The slot's whole 9 x 9 block is summed (whole columns vectorize; its
+/// upper triangle is not read).
+template <bool kAssignW>
+__attribute__((always_inline)) inline void scatter_two_rows_9_3(
+    const double* __restrict J, const double* __restrict r, double* __restrict V,
+    double* __restrict g, double* __restrict W, double* __restrict slot) {
+  const double* j0 = J;
+  const double* j1 = J + 12;
+  const double* p0 = j0 + 9;
+  const double* p1 = j1 + 9;
+  for (int b = 0; b < 3; ++b) {
+    for (int a = 0; a < 3; ++a) V[b * 3 + a] += p0[a] * p0[b] + p1[a] * p1[b];
+    g[b] += p0[b] * r[0] + p1[b] * r[1];
+  }
+  const Double4 c0[2] = {load4(j0), load4(j0 + 4)};
+  const Double4 c1[2] = {load4(j1), load4(j1 + 4)};
+  for (int b = 0; b < 3; ++b) {
+    update_column_9<kAssignW>(W + b * 9, c0, j0[8], c1, j1[8], p0[b], p1[b]);
+  }
+  for (int b = 0; b < 9; ++b) {
+    update_column_9<false>(slot + b * 9, c0, j0[8], c1, j1[8], j0[b], j1[b]);
+  }
+  update_column_9<false>(slot + 81, c0, j0[8], c1, j1[8], r[0], r[1]);
+}
+
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic pop
+#endif
+
 CARAT_MULTIVERSION void scatter_rows_9_3(const double* J, const double* r, int n, int D,
                                          int pt_local, int cam_local, double* V, double* g,
                                          double* W, double* slot, bool assign_w) {
-  if (n == 2 && assign_w) {
+  if (n == 2 && D == 12 && cam_local == 0 && pt_local == 9) {
+    if (assign_w) {
+      scatter_two_rows_9_3<true>(J, r, V, g, W, slot);
+    } else {
+      scatter_two_rows_9_3<false>(J, r, V, g, W, slot);
+    }
+  } else if (n == 2 && assign_w) {
     scatter_rows<9, 3, 2, true>(J, r, n, D, pt_local, cam_local, 9, 3, V, g, W, slot);
   } else if (n == 2) {
     scatter_rows<9, 3, 2>(J, r, n, D, pt_local, cam_local, 9, 3, V, g, W, slot);
