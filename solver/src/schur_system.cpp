@@ -397,11 +397,14 @@ void SchurSystem::plan_chunks(const Problem& problem) {
   const std::size_t np = pt_dim_.size();
   const std::size_t nc = cam_dim_.size();
   const auto blocks = problem.blocks();
-  // Points per chunk: enough that a chunk's edges are many per camera it touches (about 16 for
-  // each camera of the problem), so that its slots are few beside its blocks; at least 1024.
-  // A function of the problem alone, so results do not depend on the number of threads.
+  // Points per chunk: enough that a chunk's edges are many per camera it touches (about
+  // kEdgesPerSlot for each camera of the problem), so that its slots are few beside its blocks; at
+  // least 1024. (The chunk is evaluated and scattered a piece of points at a time, so its size
+  // does not set the buffer's.) A function of the problem alone, so results do not depend on the
+  // number of threads.
   const std::size_t edges = edge_cam_.size();
-  chunk_points_ = std::max<std::size_t>(1024, edges == 0 ? np : (16 * nc * np + edges - 1) / edges);
+  chunk_points_ =
+      std::max<std::size_t>(1024, edges == 0 ? np : (kEdgesPerSlot * nc * np + edges - 1) / edges);
   const std::size_t num_chunks = (np + chunk_points_ - 1) / chunk_points_;
   // Slots: per chunk, one partial diagonal block (dc x dc) and gradient (dc) per camera the
   // chunk's points are seen by, laid out chunk after chunk.
@@ -452,23 +455,44 @@ void SchurSystem::plan_chunks(const Problem& problem) {
       }
       edge_slot_[e] = slot_of_camera[c];
     }
-    std::size_t h = 0, b = 0;
-    for (std::size_t q = pt_contrib_begin_[p0]; q < pt_contrib_begin_[p1]; ++q) {
-      const auto& entry = blocks[static_cast<std::size_t>(pt_contribs_[q].first)];
-      const auto D = at(entry.block->tangent_dim());
-      pt_contrib_h_local_[q] = h;
-      pt_contrib_b_local_[q] = b;
-      if (direct_[q]) {
-        h += at(direct_rows_[q]) * (D + 1);  // Jacobian rows, then residuals
-      } else {
-        h += D * (D + 1) / 2;
-        b += D;
+    for (std::size_t j = 0; j < num_pieces(k); ++j) {  // a buffer per piece
+      const auto [s0, s1] = piece_range(k, j);
+      std::size_t h = 0, b = 0;
+      for (std::size_t q = pt_contrib_begin_[s0]; q < pt_contrib_begin_[s1]; ++q) {
+        const auto& entry = blocks[static_cast<std::size_t>(pt_contribs_[q].first)];
+        const auto D = at(entry.block->tangent_dim());
+        pt_contrib_h_local_[q] = h;
+        pt_contrib_b_local_[q] = b;
+        if (direct_[q]) {
+          h += at(direct_rows_[q]) * (D + 1);  // Jacobian rows, then residuals
+        } else {
+          h += D * (D + 1) / 2;
+          b += D;
+        }
       }
+      chunk_h_size_ = std::max(chunk_h_size_, h);
+      chunk_b_size_ = std::max(chunk_b_size_, b);
     }
-    chunk_h_size_ = std::max(chunk_h_size_, h);
-    chunk_b_size_ = std::max(chunk_b_size_, b);
   }
   chunk_slot_begin_[num_chunks] = slot_size;
+  // Standard chunks: every block a two-row direct block of one 9-camera and one 3-point, laid out
+  // [camera, point] and the only contribution to its edge (scatter_standard_chunk_9_3()).
+  chunk_standard_.assign(num_chunks, 0);
+  for (std::size_t k = 0; k < num_chunks && kernel_ == 1; ++k) {
+    bool standard = true;
+    for (std::size_t j = 0; j < num_pieces(k) && standard; ++j) {
+      const auto [s0, s1] = piece_range(k, j);
+      const std::size_t q0 = pt_contrib_begin_[s0];
+      standard = q0 < pt_contrib_begin_[s1];
+      for (std::size_t q = q0; q < pt_contrib_begin_[s1] && standard; ++q) {
+        const std::size_t e = direct_edge_[q];
+        standard = direct_[q] && direct_rows_[q] == 2 && block_dim(pt_contribs_[q].first) == 12 &&
+                   pt_contribs_[q].second == 9 && direct_cam_local_[q] == 0 && e != kNoEdge &&
+                   edge_assigned_[e] && pt_contrib_h_local_[q] == 26 * (q - q0);
+      }
+    }
+    chunk_standard_[k] = standard ? 1 : 0;
+  }
   slots_.assign(slot_size, 0.0);
   cam_slot_begin_.assign(nc + 1, 0);
   cam_slots_.clear();
@@ -634,6 +658,26 @@ CARAT_MULTIVERSION void scatter_rows_9_3(const double* J, const double* r, int n
     scatter_rows<9, 3>(J, r, n, D, pt_local, cam_local, 9, 3, V, g, W, slot);
   }
 }
+/// The points [p0, p1) of a standard chunk (see SchurSystem::plan_chunks()): per point, V zeroed,
+/// then each block q of it (rows at J + 26 (q - q_begin[p0])) scattered by scatter_two_rows_9_3
+/// into V, the point's gradient, its edge's W and its edge's slot.
+CARAT_MULTIVERSION void scatter_standard_chunk_9_3(
+    std::size_t p0, std::size_t p1, const std::size_t* q_begin, const std::size_t* edge_of_q,
+    const std::size_t* w_offset, const std::size_t* slot_of_edge, const std::size_t* v_offset,
+    const int* pt_offset, const double* J, double* v, double* gradient, double* w, double* slots) {
+  const std::size_t q0 = q_begin[p0];
+  for (std::size_t p = p0; p < p1; ++p) {
+    double* V = v + v_offset[p];
+    for (int a = 0; a < 9; ++a) V[a] = 0.0;
+    double* g = gradient + pt_offset[p];
+    for (std::size_t q = q_begin[p]; q < q_begin[p + 1]; ++q) {
+      const std::size_t e = edge_of_q[q];
+      const double* rows = J + 26 * (q - q0);
+      scatter_two_rows_9_3<true>(rows, rows + 24, V, g, w + w_offset[e], slots + slot_of_edge[e]);
+    }
+  }
+}
+
 CARAT_MULTIVERSION void scatter_rows_6_3(const double* J, const double* r, int n, int D,
                                          int pt_local, int cam_local, double* V, double* g,
                                          double* W, double* slot, bool assign_w) {
@@ -646,12 +690,25 @@ CARAT_MULTIVERSION void scatter_rows_6_3(const double* J, const double* r, int n
   }
 }
 
+/// Zeroes the slots of chunk k (fused; they lie together).
+void SchurSystem::zero_slots(std::size_t k) {
+  if (!fused_) return;
+  std::fill(slots_.data() + chunk_slot_begin_[k], slots_.data() + chunk_slot_begin_[k + 1], 0.0);
+}
+
+/// Points [p0, p1) of chunk k (its slots zeroed before its first points).
 template <int DC, int DP, typename HOf, typename BOf>
-void SchurSystem::scatter_chunk_sized(std::size_t k, double* gradient, const HOf& h_of,
-                                      const BOf& b_of, bool use_direct) {
-  const auto [p0, p1] = chunk_range(k);
-  if (fused_) {  // the chunk's slots lie together
-    std::fill(slots_.data() + chunk_slot_begin_[k], slots_.data() + chunk_slot_begin_[k + 1], 0.0);
+void SchurSystem::scatter_chunk_sized(std::size_t k, std::size_t p0, std::size_t p1,
+                                      double* gradient, const HOf& h_of, const BOf& b_of,
+                                      bool use_direct) {
+  if constexpr (DC == 9 && DP == 3) {
+    if (use_direct && chunk_standard_[k]) {
+      scatter_standard_chunk_9_3(p0, p1, pt_contrib_begin_.data(), direct_edge_.data(),
+                                 edge_w_offset_.data(), edge_slot_.data(), pt_v_offset_.data(),
+                                 pt_offset_.data(), h_of(pt_contrib_begin_[p0]), v_.data(),
+                                 gradient, w_.data(), slots_.data());
+      return;
+    }
   }
   for (std::size_t p = p0; p < p1; ++p) {
     const int dp = DP > 0 ? DP : pt_dim_[p];
@@ -714,17 +771,17 @@ void SchurSystem::scatter_chunk_sized(std::size_t k, double* gradient, const HOf
 }
 
 template <typename HOf, typename BOf>
-void SchurSystem::scatter_chunk(std::size_t k, double* gradient, const HOf& h_of, const BOf& b_of,
-                                bool use_direct) {
+void SchurSystem::scatter_chunk(std::size_t k, std::size_t p0, std::size_t p1, double* gradient,
+                                const HOf& h_of, const BOf& b_of, bool use_direct) {
   switch (kernel_) {
     case 1:
-      scatter_chunk_sized<9, 3>(k, gradient, h_of, b_of, use_direct);
+      scatter_chunk_sized<9, 3>(k, p0, p1, gradient, h_of, b_of, use_direct);
       break;
     case 2:
-      scatter_chunk_sized<6, 3>(k, gradient, h_of, b_of, use_direct);
+      scatter_chunk_sized<6, 3>(k, p0, p1, gradient, h_of, b_of, use_direct);
       break;
     default:
-      scatter_chunk_sized<0, 0>(k, gradient, h_of, b_of, use_direct);
+      scatter_chunk_sized<0, 0>(k, p0, p1, gradient, h_of, b_of, use_direct);
       break;
   }
 }
@@ -789,7 +846,9 @@ void SchurSystem::assemble(const BlockLinearizations& blocks, Eigen::VectorXd* g
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, num_chunks, 1),
                     [&](const tbb::blocked_range<std::size_t>& range) {
                       for (std::size_t k = range.begin(); k != range.end(); ++k) {
-                        scatter_chunk(k, g, h_of, b_of, /*use_direct=*/false);
+                        zero_slots(k);
+                        const auto [p0, p1] = chunk_range(k);
+                        scatter_chunk(k, p0, p1, g, h_of, b_of, /*use_direct=*/false);
                       }
                     });
   gather_cameras(blocks, g);
@@ -825,28 +884,35 @@ bool SchurSystem::linearize(const BlockEvaluator& evaluator, int which, Eigen::V
         local.b.resize(chunk_b_size_);
         for (std::size_t k = range.begin(); k != range.end(); ++k) {
           Stopwatch t0;
-          const auto [p0, p1] = chunk_range(k);
+          zero_slots(k);
+          scatter_cpu[k] += t0.elapsed_s();
           double sum = 0.0;
-          for (std::size_t q = pt_contrib_begin_[p0]; q < pt_contrib_begin_[p1]; ++q) {
-            const auto block = static_cast<std::size_t>(pt_contribs_[q].first);
-            double c = 0.0;
-            const bool ok =
-                direct_[q] ? evaluator.evaluate_rows(block, which, direct_rows_[q],
-                                                     local.h.data() + pt_contrib_h_local_[q], &c)
-                           : evaluator.evaluate_block(block, which, local.block,
-                                                      local.h.data() + pt_contrib_h_local_[q],
-                                                      local.b.data() + pt_contrib_b_local_[q], &c);
-            if (!ok) record_bad_block(first_bad, block);
-            sum += c;
+          for (std::size_t j = 0; j < num_pieces(k); ++j) {
+            t0.restart();
+            const auto [s0, s1] = piece_range(k, j);
+            for (std::size_t q = pt_contrib_begin_[s0]; q < pt_contrib_begin_[s1]; ++q) {
+              const auto block = static_cast<std::size_t>(pt_contribs_[q].first);
+              double c = 0.0;
+              const bool ok =
+                  direct_[q]
+                      ? evaluator.evaluate_rows(block, which, direct_rows_[q],
+                                                local.h.data() + pt_contrib_h_local_[q], &c)
+                      : evaluator.evaluate_block(block, which, local.block,
+                                                 local.h.data() + pt_contrib_h_local_[q],
+                                                 local.b.data() + pt_contrib_b_local_[q], &c);
+              if (!ok) record_bad_block(first_bad, block);
+              sum += c;
+            }
+            evaluate_cpu[k] += t0.elapsed_s();
+            t0.restart();
+            scatter_chunk(
+                k, s0, s1, g,
+                [&](std::size_t q) { return local.h.data() + pt_contrib_h_local_[q]; },
+                [&](std::size_t q) { return local.b.data() + pt_contrib_b_local_[q]; },
+                /*use_direct=*/true);
+            scatter_cpu[k] += t0.elapsed_s();
           }
           chunk_cost_[k] = sum;
-          evaluate_cpu[k] = t0.elapsed_s();
-          t0.restart();
-          scatter_chunk(
-              k, g, [&](std::size_t q) { return local.h.data() + pt_contrib_h_local_[q]; },
-              [&](std::size_t q) { return local.b.data() + pt_contrib_b_local_[q]; },
-              /*use_direct=*/true);
-          scatter_cpu[k] = t0.elapsed_s();
         }
       });
   // Blocks without a point.
