@@ -434,7 +434,7 @@ void SchurSystem::plan_chunks(const Problem& problem) {
     const auto& entry = blocks[static_cast<std::size_t>(pt_contribs_[q].first)];
     direct_rows_[q] = entry.block->num_rows();
     direct_[q] = !entry.loss && entry.block->num_rows() <= kDirectRows &&
-                 entry.block->reduced_dim() == entry.block->tangent_dim();
+                 entry.block->reduced_dim() == block_dim(pt_contribs_[q].first);
   }
   edge_assigned_.assign(edge_cam_.size(), 0);
   for (std::size_t e = 0; e < edge_cam_.size(); ++e) {
@@ -459,8 +459,7 @@ void SchurSystem::plan_chunks(const Problem& problem) {
       const auto [s0, s1] = piece_range(k, j);
       std::size_t h = 0, b = 0;
       for (std::size_t q = pt_contrib_begin_[s0]; q < pt_contrib_begin_[s1]; ++q) {
-        const auto& entry = blocks[static_cast<std::size_t>(pt_contribs_[q].first)];
-        const auto D = at(entry.block->tangent_dim());
+        const auto D = at(block_dim(pt_contribs_[q].first));
         pt_contrib_h_local_[q] = h;
         pt_contrib_b_local_[q] = b;
         if (direct_[q]) {
@@ -509,7 +508,7 @@ void SchurSystem::plan_chunks(const Problem& problem) {
   storage_.cost.assign(blocks.size(), 0.0);
   std::size_t h = 0, b = 0;
   for (std::size_t i = 0; i < blocks.size(); ++i) {
-    const int D = blocks[i].block->tangent_dim();
+    const int D = block_dims_[i];
     storage_.dim[i] = D;
     if (has_point[i]) continue;
     other_blocks_.push_back(i);
