@@ -197,13 +197,15 @@ SchurSystem::SchurSystem(const Problem& problem, const std::vector<char>& elimin
   }
 
   // Points' V and gradient contributions; cameras' gradient contributions.
-  std::sort(raw_pt.begin(), raw_pt.end());
+  // By point, blocks ascending: raw_pt is in block order, so a stable counting sort by point.
   pt_contrib_begin_.assign(np + 1, 0);
-  for (const auto& [p, block, local] : raw_pt) {
-    pt_contribs_.emplace_back(block, local);
-    ++pt_contrib_begin_[at(p) + 1];
-  }
+  for (const auto& [p, block, local] : raw_pt) ++pt_contrib_begin_[at(p) + 1];
   for (std::size_t p = 0; p < np; ++p) pt_contrib_begin_[p + 1] += pt_contrib_begin_[p];
+  pt_contribs_.resize(raw_pt.size());
+  {
+    std::vector<std::size_t> fill(pt_contrib_begin_.begin(), pt_contrib_begin_.end() - 1);
+    for (const auto& [p, block, local] : raw_pt) pt_contribs_[fill[at(p)]++] = {block, local};
+  }
   // Where each block with a point sits in pt_contribs_ (its source index).
   std::vector<std::uint32_t> block_source(blocks.size(), 0);
   for (std::size_t k = 0; k < pt_contribs_.size(); ++k) {
@@ -214,13 +216,15 @@ SchurSystem::SchurSystem(const Problem& problem, const std::vector<char>& elimin
     edge_contrib_source_[q] = block_source[static_cast<std::size_t>(edge_contribs_[q].block)];
   }
   if (fused_) plan_chunks(problem);
-  std::sort(raw_cam.begin(), raw_cam.end());
+  // By camera, blocks ascending (raw_cam is in block order, one entry per block and camera).
   cam_grad_begin_.assign(nc + 1, 0);
-  for (const auto& [c, block, local] : raw_cam) {
-    cam_grad_.emplace_back(block, local);
-    ++cam_grad_begin_[at(c) + 1];
-  }
+  for (const auto& [c, block, local] : raw_cam) ++cam_grad_begin_[at(c) + 1];
   for (std::size_t c = 0; c < nc; ++c) cam_grad_begin_[c + 1] += cam_grad_begin_[c];
+  cam_grad_.resize(raw_cam.size());
+  {
+    std::vector<std::size_t> fill(cam_grad_begin_.begin(), cam_grad_begin_.end() - 1);
+    for (const auto& [c, block, local] : raw_cam) cam_grad_[fill[at(c)]++] = {block, local};
+  }
 
   // Camera pairs of S: every diagonal, pairs inside blocks, pairs of cameras sharing a point.
   // Per column camera j, the row cameras i >= j it pairs with: a marker per camera avoids
