@@ -657,6 +657,8 @@ CARAT_MULTIVERSION void scatter_rows_9_3(const double* J, const double* r, int n
     scatter_rows<9, 3, 2, true>(J, r, n, D, pt_local, cam_local, 9, 3, V, g, W, slot);
   } else if (n == 2) {
     scatter_rows<9, 3, 2>(J, r, n, D, pt_local, cam_local, 9, 3, V, g, W, slot);
+  } else if (assign_w) {
+    scatter_rows<9, 3, 0, true>(J, r, n, D, pt_local, cam_local, 9, 3, V, g, W, slot);
   } else {
     scatter_rows<9, 3>(J, r, n, D, pt_local, cam_local, 9, 3, V, g, W, slot);
   }
@@ -688,6 +690,8 @@ CARAT_MULTIVERSION void scatter_rows_6_3(const double* J, const double* r, int n
     scatter_rows<6, 3, 2, true>(J, r, n, D, pt_local, cam_local, 6, 3, V, g, W, slot);
   } else if (n == 2) {
     scatter_rows<6, 3, 2>(J, r, n, D, pt_local, cam_local, 6, 3, V, g, W, slot);
+  } else if (assign_w) {
+    scatter_rows<6, 3, 0, true>(J, r, n, D, pt_local, cam_local, 6, 3, V, g, W, slot);
   } else {
     scatter_rows<6, 3>(J, r, n, D, pt_local, cam_local, 6, 3, V, g, W, slot);
   }
