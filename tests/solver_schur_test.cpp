@@ -257,6 +257,72 @@ TEST(SchurSolveTest, ReachesTheWholeSystemOptimum) {
   }
 }
 
+/// A 3-D observation of a point in a camera's frame (a depth camera): R(w) p + t - observed.
+struct CameraFramePoint {
+  template <typename T>
+  bool operator()(const Eigen::Vector3d& observed, const T* camera, const T* point,
+                  T* residual) const {
+    T p[3];
+    lie::angle_axis_rotate(camera, point, p);
+    for (int k = 0; k < 3; ++k) residual[k] = p[k] + camera[3 + k] - observed[k];
+    return true;
+  }
+};
+
+/// Three-row blocks (each an edge's only contribution, scattered from its Jacobian rows) over
+/// kCamera-parameter cameras (6: pose only): the Schur path reaches the whole system's optimum over
+/// several linearizations (each writes W afresh).
+template <int kCamera>
+void expect_three_row_blocks_reach_the_whole_system_optimum() {
+  std::mt19937 rng(5);
+  std::normal_distribution<double> noise(0.0, 1.0);
+  Problem problems[2];
+  for (int which = 0; which < 2; ++which) {
+    rng.seed(5);
+    Problem& problem = problems[which];
+    std::vector<VariableId> cameras, points;
+    std::vector<Eigen::Matrix<double, kCamera, 1>> truth;
+    for (int c = 0; c < 8; ++c) {
+      Eigen::Matrix<double, kCamera, 1> camera = Eigen::Matrix<double, kCamera, 1>::Zero();
+      camera.template head<3>() << 0.1 * c, -0.05 * c, 0.02 * c;
+      camera.template segment<3>(3) << 0.5 * c, 0.2, 5.0;
+      truth.push_back(camera);
+      Eigen::Matrix<double, kCamera, 1> start = camera;
+      for (int k = 0; k < 6; ++k) start[k] += 0.02 * noise(rng);
+      cameras.push_back(problem.add_euclidean(start));
+    }
+    problem.set_constant(cameras[0]);
+    for (int p = 0; p < 150; ++p) {
+      const Eigen::Vector3d point(noise(rng), noise(rng), noise(rng));
+      points.push_back(problem.add_euclidean(point + 0.1 * Eigen::Vector3d::Random()));
+      if (which == 0) problem.set_eliminable(points.back());
+      for (int v = 0; v < 3; ++v) {
+        const int c = (p + 3 * v) % 8;
+        Eigen::Vector3d r;
+        CameraFramePoint{}(Eigen::Vector3d::Zero(), truth[static_cast<std::size_t>(c)].data(),
+                           point.data(), r.data());
+        const Eigen::Vector3d observed =
+            r + 0.01 * Eigen::Vector3d(noise(rng), noise(rng), noise(rng));
+        problem.add_residual_block(make_autodiff_block<3, VariableSize<kCamera>, VariableSize<3>>(
+                                       CameraFramePoint{}, std::vector<Eigen::Vector3d>{observed}),
+                                   {cameras[static_cast<std::size_t>(c)], points.back()});
+      }
+    }
+  }
+  const SolverSummary a = solve(tight_options(LinearSolver::kSchur), problems[0]);
+  const SolverSummary b = solve(tight_options(LinearSolver::kCholesky), problems[1]);
+  ASSERT_TRUE(a.is_solution_usable()) << a.message;
+  ASSERT_TRUE(b.is_solution_usable()) << b.message;
+  EXPECT_NE(a.linear_solver.find("schur complement"), std::string::npos) << a.linear_solver;
+  EXPECT_GE(a.num_iterations, 2);
+  EXPECT_GT(a.initial_cost, 10.0 * a.final_cost);
+  EXPECT_NEAR(a.final_cost, b.final_cost, 1e-9 * b.final_cost);
+}
+
+TEST(SchurSolveTest, ThreeRowBlocksReachTheWholeSystemOptimum) {
+  expect_three_row_blocks_reach_the_whole_system_optimum<6>();
+}
+
 TEST(SchurSolveTest, ReachesTheWholeSystemOptimumWithARobustLoss) {
   // With a loss the blocks go through their H (not their Jacobian rows) into the elimination.
   const auto huber = make_loss(LossKind::kHuber, 2.0);

@@ -90,30 +90,34 @@ ResidualBlockId Problem::add_residual_block(std::shared_ptr<const ResidualBlock>
 ResidualBlockId Problem::add_residual_block(std::shared_ptr<const ResidualBlock> block,
                                             std::span<const VariableId> variables,
                                             std::shared_ptr<const LossFunction> loss) {
-  const std::string where =
-      "Problem::add_residual_block (block " + std::to_string(blocks_.size()) + "): ";
-  if (!block) throw Error(where + "block is null");
+  // The message prefix, built only on an error (not once per block).
+  const auto where = [this] {
+    return "Problem::add_residual_block (block " + std::to_string(blocks_.size()) + "): ";
+  };
+  if (!block) throw Error(where() + "block is null");
   const auto dims = block->tangent_dims();
   if (dims.size() != variables.size()) {
-    throw Error(where + "the block expects " + std::to_string(dims.size()) + " variables, got " +
+    throw Error(where() + "the block expects " + std::to_string(dims.size()) + " variables, got " +
                 std::to_string(variables.size()));
   }
-  if (block->num_rows() < 1) throw Error(where + "the block has no rows");
+  if (block->num_rows() < 1) throw Error(where() + "the block has no rows");
   for (std::size_t i = 0; i < variables.size(); ++i) {
     check(variables[i]);
     const int tangent = manifolds_[static_cast<std::size_t>(variables[i].index)]->tangent_size();
     if (tangent != dims[i]) {
-      throw Error(where + "variable " + std::to_string(variables[i].index) + " has tangent size " +
-                  std::to_string(tangent) + " but the block expects " + std::to_string(dims[i]));
+      throw Error(where() + "variable " + std::to_string(variables[i].index) +
+                  " has tangent size " + std::to_string(tangent) + " but the block expects " +
+                  std::to_string(dims[i]));
     }
     for (std::size_t j = 0; j < i; ++j) {
       if (variables[j] == variables[i]) {
-        throw Error(where + "variable " + std::to_string(variables[i].index) + " is listed twice");
+        throw Error(where() + "variable " + std::to_string(variables[i].index) +
+                    " is listed twice");
       }
     }
   }
   const int r = block->reduced_dim();
-  if (r < 1) throw Error(where + "reduced_dim() must be >= 1");
+  if (r < 1) throw Error(where() + "reduced_dim() must be >= 1");
   blocks_.push_back({std::move(block), std::move(loss),
                      std::vector<VariableId>(variables.begin(), variables.end())});
   return ResidualBlockId{static_cast<std::int32_t>(blocks_.size() - 1)};

@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstring>
 #include <string>
 #include <tuple>
 
@@ -196,13 +197,15 @@ SchurSystem::SchurSystem(const Problem& problem, const std::vector<char>& elimin
   }
 
   // Points' V and gradient contributions; cameras' gradient contributions.
-  std::sort(raw_pt.begin(), raw_pt.end());
+  // By point, blocks ascending: raw_pt is in block order, so a stable counting sort by point.
   pt_contrib_begin_.assign(np + 1, 0);
-  for (const auto& [p, block, local] : raw_pt) {
-    pt_contribs_.emplace_back(block, local);
-    ++pt_contrib_begin_[at(p) + 1];
-  }
+  for (const auto& [p, block, local] : raw_pt) ++pt_contrib_begin_[at(p) + 1];
   for (std::size_t p = 0; p < np; ++p) pt_contrib_begin_[p + 1] += pt_contrib_begin_[p];
+  pt_contribs_.resize(raw_pt.size());
+  {
+    std::vector<std::size_t> fill(pt_contrib_begin_.begin(), pt_contrib_begin_.end() - 1);
+    for (const auto& [p, block, local] : raw_pt) pt_contribs_[fill[at(p)]++] = {block, local};
+  }
   // Where each block with a point sits in pt_contribs_ (its source index).
   std::vector<std::uint32_t> block_source(blocks.size(), 0);
   for (std::size_t k = 0; k < pt_contribs_.size(); ++k) {
@@ -213,13 +216,15 @@ SchurSystem::SchurSystem(const Problem& problem, const std::vector<char>& elimin
     edge_contrib_source_[q] = block_source[static_cast<std::size_t>(edge_contribs_[q].block)];
   }
   if (fused_) plan_chunks(problem);
-  std::sort(raw_cam.begin(), raw_cam.end());
+  // By camera, blocks ascending (raw_cam is in block order, one entry per block and camera).
   cam_grad_begin_.assign(nc + 1, 0);
-  for (const auto& [c, block, local] : raw_cam) {
-    cam_grad_.emplace_back(block, local);
-    ++cam_grad_begin_[at(c) + 1];
-  }
+  for (const auto& [c, block, local] : raw_cam) ++cam_grad_begin_[at(c) + 1];
   for (std::size_t c = 0; c < nc; ++c) cam_grad_begin_[c + 1] += cam_grad_begin_[c];
+  cam_grad_.resize(raw_cam.size());
+  {
+    std::vector<std::size_t> fill(cam_grad_begin_.begin(), cam_grad_begin_.end() - 1);
+    for (const auto& [c, block, local] : raw_cam) cam_grad_[fill[at(c)]++] = {block, local};
+  }
 
   // Camera pairs of S: every diagonal, pairs inside blocks, pairs of cameras sharing a point.
   // Per column camera j, the row cameras i >= j it pairs with: a marker per camera avoids
@@ -396,11 +401,14 @@ void SchurSystem::plan_chunks(const Problem& problem) {
   const std::size_t np = pt_dim_.size();
   const std::size_t nc = cam_dim_.size();
   const auto blocks = problem.blocks();
-  // Points per chunk: enough that a chunk's edges are many per camera it touches (about 16 for
-  // each camera of the problem), so that its slots are few beside its blocks; at least 1024.
-  // A function of the problem alone, so results do not depend on the number of threads.
+  // Points per chunk: enough that a chunk's edges are many per camera it touches (about
+  // kEdgesPerSlot for each camera of the problem), so that its slots are few beside its blocks; at
+  // least 1024. (The chunk is evaluated and scattered a piece of points at a time, so its size
+  // does not set the buffer's.) A function of the problem alone, so results do not depend on the
+  // number of threads.
   const std::size_t edges = edge_cam_.size();
-  chunk_points_ = std::max<std::size_t>(1024, edges == 0 ? np : (16 * nc * np + edges - 1) / edges);
+  chunk_points_ =
+      std::max<std::size_t>(1024, edges == 0 ? np : (kEdgesPerSlot * nc * np + edges - 1) / edges);
   const std::size_t num_chunks = (np + chunk_points_ - 1) / chunk_points_;
   // Slots: per chunk, one partial diagonal block (dc x dc) and gradient (dc) per camera the
   // chunk's points are seen by, laid out chunk after chunk.
@@ -430,10 +438,17 @@ void SchurSystem::plan_chunks(const Problem& problem) {
     const auto& entry = blocks[static_cast<std::size_t>(pt_contribs_[q].first)];
     direct_rows_[q] = entry.block->num_rows();
     direct_[q] = !entry.loss && entry.block->num_rows() <= kDirectRows &&
-                 entry.block->reduced_dim() == entry.block->tangent_dim();
+                 entry.block->reduced_dim() == block_dim(pt_contribs_[q].first);
   }
+  edge_assigned_.assign(edge_cam_.size(), 0);
+  for (std::size_t e = 0; e < edge_cam_.size(); ++e) {
+    edge_assigned_[e] = edge_contrib_begin_[e + 1] == edge_contrib_begin_[e] + 1 &&
+                        direct_[edge_contrib_source_[edge_contrib_begin_[e]]];
+  }
+  chunk_slot_begin_.assign(num_chunks + 1, 0);
   for (std::size_t k = 0; k < num_chunks; ++k) {
     const auto [p0, p1] = chunk_range(k);
+    chunk_slot_begin_[k] = slot_size;
     for (std::size_t e = pt_edge_begin_[p0]; e < pt_edge_begin_[p1]; ++e) {
       const auto c = at(edge_cam_[e]);
       if (seen_in_chunk[c] != static_cast<int>(k)) {
@@ -444,21 +459,42 @@ void SchurSystem::plan_chunks(const Problem& problem) {
       }
       edge_slot_[e] = slot_of_camera[c];
     }
-    std::size_t h = 0, b = 0;
-    for (std::size_t q = pt_contrib_begin_[p0]; q < pt_contrib_begin_[p1]; ++q) {
-      const auto& entry = blocks[static_cast<std::size_t>(pt_contribs_[q].first)];
-      const auto D = at(entry.block->tangent_dim());
-      pt_contrib_h_local_[q] = h;
-      pt_contrib_b_local_[q] = b;
-      if (direct_[q]) {
-        h += at(direct_rows_[q]) * (D + 1);  // Jacobian rows, then residuals
-      } else {
-        h += D * (D + 1) / 2;
-        b += D;
+    for (std::size_t j = 0; j < num_pieces(k); ++j) {  // a buffer per piece
+      const auto [s0, s1] = piece_range(k, j);
+      std::size_t h = 0, b = 0;
+      for (std::size_t q = pt_contrib_begin_[s0]; q < pt_contrib_begin_[s1]; ++q) {
+        const auto D = at(block_dim(pt_contribs_[q].first));
+        pt_contrib_h_local_[q] = h;
+        pt_contrib_b_local_[q] = b;
+        if (direct_[q]) {
+          h += at(direct_rows_[q]) * (D + 1);  // Jacobian rows, then residuals
+        } else {
+          h += D * (D + 1) / 2;
+          b += D;
+        }
+      }
+      chunk_h_size_ = std::max(chunk_h_size_, h);
+      chunk_b_size_ = std::max(chunk_b_size_, b);
+    }
+  }
+  chunk_slot_begin_[num_chunks] = slot_size;
+  // Standard chunks: every block a two-row direct block of one 9-camera and one 3-point, laid out
+  // [camera, point] and the only contribution to its edge (scatter_standard_chunk_9_3()).
+  chunk_standard_.assign(num_chunks, 0);
+  for (std::size_t k = 0; k < num_chunks && kernel_ == 1; ++k) {
+    bool standard = true;
+    for (std::size_t j = 0; j < num_pieces(k) && standard; ++j) {
+      const auto [s0, s1] = piece_range(k, j);
+      const std::size_t q0 = pt_contrib_begin_[s0];
+      standard = q0 < pt_contrib_begin_[s1];
+      for (std::size_t q = q0; q < pt_contrib_begin_[s1] && standard; ++q) {
+        const std::size_t e = direct_edge_[q];
+        standard = direct_[q] && direct_rows_[q] == 2 && block_dim(pt_contribs_[q].first) == 12 &&
+                   pt_contribs_[q].second == 9 && direct_cam_local_[q] == 0 && e != kNoEdge &&
+                   edge_assigned_[e] && pt_contrib_h_local_[q] == 26 * (q - q0);
       }
     }
-    chunk_h_size_ = std::max(chunk_h_size_, h);
-    chunk_b_size_ = std::max(chunk_b_size_, b);
+    chunk_standard_[k] = standard ? 1 : 0;
   }
   slots_.assign(slot_size, 0.0);
   cam_slot_begin_.assign(nc + 1, 0);
@@ -476,7 +512,7 @@ void SchurSystem::plan_chunks(const Problem& problem) {
   storage_.cost.assign(blocks.size(), 0.0);
   std::size_t h = 0, b = 0;
   for (std::size_t i = 0; i < blocks.size(); ++i) {
-    const int D = blocks[i].block->tangent_dim();
+    const int D = block_dims_[i];
     storage_.dim[i] = D;
     if (has_point[i]) continue;
     other_blocks_.push_back(i);
@@ -492,10 +528,11 @@ void SchurSystem::plan_chunks(const Problem& problem) {
 /// The points of chunk k: V, their gradients, W per edge and, fused, the chunk's slots.
 /// h_of(q) / b_of(q): packed H and b of the block of pt_contribs_[q].
 /// The contributions of a direct block (see plan_chunks()) from its n Jacobian rows J (n x D,
-/// row-major) and residuals r: V += J_p^T J_p, g_p += J_p^T r and, with a camera, W += J_c^T J_p,
-/// the lower triangle of slot += J_c^T J_c, slot gradient += J_c^T r. Each output element sums
-/// over the rows first and touches memory once.
-template <int DC, int DP, int N = 0>
+/// row-major) and residuals r: V += J_p^T J_p, g_p += J_p^T r and, with a camera, W += J_c^T J_p
+/// (W = J_c^T J_p with kAssignW: the edge's only contribution, W not zeroed first), the lower
+/// triangle of slot += J_c^T J_c, slot gradient += J_c^T r. Each output element sums over the
+/// rows first and touches memory once.
+template <int DC, int DP, int N = 0, bool kAssignW = false>
 __attribute__((always_inline)) inline void scatter_rows(const double* __restrict J,
                                                         const double* __restrict r, int rows, int D,
                                                         int pt_local, int cam_local, int dc, int dp,
@@ -521,7 +558,11 @@ __attribute__((always_inline)) inline void scatter_rows(const double* __restrict
     for (int a = 0; a < C; ++a) {
       double sum = 0.0;
       for (int k = 0; k < n; ++k) sum += row(k)[cam_local + a] * row(k)[pt_local + b];
-      W[b * C + a] += sum;
+      if constexpr (kAssignW) {
+        W[b * C + a] = sum;
+      } else {
+        W[b * C + a] += sum;
+      }
     }
   }
   for (int b = 0; b < C; ++b) {  // the lower triangle (gather_cameras() mirrors it)
@@ -539,42 +580,152 @@ __attribute__((always_inline)) inline void scatter_rows(const double* __restrict
   }
 }
 
+// The helpers below pass 32-byte vectors by value; they are always inlined into the kernels
+// (never called across a translation unit), so GCC's note on the AVX calling convention does not
+// apply.
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wpsabi"
+#endif
+
+/// Four doubles as one vector (GCC / Clang vector extension; unaligned loads and stores).
+using Double4 = double __attribute__((vector_size(32), aligned(8)));
+
+__attribute__((always_inline)) inline Double4 load4(const double* p) {
+  Double4 v;
+  std::memcpy(&v, p, sizeof(v));
+  return v;
+}
+__attribute__((always_inline)) inline void store4(double* p, Double4 v) {
+  std::memcpy(p, &v, sizeof(v));
+}
+
+/// column[0, 9) (+)= x0 * y0 + x1 * y1, x0 / x1 two 9-vectors held as two Double4 and a tail.
+template <bool kAssign>
+__attribute__((always_inline)) inline void update_column_9(double* __restrict column,
+                                                           const Double4 (&x0)[2], double x0_8,
+                                                           const Double4 (&x1)[2], double x1_8,
+                                                           double y0, double y1) {
+  for (int h = 0; h < 2; ++h) {
+    const Double4 sum = x0[h] * y0 + x1[h] * y1;
+    store4(column + 4 * h, kAssign ? sum : load4(column + 4 * h) + sum);
+  }
+  const double tail = x0_8 * y0 + x1_8 * y1;
+  column[8] = kAssign ? tail : column[8] + tail;
+}
+
+/// scatter_rows<9, 3, 2> for the common layout: two rows of 12 columns, the camera's 9 first,
+/// the point's 3 last. The slot's whole 9 x 9 block is summed (whole columns vectorize; its
+/// upper triangle is not read).
+template <bool kAssignW>
+__attribute__((always_inline)) inline void scatter_two_rows_9_3(
+    const double* __restrict J, const double* __restrict r, double* __restrict V,
+    double* __restrict g, double* __restrict W, double* __restrict slot) {
+  const double* j0 = J;
+  const double* j1 = J + 12;
+  const double* p0 = j0 + 9;
+  const double* p1 = j1 + 9;
+  for (int b = 0; b < 3; ++b) {
+    for (int a = 0; a < 3; ++a) V[b * 3 + a] += p0[a] * p0[b] + p1[a] * p1[b];
+    g[b] += p0[b] * r[0] + p1[b] * r[1];
+  }
+  const Double4 c0[2] = {load4(j0), load4(j0 + 4)};
+  const Double4 c1[2] = {load4(j1), load4(j1 + 4)};
+  for (int b = 0; b < 3; ++b) {
+    update_column_9<kAssignW>(W + b * 9, c0, j0[8], c1, j1[8], p0[b], p1[b]);
+  }
+  for (int b = 0; b < 9; ++b) {
+    update_column_9<false>(slot + b * 9, c0, j0[8], c1, j1[8], j0[b], j1[b]);
+  }
+  update_column_9<false>(slot + 81, c0, j0[8], c1, j1[8], r[0], r[1]);
+}
+
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic pop
+#endif
+
 CARAT_MULTIVERSION void scatter_rows_9_3(const double* J, const double* r, int n, int D,
                                          int pt_local, int cam_local, double* V, double* g,
-                                         double* W, double* slot) {
-  if (n == 2) {
+                                         double* W, double* slot, bool assign_w) {
+  if (n == 2 && D == 12 && cam_local == 0 && pt_local == 9) {
+    if (assign_w) {
+      scatter_two_rows_9_3<true>(J, r, V, g, W, slot);
+    } else {
+      scatter_two_rows_9_3<false>(J, r, V, g, W, slot);
+    }
+  } else if (n == 2 && assign_w) {
+    scatter_rows<9, 3, 2, true>(J, r, n, D, pt_local, cam_local, 9, 3, V, g, W, slot);
+  } else if (n == 2) {
     scatter_rows<9, 3, 2>(J, r, n, D, pt_local, cam_local, 9, 3, V, g, W, slot);
+  } else if (assign_w) {
+    scatter_rows<9, 3, 0, true>(J, r, n, D, pt_local, cam_local, 9, 3, V, g, W, slot);
   } else {
     scatter_rows<9, 3>(J, r, n, D, pt_local, cam_local, 9, 3, V, g, W, slot);
   }
 }
+/// The points [p0, p1) of a standard chunk (see SchurSystem::plan_chunks()): per point, V zeroed,
+/// then each block q of it (rows at J + 26 (q - q_begin[p0])) scattered by scatter_two_rows_9_3
+/// into V, the point's gradient, its edge's W and its edge's slot.
+CARAT_MULTIVERSION void scatter_standard_chunk_9_3(
+    std::size_t p0, std::size_t p1, const std::size_t* q_begin, const std::size_t* edge_of_q,
+    const std::size_t* w_offset, const std::size_t* slot_of_edge, const std::size_t* v_offset,
+    const int* pt_offset, const double* J, double* v, double* gradient, double* w, double* slots) {
+  const std::size_t q0 = q_begin[p0];
+  for (std::size_t p = p0; p < p1; ++p) {
+    double* V = v + v_offset[p];
+    for (int a = 0; a < 9; ++a) V[a] = 0.0;
+    double* g = gradient + pt_offset[p];
+    for (std::size_t q = q_begin[p]; q < q_begin[p + 1]; ++q) {
+      const std::size_t e = edge_of_q[q];
+      const double* rows = J + 26 * (q - q0);
+      scatter_two_rows_9_3<true>(rows, rows + 24, V, g, w + w_offset[e], slots + slot_of_edge[e]);
+    }
+  }
+}
+
 CARAT_MULTIVERSION void scatter_rows_6_3(const double* J, const double* r, int n, int D,
                                          int pt_local, int cam_local, double* V, double* g,
-                                         double* W, double* slot) {
-  if (n == 2) {
+                                         double* W, double* slot, bool assign_w) {
+  if (n == 2 && assign_w) {
+    scatter_rows<6, 3, 2, true>(J, r, n, D, pt_local, cam_local, 6, 3, V, g, W, slot);
+  } else if (n == 2) {
     scatter_rows<6, 3, 2>(J, r, n, D, pt_local, cam_local, 6, 3, V, g, W, slot);
+  } else if (assign_w) {
+    scatter_rows<6, 3, 0, true>(J, r, n, D, pt_local, cam_local, 6, 3, V, g, W, slot);
   } else {
     scatter_rows<6, 3>(J, r, n, D, pt_local, cam_local, 6, 3, V, g, W, slot);
   }
 }
 
+/// Zeroes the slots of chunk k (fused; they lie together).
+void SchurSystem::zero_slots(std::size_t k) {
+  if (!fused_) return;
+  std::fill(slots_.data() + chunk_slot_begin_[k], slots_.data() + chunk_slot_begin_[k + 1], 0.0);
+}
+
+/// Points [p0, p1) of chunk k (its slots zeroed before its first points).
 template <int DC, int DP, typename HOf, typename BOf>
-void SchurSystem::scatter_chunk_sized(std::size_t k, double* gradient, const HOf& h_of,
-                                      const BOf& b_of, bool use_direct) {
-  const auto [p0, p1] = chunk_range(k);
-  if (fused_) {
-    for (std::size_t e = pt_edge_begin_[p0]; e < pt_edge_begin_[p1]; ++e) {
-      const int dc = cam_dim_[at(edge_cam_[e])];
-      std::fill_n(slots_.data() + edge_slot_[e], at(dc) * at(dc + 1), 0.0);
+void SchurSystem::scatter_chunk_sized(std::size_t k, std::size_t p0, std::size_t p1,
+                                      double* gradient, const HOf& h_of, const BOf& b_of,
+                                      bool use_direct) {
+  if constexpr (DC == 9 && DP == 3) {
+    if (use_direct && chunk_standard_[k]) {
+      scatter_standard_chunk_9_3(p0, p1, pt_contrib_begin_.data(), direct_edge_.data(),
+                                 edge_w_offset_.data(), edge_slot_.data(), pt_v_offset_.data(),
+                                 pt_offset_.data(), h_of(pt_contrib_begin_[p0]), v_.data(),
+                                 gradient, w_.data(), slots_.data());
+      return;
     }
   }
   for (std::size_t p = p0; p < p1; ++p) {
-    const int dp = pt_dim_[p];
+    const int dp = DP > 0 ? DP : pt_dim_[p];
     double* V = v_.data() + pt_v_offset_[p];
     std::fill_n(V, at(dp) * at(dp), 0.0);
     double* g = gradient + pt_offset_[p];
     for (std::size_t e = pt_edge_begin_[p]; e < pt_edge_begin_[p + 1]; ++e) {
-      std::fill_n(w_.data() + edge_w_offset_[e], at(cam_dim_[at(edge_cam_[e])]) * at(dp), 0.0);
+      if (use_direct && edge_assigned_[e]) continue;  // its one direct block writes W
+      const int dc = DC > 0 ? DC : cam_dim_[at(edge_cam_[e])];
+      std::fill_n(w_.data() + edge_w_offset_[e], at(dc) * at(dp), 0.0);
     }
     for (std::size_t q = pt_contrib_begin_[p]; q < pt_contrib_begin_[p + 1]; ++q) {
       const auto [block, local] = pt_contribs_[q];
@@ -588,10 +739,14 @@ void SchurSystem::scatter_chunk_sized(std::size_t k, double* gradient, const HOf
         const int cam_local = has_camera ? direct_cam_local_[q] : -1;
         double* W = has_camera ? w_.data() + edge_w_offset_[e] : nullptr;
         double* slot = has_camera ? slots_.data() + edge_slot_[e] : nullptr;
+        const bool assign_w = has_camera && edge_assigned_[e];
         if constexpr (DC == 9 && DP == 3) {
-          scatter_rows_9_3(J, J + n * D, n, D, local, cam_local, V, g, W, slot);
+          scatter_rows_9_3(J, J + n * D, n, D, local, cam_local, V, g, W, slot, assign_w);
         } else if constexpr (DC == 6 && DP == 3) {
-          scatter_rows_6_3(J, J + n * D, n, D, local, cam_local, V, g, W, slot);
+          scatter_rows_6_3(J, J + n * D, n, D, local, cam_local, V, g, W, slot, assign_w);
+        } else if (assign_w) {
+          std::fill_n(W, at(dc) * at(dp), 0.0);
+          scatter_rows<DC, DP>(J, J + n * D, n, D, local, cam_local, dc, dp, V, g, W, slot);
         } else {
           scatter_rows<DC, DP>(J, J + n * D, n, D, local, cam_local, dc, dp, V, g, W, slot);
         }
@@ -623,17 +778,17 @@ void SchurSystem::scatter_chunk_sized(std::size_t k, double* gradient, const HOf
 }
 
 template <typename HOf, typename BOf>
-void SchurSystem::scatter_chunk(std::size_t k, double* gradient, const HOf& h_of, const BOf& b_of,
-                                bool use_direct) {
+void SchurSystem::scatter_chunk(std::size_t k, std::size_t p0, std::size_t p1, double* gradient,
+                                const HOf& h_of, const BOf& b_of, bool use_direct) {
   switch (kernel_) {
     case 1:
-      scatter_chunk_sized<9, 3>(k, gradient, h_of, b_of, use_direct);
+      scatter_chunk_sized<9, 3>(k, p0, p1, gradient, h_of, b_of, use_direct);
       break;
     case 2:
-      scatter_chunk_sized<6, 3>(k, gradient, h_of, b_of, use_direct);
+      scatter_chunk_sized<6, 3>(k, p0, p1, gradient, h_of, b_of, use_direct);
       break;
     default:
-      scatter_chunk_sized<0, 0>(k, gradient, h_of, b_of, use_direct);
+      scatter_chunk_sized<0, 0>(k, p0, p1, gradient, h_of, b_of, use_direct);
       break;
   }
 }
@@ -698,7 +853,9 @@ void SchurSystem::assemble(const BlockLinearizations& blocks, Eigen::VectorXd* g
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, num_chunks, 1),
                     [&](const tbb::blocked_range<std::size_t>& range) {
                       for (std::size_t k = range.begin(); k != range.end(); ++k) {
-                        scatter_chunk(k, g, h_of, b_of, /*use_direct=*/false);
+                        zero_slots(k);
+                        const auto [p0, p1] = chunk_range(k);
+                        scatter_chunk(k, p0, p1, g, h_of, b_of, /*use_direct=*/false);
                       }
                     });
   gather_cameras(blocks, g);
@@ -734,28 +891,35 @@ bool SchurSystem::linearize(const BlockEvaluator& evaluator, int which, Eigen::V
         local.b.resize(chunk_b_size_);
         for (std::size_t k = range.begin(); k != range.end(); ++k) {
           Stopwatch t0;
-          const auto [p0, p1] = chunk_range(k);
+          zero_slots(k);
+          scatter_cpu[k] += t0.elapsed_s();
           double sum = 0.0;
-          for (std::size_t q = pt_contrib_begin_[p0]; q < pt_contrib_begin_[p1]; ++q) {
-            const auto block = static_cast<std::size_t>(pt_contribs_[q].first);
-            double c = 0.0;
-            const bool ok =
-                direct_[q] ? evaluator.evaluate_rows(block, which, direct_rows_[q],
-                                                     local.h.data() + pt_contrib_h_local_[q], &c)
-                           : evaluator.evaluate_block(block, which, local.block,
-                                                      local.h.data() + pt_contrib_h_local_[q],
-                                                      local.b.data() + pt_contrib_b_local_[q], &c);
-            if (!ok) record_bad_block(first_bad, block);
-            sum += c;
+          for (std::size_t j = 0; j < num_pieces(k); ++j) {
+            t0.restart();
+            const auto [s0, s1] = piece_range(k, j);
+            for (std::size_t q = pt_contrib_begin_[s0]; q < pt_contrib_begin_[s1]; ++q) {
+              const auto block = static_cast<std::size_t>(pt_contribs_[q].first);
+              double c = 0.0;
+              const bool ok =
+                  direct_[q]
+                      ? evaluator.evaluate_rows(block, which, direct_rows_[q],
+                                                local.h.data() + pt_contrib_h_local_[q], &c)
+                      : evaluator.evaluate_block(block, which, local.block,
+                                                 local.h.data() + pt_contrib_h_local_[q],
+                                                 local.b.data() + pt_contrib_b_local_[q], &c);
+              if (!ok) record_bad_block(first_bad, block);
+              sum += c;
+            }
+            evaluate_cpu[k] += t0.elapsed_s();
+            t0.restart();
+            scatter_chunk(
+                k, s0, s1, g,
+                [&](std::size_t q) { return local.h.data() + pt_contrib_h_local_[q]; },
+                [&](std::size_t q) { return local.b.data() + pt_contrib_b_local_[q]; },
+                /*use_direct=*/true);
+            scatter_cpu[k] += t0.elapsed_s();
           }
           chunk_cost_[k] = sum;
-          evaluate_cpu[k] = t0.elapsed_s();
-          t0.restart();
-          scatter_chunk(
-              k, g, [&](std::size_t q) { return local.h.data() + pt_contrib_h_local_[q]; },
-              [&](std::size_t q) { return local.b.data() + pt_contrib_b_local_[q]; },
-              /*use_direct=*/true);
-          scatter_cpu[k] = t0.elapsed_s();
         }
       });
   // Blocks without a point.

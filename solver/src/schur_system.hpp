@@ -20,6 +20,7 @@
 #include "carat/solver/problem.hpp"
 #include "carat/solver/solver_options.hpp"
 #include "cholmod_session.hpp"
+#include "huge_pages.hpp"
 #include "linear_system.hpp"
 
 namespace carat::internal {
@@ -66,12 +67,13 @@ class SchurSystem final : public LinearSystem {
   void back_substitute(const Eigen::VectorXd& rhs, const double* x_cameras, double* x) const;
 
   void plan_chunks(const Problem& problem);
+  void zero_slots(std::size_t k);
   template <typename HOf, typename BOf>
-  void scatter_chunk(std::size_t k, double* gradient, const HOf& h_of, const BOf& b_of,
-                     bool use_direct);
+  void scatter_chunk(std::size_t k, std::size_t p0, std::size_t p1, double* gradient,
+                     const HOf& h_of, const BOf& b_of, bool use_direct);
   template <int DC, int DP, typename HOf, typename BOf>
-  void scatter_chunk_sized(std::size_t k, double* gradient, const HOf& h_of, const BOf& b_of,
-                           bool use_direct);
+  void scatter_chunk_sized(std::size_t k, std::size_t p0, std::size_t p1, double* gradient,
+                           const HOf& h_of, const BOf& b_of, bool use_direct);
   void gather_cameras(const BlockLinearizations& blocks, double* gradient);
   int block_dim(std::int32_t block) const { return block_dims_[static_cast<std::size_t>(block)]; }
   std::size_t num_point_chunks() const {
@@ -81,14 +83,26 @@ class SchurSystem final : public LinearSystem {
   std::pair<std::size_t, std::size_t> chunk_range(std::size_t k) const {
     return {k * chunk_points_, std::min(pt_dim_.size(), (k + 1) * chunk_points_)};
   }
+  /// Number of pieces of chunk k (linearize() evaluates and scatters a piece at a time).
+  std::size_t num_pieces(std::size_t k) const {
+    const auto [p0, p1] = chunk_range(k);
+    return (p1 - p0 + kPiecePoints - 1) / kPiecePoints;
+  }
+  /// Points [first, end) of piece j of chunk k.
+  std::pair<std::size_t, std::size_t> piece_range(std::size_t k, std::size_t j) const {
+    const auto [p0, p1] = chunk_range(k);
+    return {std::min(p1, p0 + j * kPiecePoints), std::min(p1, p0 + (j + 1) * kPiecePoints)};
+  }
   /// Cameras [first, end) of group g (form_reduced_system(), reduce_rhs()).
   std::pair<std::size_t, std::size_t> group_range(std::size_t g) const {
     return {g * kGroupCameras, std::min(cam_dim_.size(), (g + 1) * kGroupCameras)};
   }
 
-  std::size_t chunk_points_ = 1024;                // points per chunk (see plan_chunks())
-  static constexpr int kDirectRows = 4;            // most rows of a direct block
-  static constexpr std::size_t kGroupCameras = 8;  // cameras per task forming S
+  std::size_t chunk_points_ = 1024;                 // points per chunk (see plan_chunks())
+  static constexpr int kDirectRows = 4;             // most rows of a direct block
+  static constexpr std::size_t kPiecePoints = 256;  // points evaluated, then scattered, together
+  static constexpr std::size_t kEdgesPerSlot = 64;  // edges per camera slot (see plan_chunks())
+  static constexpr std::size_t kGroupCameras = 8;   // cameras per task forming S
   static constexpr std::size_t kNoEdge = ~std::size_t{0};
 
   int ns_ = 0;
@@ -143,13 +157,17 @@ class SchurSystem final : public LinearSystem {
   // block with a point goes in a chunk's buffer; the blocks without a point.
   std::vector<std::size_t> edge_slot_;
   std::vector<std::size_t> cam_slot_begin_, cam_slots_;
+  std::vector<std::size_t> chunk_slot_begin_;  // chunk k's slots: [begin[k], begin[k + 1])
   std::vector<double> slots_;
-  std::vector<std::size_t> pt_contrib_h_local_, pt_contrib_b_local_;
+  std::vector<std::size_t> pt_contrib_h_local_, pt_contrib_b_local_;  // in its piece's buffer
   // Direct blocks (see plan_chunks()): flag, rows, camera offset in the block, edge.
   std::vector<char> direct_;
   std::vector<int> direct_rows_;
   std::vector<int> direct_cam_local_;
   std::vector<std::size_t> direct_edge_;
+  // Edges whose one contribution is a direct block: it writes W (not zeroed before).
+  std::vector<char> edge_assigned_;
+  std::vector<char> chunk_standard_;  // per chunk: all its blocks take the standard 9 / 3 path
   std::size_t chunk_h_size_ = 0, chunk_b_size_ = 0;
   std::vector<std::size_t> other_blocks_;
   std::vector<double> chunk_cost_;
@@ -158,7 +176,9 @@ class SchurSystem final : public LinearSystem {
   // L^-1 (V + damping = L L^T; Y = W L^-T is formed where needed, not stored); z: V^-1 rhs of
   // the points in the last solve. solve() reads W, so it needs the assembly the factorization
   // was made from: this system does not reuse factorizations.
-  std::vector<double> a_, w_, v_, l_inverse_, z_;
+  // The large ones on huge pages (see huge_pages.hpp): fewer page faults on first touch.
+  std::vector<double> a_, z_;
+  HugeVector<double> w_, v_, l_inverse_;
 
   // Reduced system: lower-triangular CSC in camera order (CHOLMOD orders it).
   std::vector<std::int64_t> colptr_, rows_;
