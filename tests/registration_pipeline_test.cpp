@@ -10,6 +10,7 @@
 #include <cmath>
 #include <memory>
 #include <random>
+#include <span>
 #include <string>
 #include <utility>
 #include <vector>
@@ -315,6 +316,54 @@ TEST(GlobalRegistrationTest, RecompressedSolveReachesTheFullOptimum) {
   EXPECT_EQ(summary.termination, TerminationType::kConvergence) << summary.brief_report();
   EXPECT_LE(std::abs(summary.final_cost - optimum), 1e-9 * optimum) << summary.brief_report();
   EXPECT_EQ(summary.compressed_rows, 29u * small_pairs().size());
+}
+
+// The per-iteration hook sees the iterate's poses: the start first, the result last, one call per
+// summary row; solver.iteration_callback still runs, and kAbort from the hook ends the solve.
+TEST(GlobalRegistrationTest, IterationCallbackSeesThePosesOfEveryIterate) {
+  const SmallWorld& w = small_world();
+  GlobalRegistrationOptions options = small_options(ResidualSampling::kExact);
+  int solver_calls = 0;
+  options.solver.iteration_callback = [&](const IterationSummary&) {
+    ++solver_calls;
+    return CallbackResult::kContinue;
+  };
+  std::vector<int> iterations;
+  std::vector<std::vector<Eigen::Isometry3d>> poses;
+  options.iteration_callback = [&](const IterationSummary& row,
+                                   std::span<const Eigen::Isometry3d> T_world_frame) {
+    iterations.push_back(row.iteration);
+    poses.emplace_back(T_world_frame.begin(), T_world_frame.end());
+    return CallbackResult::kContinue;
+  };
+  const GlobalRegistrationResult result =
+      optimize_registration(w.frames, small_pairs(), w.initial, options);
+  ASSERT_GE(iterations.size(), 2u);
+  EXPECT_EQ(static_cast<int>(iterations.size()), solver_calls);
+  EXPECT_EQ(iterations.size(), result.summary.iterations.size());
+  EXPECT_EQ(iterations.front(), 0);
+  for (std::size_t k = 0; k < w.initial.size(); ++k) {
+    EXPECT_TRUE(poses.front()[k].isApprox(w.initial[k], 1e-12)) << "frame " << k;
+    EXPECT_TRUE(poses.back()[k].isApprox(result.T_world_frame[k], 1e-12)) << "frame " << k;
+  }
+  // The same solve without the hook ends at the same poses.
+  const GlobalRegistrationResult plain = small_solve(ResidualSampling::kExact);
+  for (std::size_t k = 0; k < w.initial.size(); ++k)
+    EXPECT_TRUE(plain.T_world_frame[k].isApprox(result.T_world_frame[k], 1e-12)) << "frame " << k;
+
+  options.solver.iteration_callback = {};
+  options.rounds = 3;
+  int calls = 0;
+  options.iteration_callback = [&](const IterationSummary& row,
+                                   std::span<const Eigen::Isometry3d>) {
+    ++calls;
+    return row.iteration >= 1 ? CallbackResult::kAbort : CallbackResult::kContinue;
+  };
+  const GlobalRegistrationResult aborted =
+      optimize_registration(w.frames, small_pairs(), w.initial, options);
+  EXPECT_EQ(aborted.summary.termination, TerminationType::kUserAbort);
+  EXPECT_EQ(aborted.rounds, 1);
+  EXPECT_EQ(calls, 2);
 }
 
 TEST(GlobalRegistrationTest, ExactMatchesFullAndImprovesOnTheStart) {

@@ -61,7 +61,8 @@ MethodResult run_pose_graph(const MappingInput& input,
   return out;
 }
 
-MethodResult run_registration(const MappingInput& input, ResidualSampling sampling) {
+MethodResult run_registration(const MappingInput& input, ResidualSampling sampling,
+                              const RegistrationIterationCallback& on_iteration) {
   GlobalRegistrationOptions options;
   options.sampling = sampling;
   options.residuals = input.residuals;
@@ -72,6 +73,7 @@ MethodResult run_registration(const MappingInput& input, ResidualSampling sampli
   options.factor_cauchy_scale = input.gre_cauchy_scale;
   options.factor_excess_cauchy_scale = input.gre_excess_cauchy_scale;
   options.solver = mapping_solver(input.threads);
+  options.iteration_callback = on_iteration;
   MethodResult out;
   out.key = std::string("gre_") + to_string(sampling);
   out.label = sampling == ResidualSampling::kFull ? "GRE full"

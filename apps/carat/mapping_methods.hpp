@@ -64,8 +64,10 @@ MethodResult run_pose_graph(const MappingInput& input,
                             const std::vector<PairRegistration>& registrations,
                             PoseGraphInformation information);
 
-/// Global registration error minimization with the given sampling.
-MethodResult run_registration(const MappingInput& input, ResidualSampling sampling);
+/// Global registration error minimization with the given sampling; `on_iteration`, when set,
+/// sees the poses at every LM iteration.
+MethodResult run_registration(const MappingInput& input, ResidualSampling sampling,
+                              const RegistrationIterationCallback& on_iteration = {});
 
 /// The result as a JSON object (ate_* fields only when ate is set).
 nlohmann::json to_json(const MethodResult& result);

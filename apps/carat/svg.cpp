@@ -5,8 +5,10 @@
 #include <cstdio>
 #include <limits>
 #include <sstream>
+#include <utility>
 
 #include "carat/base/atomic_file.hpp"
+#include "carat/base/error.hpp"
 
 namespace carat::cli {
 namespace {
@@ -314,6 +316,93 @@ std::string stacked_bars_svg(const std::string& title, const std::string& y_labe
     legend_y += 20;
   }
   s << "</svg>\n";
+  return s.str();
+}
+
+std::string point_panels_svg(const std::string& title, std::span<const SvgPointPanel> panels,
+                             std::span<const std::string> class_labels,
+                             std::span<const std::string> class_colours, double half_extent) {
+  constexpr double kPanel = 380.0, kGap = 20.0, kTop = 70.0, kBottom = 70.0;
+  Eigen::Vector2d lo = Eigen::Vector2d::Constant(-half_extent), hi = -lo;
+  for (const SvgPointPanel& panel : panels) {
+    if (panel.mark_classes.size() != panel.marks.size())
+      throw Error("point_panels_svg: " + std::to_string(panel.marks.size()) + " marks but " +
+                  std::to_string(panel.mark_classes.size()) + " classes");
+    for (std::size_t k = 0; k < panel.marks.size(); ++k) {
+      const int c = panel.mark_classes[k];
+      if (c < 0 || static_cast<std::size_t>(c) >= class_labels.size() ||
+          static_cast<std::size_t>(c) >= class_colours.size())
+        throw Error("point_panels_svg: mark class " + std::to_string(c) +
+                    " has no label or colour");
+      lo = lo.cwiseMin(panel.marks[k].head<2>());
+      hi = hi.cwiseMax(panel.marks[k].head<2>());
+    }
+  }
+  const double span = 1.04 * std::max({hi.x() - lo.x(), hi.y() - lo.y(), 1.0});  // a margin
+  const double scale = kPanel / span;                                            // pixels per metre
+  const Eigen::Vector2d center = 0.5 * (lo + hi);
+  const double width = kGap + static_cast<double>(panels.size()) * (kPanel + kGap);
+  const double height = kTop + kPanel + kBottom;
+  std::ostringstream s;
+  s << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << width << "\" height=\"" << height
+    << "\" viewBox=\"0 0 " << width << ' ' << height << "\" font-family=\"sans-serif\">\n"
+    << "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n"
+    << "<text x=\"" << width / 2 << "\" y=\"28\" text-anchor=\"middle\" font-size=\"18\">"
+    << escape(title) << "</text>\n";
+  char text[64];
+  for (std::size_t p = 0; p < panels.size(); ++p) {
+    const SvgPointPanel& panel = panels[p];
+    const double left = kGap + static_cast<double>(p) * (kPanel + kGap);
+    const auto px = [&](const Eigen::Vector3d& point) {
+      return Eigen::Vector2d(left + kPanel / 2 + (point.x() - center.x()) * scale,
+                             kTop + kPanel / 2 - (point.y() - center.y()) * scale);
+    };
+    s << "<g class=\"panel\">\n<text x=\"" << left + kPanel / 2 << "\" y=\"" << kTop - 12
+      << "\" text-anchor=\"middle\" font-size=\"14\">" << escape(panel.title) << "</text>\n"
+      << "<rect x=\"" << left << "\" y=\"" << kTop << "\" width=\"" << kPanel << "\" height=\""
+      << kPanel << "\" fill=\"none\" stroke=\"black\"/>\n";
+    // The cloud: one dot per occupied pixel, as zero-length round-capped strokes of one path.
+    std::vector<std::pair<int, int>> pixels;
+    for (const Eigen::Vector3d& point : panel.cloud) {
+      const Eigen::Vector2d q = px(point);
+      if (q.x() < left || q.x() > left + kPanel || q.y() < kTop || q.y() > kTop + kPanel) continue;
+      pixels.emplace_back(static_cast<int>(std::lround(q.x())),
+                          static_cast<int>(std::lround(q.y())));
+    }
+    std::sort(pixels.begin(), pixels.end());
+    pixels.erase(std::unique(pixels.begin(), pixels.end()), pixels.end());
+    s << "<path class=\"cloud\" fill=\"none\" stroke=\"#b0b0b0\" stroke-width=\"1.2\" "
+      << "stroke-linecap=\"round\" d=\"";
+    for (const auto& [x, y] : pixels) s << 'M' << x << ' ' << y << "h0";
+    s << "\"/>\n<g class=\"marks\">\n";
+    for (std::size_t k = 0; k < panel.marks.size(); ++k) {
+      const Eigen::Vector2d q = px(panel.marks[k]);
+      const auto c = static_cast<std::size_t>(panel.mark_classes[k]);
+      std::snprintf(text, sizeof(text), "%.1f\" cy=\"%.1f", q.x(), q.y());
+      s << "<circle cx=\"" << text << "\" r=\"3.5\" fill=\"" << class_colours[c]
+        << "\" data-class=\"" << escape(class_labels[c]) << "\"/>\n";
+    }
+    s << "</g>\n</g>\n";
+  }
+  // Legend and a scale bar of a round length near 1/5 of a panel.
+  double legend_x = kGap;
+  for (std::size_t c = 0; c < class_labels.size() && c < class_colours.size(); ++c) {
+    s << "<circle cx=\"" << legend_x + 6 << "\" cy=\"" << height - 30 << "\" r=\"5\" fill=\""
+      << class_colours[c] << "\"/>\n<text x=\"" << legend_x + 16 << "\" y=\"" << height - 25
+      << "\" font-size=\"13\">" << escape(class_labels[c]) << "</text>\n";
+    legend_x += 140;
+  }
+  const double target = kPanel / 5 / scale;
+  const double magnitude = std::pow(10.0, std::floor(std::log10(target)));
+  double length = magnitude;
+  for (double m : {2.0, 5.0, 10.0})
+    if (m * magnitude <= target) length = m * magnitude;
+  const double bar_right = width - kGap;
+  std::snprintf(text, sizeof(text), "%g m", length);
+  s << "<line x1=\"" << bar_right - length * scale << "\" y1=\"" << height - 30 << "\" x2=\""
+    << bar_right << "\" y2=\"" << height - 30 << "\" stroke=\"black\" stroke-width=\"2\"/>\n"
+    << "<text x=\"" << bar_right - length * scale / 2 << "\" y=\"" << height - 38
+    << "\" text-anchor=\"middle\" font-size=\"12\">" << text << "</text>\n</svg>\n";
   return s.str();
 }
 

@@ -57,6 +57,22 @@ std::string stacked_bars_svg(const std::string& title, const std::string& y_labe
                              std::span<const std::string> segment_names,
                              std::span<const SvgBar> bars);
 
+/// One panel of a top-view point picture: a cloud drawn as small grey dots, marked points on top.
+struct SvgPointPanel {
+  std::string title;                   // above the panel
+  std::vector<Eigen::Vector3d> cloud;  // metres (x right, y up); outside the view: not drawn
+  std::vector<Eigen::Vector3d> marks;  // metres; the view always holds every mark
+  std::vector<int> mark_classes;       // per mark: index into the classes' labels and colours
+};
+
+/// Panels side by side over one shared view (the square of half-width `half_extent` metres
+/// around the origin, widened to hold every mark), each cloud deduplicated to one dot per pixel
+/// and each mark a circle of its class's colour inside `<g class="marks">`; a legend of the
+/// classes and a metre scale. Throws carat::Error when a mark's class has no label or colour.
+std::string point_panels_svg(const std::string& title, std::span<const SvgPointPanel> panels,
+                             std::span<const std::string> class_labels,
+                             std::span<const std::string> class_colours, double half_extent);
+
 /// Writes `svg` to `path` atomically.
 void write_svg(const std::filesystem::path& path, const std::string& svg);
 

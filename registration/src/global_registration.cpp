@@ -328,6 +328,19 @@ GlobalRegistrationResult optimize_registration(
   for (int round = 0; round < options.rounds; ++round) {
     RegistrationProblem built =
         build_registration_problem(frames, pairs, out.T_world_frame, options, progress);
+    if (options.iteration_callback) {
+      solver.update_state_every_iteration = true;
+      solver.iteration_callback =
+          [&options, &built, poses = std::vector<Eigen::Isometry3d>(built.frame_variables.size())](
+              const IterationSummary& row) mutable {
+            if (options.solver.iteration_callback &&
+                options.solver.iteration_callback(row) == CallbackResult::kAbort)
+              return CallbackResult::kAbort;
+            for (std::size_t i = 0; i < poses.size(); ++i)
+              poses[i] = built.problem.se3(built.frame_variables[i]);
+            return options.iteration_callback(row, poses);
+          };
+    }
     const SolverSummary summary = solve(solver, built.problem);
     if (!summary.is_solution_usable())
       throw Error("global registration: the solve failed: " + summary.message);
@@ -351,6 +364,7 @@ GlobalRegistrationResult optimize_registration(
       out.factor_costs.push_back(blocks[k].block->squared_norm(values) /
                                  static_cast<double>(built.factor_correspondences[k]));
     }
+    if (summary.termination == TerminationType::kUserAbort) break;
     if (max_translation < options.round_translation_tolerance &&
         max_rotation < options.round_rotation_tolerance)
       break;

@@ -46,9 +46,9 @@ std::unique_ptr<RealPair> load_kitti00(const PaperArgs& args) {
   pair->T = align(pair->target->cloud(), pair->target->tree(), pair->source->cloud(),
                   Eigen::Isometry3d::Identity(), settings)
                 .T_target_source;
-  const auto correspondences = find_correspondences(pair->target->cloud(), pair->target->tree(),
-                                                    pair->source->cloud(), pair->T, 1.0);
-  pair->block = std::make_shared<const GicpBlock>(correspondences, pair->T);
+  pair->correspondences = find_correspondences(pair->target->cloud(), pair->target->tree(),
+                                               pair->source->cloud(), pair->T, 1.0);
+  pair->block = std::make_shared<const GicpBlock>(pair->correspondences, pair->T);
   se3::to_storage(Eigen::Isometry3d::Identity(), pair->identity.data());
   se3::to_storage(pair->T, pair->pose.data());
   return pair;

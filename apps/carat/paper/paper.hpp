@@ -14,6 +14,7 @@
 
 #include "carat/registration/frame.hpp"
 #include "carat/residuals/gicp_block.hpp"
+#include "iteration_trace.hpp"
 
 namespace carat::cli::paper {
 
@@ -44,7 +45,8 @@ struct Report {
 struct RealPair {
   std::shared_ptr<const Frame> target, source;
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();  // T_target_source
-  std::shared_ptr<const GicpBlock> block;
+  std::vector<GicpCorrespondence> correspondences;      // at T, within 1 m
+  std::shared_ptr<const GicpBlock> block;               // over the correspondences
   std::array<double, 7> identity{}, pose{};
 };
 
@@ -69,8 +71,15 @@ void table_two(const PaperArgs& args, const RealPair* pair, Report* report);
 /// noise re-applied to the aligned pair; the SVG goes into `dir`.
 void figure_four(const PaperArgs& args, const RealPair* pair, const fs::path& dir, Report* report);
 
-/// Tables III-V and Fig. 7 on a synthetic dense sequence; the SVG goes into `dir`.
+/// Fig. 3: the rows exact sampling keeps (M = 29 and 512) over the source scan, coloured by
+/// their axis, beside the full scan; the SVG goes into `dir`.
+void figure_three(const PaperArgs& args, const RealPair* pair, const fs::path& dir, Report* report);
+
+/// Tables III-V, Fig. 6 and Fig. 7 on a synthetic dense sequence; the SVGs go into `dir`.
 void synthetic_tables(const PaperArgs& args, int threads, const fs::path& dir, Report* report);
+
+/// Fig. 6: registration error and ATE per LM iteration of each trace; the SVGs go into `dir`.
+void figure_six(const std::vector<IterationTrace>& traces, const fs::path& dir, Report* report);
 
 /// The real KITTI 07 dense graph from a perturbed start.
 void kitti07(const PaperArgs& args, int threads, Report* report);

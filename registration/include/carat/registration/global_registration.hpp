@@ -37,6 +37,12 @@ const char* to_string(ResidualSampling sampling);
 /// otherwise.
 ResidualSampling parse_residual_sampling(std::string_view name);
 
+/// Called after every LM iteration of every round with the iteration's row and the frames'
+/// poses T_world_frame (parallel to the frames) at the current iterate, the last accepted one;
+/// kAbort ends the solve as SolverOptions::iteration_callback does, and with it the rounds.
+using RegistrationIterationCallback =
+    std::function<CallbackResult(const IterationSummary&, std::span<const Eigen::Isometry3d>)>;
+
 /// Settings of the global registration problem and its solve.
 struct GlobalRegistrationOptions {
   ResidualSampling sampling = ResidualSampling::kExact;  ///< rows kept per factor
@@ -60,6 +66,9 @@ struct GlobalRegistrationOptions {
   double round_translation_tolerance = 1e-3;  ///< metres
   double round_rotation_tolerance = 1e-4;     ///< radians
   SolverOptions solver;                       ///< LM settings
+  /// Per-iteration poses (e.g. an error against a reference at every iteration); it runs after
+  /// solver.iteration_callback when both are set. Empty: none.
+  RegistrationIterationCallback iteration_callback;
 };
 
 /// Bytes and times of building the factors.
