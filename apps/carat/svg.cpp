@@ -219,8 +219,18 @@ std::string line_plot_svg(const std::string& title, const std::string& x_label,
   s << "<rect x=\"" << left << "\" y=\"" << top << "\" width=\"" << right - left << "\" height=\""
     << bottom - top << "\" fill=\"none\" stroke=\"black\"/>\n";
   char text[64];
-  for (int k = 0; k <= 5; ++k) {  // x ticks
-    const double x = x_lo + (x_hi - x_lo) * k / 5;
+  // x ticks: six evenly spaced, or whole numbers when every abscissa is one (iterations).
+  bool whole = true;
+  for (const SvgSeries& one : series)
+    for (const double x : one.x) whole = whole && x == std::floor(x);
+  std::vector<double> x_ticks;
+  if (whole) {
+    const double step = std::max(1.0, std::ceil((x_hi - x_lo) / 5.0));
+    for (double x = std::ceil(x_lo); x <= x_hi; x += step) x_ticks.push_back(x);
+  } else {
+    for (int k = 0; k <= 5; ++k) x_ticks.push_back(x_lo + (x_hi - x_lo) * k / 5);
+  }
+  for (const double x : x_ticks) {
     std::snprintf(text, sizeof(text), "%.3g", x);
     s << "<text x=\"" << px(x) << "\" y=\"" << bottom + 18 << "\" text-anchor=\"middle\" "
       << "font-size=\"12\">" << text << "</text>\n";
