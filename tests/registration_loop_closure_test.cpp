@@ -11,6 +11,7 @@
 
 #include "carat/base/error.hpp"
 #include "carat/registration/dense_graph.hpp"
+#include "carat/registration/frame.hpp"
 #include "carat/registration/global_registration.hpp"
 #include "carat/registration/loop_closure.hpp"
 #include "carat/registration/scan_context.hpp"
@@ -210,6 +211,35 @@ TEST(LoopClosureTest, ScansOfDifferentPlacesAreNotAccepted) {
     EXPECT_NE(check.verdict, LoopVerdict::kAccepted)
         << check.candidate.pair.target << " - " << check.candidate.pair.source;
   }
+}
+
+TEST(LoopClosureTest, ACorridorOfIdenticalScansIsNotAccepted) {
+  // Two walls and a floor along x, seen the same from every pose 5 m apart: every descriptor is
+  // the same, so every older frame is a perfect candidate, and GICP cannot fix the position
+  // along the corridor: each must be refused as degenerate, none accepted blindly.
+  PointCloud corridor;
+  for (int i = 0; i < 200; ++i) {
+    for (int j = 0; j < 12; ++j) {
+      const float x = -50.0f + 0.5f * static_cast<float>(i);
+      const float t = 0.25f * static_cast<float>(j);
+      corridor.points.emplace_back(x, -3.0f, -1.5f + t);
+      corridor.points.emplace_back(x, 3.0f, -1.5f + t);
+      corridor.points.emplace_back(x, -2.75f + 0.5f * static_cast<float>(j), -1.8f);
+    }
+  }
+  PreprocessOptions preprocess;
+  preprocess.voxel_size = 0.3;
+  const auto frame = preprocess_frame(corridor, preprocess, "corridor");
+  std::vector<std::shared_ptr<const Frame>> frames(40, frame);
+  std::vector<Eigen::Isometry3d> guess(40, Eigen::Isometry3d::Identity());
+  for (int k = 0; k < 40; ++k) guess[static_cast<std::size_t>(k)].translation().x() = 5.0 * k;
+  LoopClosureOptions options;
+  options.num_threads = 2;
+  const auto candidates = find_loop_candidates(frames, guess, options);
+  EXPECT_EQ(candidates.size(), 20u);  // frames 20..39 have frames 100 m back
+  for (const LoopCandidate& c : candidates) EXPECT_EQ(c.descriptor_distance, 0.0);
+  const auto checks = validate_loop_candidates(frames, guess, candidates, options);
+  for (const LoopCheck& check : checks) EXPECT_EQ(check.verdict, LoopVerdict::kDegenerate);
 }
 
 TEST(LoopClosureTest, BadInputIsNamed) {
