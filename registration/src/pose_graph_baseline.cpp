@@ -1,7 +1,7 @@
 #include "carat/registration/pose_graph_baseline.hpp"
 
-#include <memory>
 #include <cmath>
+#include <memory>
 #include <string>
 
 #include "carat/base/error.hpp"
