@@ -581,9 +581,12 @@ __attribute__((always_inline)) inline void scatter_rows(const double* __restrict
 }
 
 // The helpers below pass 32-byte vectors by value; they are always inlined into the kernels
-// (never called across a translation unit), so GCC's note on the AVX calling convention does not
-// apply.
-#if defined(__GNUC__) && !defined(__clang__)
+// (never called across a translation unit), so the compilers' note on the AVX calling convention
+// does not apply.
+#if defined(__clang__)
+#pragma clang diagnostic push
+#pragma clang diagnostic ignored "-Wpsabi"
+#elif defined(__GNUC__)
 #pragma GCC diagnostic push
 #pragma GCC diagnostic ignored "-Wpsabi"
 #endif
@@ -640,7 +643,9 @@ __attribute__((always_inline)) inline void scatter_two_rows_9_3(
   update_column_9<false>(slot + 81, c0, j0[8], c1, j1[8], r[0], r[1]);
 }
 
-#if defined(__GNUC__) && !defined(__clang__)
+#if defined(__clang__)
+#pragma clang diagnostic pop
+#elif defined(__GNUC__)
 #pragma GCC diagnostic pop
 #endif
 
