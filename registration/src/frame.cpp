@@ -33,6 +33,11 @@ Frame::Frame(PointCloud cloud, const CovarianceOptions& covariance)
   measure_constraint();
 }
 
+std::size_t Frame::memory_bytes() const {
+  return sizeof(Frame) + sizeof(PointCloud) + cloud_->memory_bytes() + tree_->memory_bytes() +
+         name_.capacity();
+}
+
 void Frame::measure_constraint() {
   const PointCloud& cloud = *cloud_;
   // Rotations are measured in metres at the median radius, and no point's lever arm counts for

@@ -10,6 +10,7 @@
 #include <atomic>
 #include <cmath>
 #include <cstdio>
+#include <numeric>
 #include <string>
 #include <utility>
 
@@ -57,17 +58,6 @@ void check_options(const GlobalRegistrationOptions& options) {
   std::string why;
   if (!options.solver.validate(&why)) throw Error("global registration: " + why);
 }
-
-/// Per factor: the block that goes into the problem and what building it cost.
-struct BuiltFactor {
-  std::shared_ptr<const ResidualBlock> block;
-  std::size_t correspondences = 0;
-  std::size_t correspondence_bytes = 0;
-  double correspondence_s = 0.0;
-  double compression_s = 0.0;
-  double minimum_s = 0.0;
-  double minimum = 0.0;  ///< the block's least squared norm over its relative pose (excess kernel)
-};
 
 /// The least squared norm of a binary registration block over its relative pose T_ij, by
 /// Gauss-Newton steps from `values` (the source pose moves: T_j <- T_j Exp(delta) moves T_ij by
@@ -169,112 +159,168 @@ ResidualSampling parse_residual_sampling(std::string_view name) {
   throw Error("unknown sampling " + quote_bytes(name) + " (valid: full, exact, random, lossless)");
 }
 
-RegistrationProblem build_registration_problem(
-    std::span<const std::shared_ptr<const Frame>> frames, std::span<const FramePair> pairs,
-    std::span<const Eigen::Isometry3d> T_world_frame, const GlobalRegistrationOptions& options,
-    const std::function<void(std::size_t, std::size_t)>& progress) {
-  check_options(options);
-  if (frames.size() != T_world_frame.size()) {
-    throw Error("global registration: " + std::to_string(frames.size()) + " frames but " +
+namespace {
+
+/// The degenerate-frame error (frames after the first must fix all 6 directions).
+void check_frame(const Frame& frame, std::size_t index) {
+  if (index > 0 && frame.constrained_dof() < 6) {
+    throw Error("global registration: frame " + std::to_string(index) +
+                (frame.name().empty() ? std::string() : " (" + frame.name() + ")") +
+                " is degenerate: its scan fixes only " + std::to_string(frame.constrained_dof()) +
+                " of 6 degrees of freedom (e.g. a single plane), so its pose is not determined");
+  }
+}
+
+/// Checks the counts, pairs and poses shared by the builders.
+void check_inputs(std::size_t frames, std::span<const FramePair> pairs,
+                  std::span<const Eigen::Isometry3d> T_world_frame) {
+  if (frames != T_world_frame.size()) {
+    throw Error("global registration: " + std::to_string(frames) + " frames but " +
                 std::to_string(T_world_frame.size()) + " poses");
   }
-  if (frames.size() < 2)
-    throw Error("global registration: at least 2 frames are needed, got " +
-                std::to_string(frames.size()));
-  const int n = static_cast<int>(frames.size());
+  if (frames < 2)
+    throw Error("global registration: at least 2 frames are needed, got " + std::to_string(frames));
+  const int n = static_cast<int>(frames);
   for (const FramePair& pair : pairs) {
     if (pair.target < 0 || pair.target >= n || pair.source < 0 || pair.source >= n ||
         pair.target == pair.source)
       throw Error("global registration: " + pair_name(pair) + " does not name two distinct frames");
   }
-  RegistrationProblem out;
-  out.pairs.assign(pairs.begin(), pairs.end());
-  for (int i = 0; i < n; ++i) {
-    if (!T_world_frame[static_cast<std::size_t>(i)].matrix().allFinite())
+  for (std::size_t i = 0; i < frames; ++i) {
+    if (!T_world_frame[i].matrix().allFinite())
       throw Error("global registration: pose " + std::to_string(i) + " is not finite");
-    const Frame& frame = *frames[static_cast<std::size_t>(i)];
-    if (i > 0 && frame.constrained_dof() < 6) {
-      throw Error("global registration: frame " + std::to_string(i) +
-                  (frame.name().empty() ? std::string() : " (" + frame.name() + ")") +
-                  " is degenerate: its scan fixes only " + std::to_string(frame.constrained_dof()) +
-                  " of 6 degrees of freedom (e.g. a single plane), so its pose is not determined");
-    }
-    out.frame_variables.push_back(out.problem.add_se3(T_world_frame[static_cast<std::size_t>(i)]));
   }
-  out.problem.set_constant(out.frame_variables.front());
+}
 
-  std::vector<std::array<double, 7>> storage(frames.size());
-  for (std::size_t i = 0; i < frames.size(); ++i)
-    se3::to_storage(T_world_frame[i], storage[i].data());
+/// One factor: correspondences at the initial relative pose, the full block, its kept form.
+RegistrationFactor build_factor(const Frame& target, const Frame& source, const FramePair& pair,
+                                std::size_t k, const Eigen::Isometry3d& T_world_target,
+                                const Eigen::Isometry3d& T_world_source,
+                                const GlobalRegistrationOptions& options) {
+  RegistrationFactor factor;
+  Stopwatch step;
+  const Eigen::Isometry3d T_ij = T_world_target.inverse() * T_world_source;
+  const std::vector<GicpCorrespondence> correspondences = find_correspondences(
+      target.cloud(), target.tree(), source.cloud(), T_ij, options.max_correspondence_distance);
+  if (static_cast<int>(correspondences.size()) < options.min_correspondences) {
+    char distance[32];
+    std::snprintf(distance, sizeof(distance), "%g", options.max_correspondence_distance);
+    const std::string names = target.name().empty() || source.name().empty()
+                                  ? std::string()
+                                  : " (" + target.name() + ", " + source.name() + ")";
+    throw Error("global registration: " + pair_name(pair) + " has only " +
+                std::to_string(correspondences.size()) + " correspondences within " + distance +
+                " m (need " + std::to_string(options.min_correspondences) +
+                "); the frames do not overlap at the initial poses" + names);
+  }
+  auto full = std::make_shared<const GicpBlock>(correspondences, T_ij);
+  factor.correspondences = correspondences.size();
+  factor.correspondence_bytes = full->memory_bytes();
+  factor.correspondence_s = step.restart();
+  std::array<double, 7> target_storage{}, source_storage{};
+  se3::to_storage(T_world_target, target_storage.data());
+  se3::to_storage(T_world_source, source_storage.data());
+  const double* values[2] = {target_storage.data(), source_storage.data()};
+  switch (options.sampling) {
+    case ResidualSampling::kFull:
+      factor.block = full;
+      break;
+    case ResidualSampling::kExact: {
+      CompressionOptions compression;
+      compression.target_rows = options.residuals;
+      compression.seed = options.seed + k;
+      factor.block = compress(full, values, compression);
+      break;
+    }
+    case ResidualSampling::kRandom: {
+      RandomSamplingOptions sampling;
+      sampling.group_size = 3;
+      sampling.target_rows = 3 * ((options.residuals + 2) / 3);
+      sampling.seed = options.seed + k;
+      if (sampling.target_rows >= full->num_rows()) {
+        factor.block = full;
+      } else {
+        factor.block = compress_random(full, sampling);
+      }
+      break;
+    }
+    case ResidualSampling::kLossless:
+      factor.block = make_lossless_block(*full, T_ij);
+      break;
+  }
+  factor.compression_s = step.restart();
+  if (options.factor_excess_cauchy_scale > 0.0) {
+    factor.minimum = block_minimum(*factor.block, values);
+    factor.minimum_s = step.elapsed_s();
+  }
+  return factor;
+}
 
-  std::vector<BuiltFactor> built(pairs.size());
+}  // namespace
+
+std::vector<RegistrationFactor> build_registration_factors(
+    FrameStore& frames, std::span<const FramePair> pairs, std::span<const std::size_t> indices,
+    std::span<const Eigen::Isometry3d> T_world_frame, const GlobalRegistrationOptions& options,
+    const std::function<void(std::size_t, std::size_t)>& progress) {
+  check_options(options);
+  check_inputs(frames.size(), pairs, T_world_frame);
+  std::vector<std::size_t> all;
+  if (indices.empty()) {
+    all.resize(pairs.size());
+    std::iota(all.begin(), all.end(), std::size_t{0});
+    indices = all;
+  }
+  for (const std::size_t k : indices) {
+    if (k >= pairs.size())
+      throw Error("global registration: factor index " + std::to_string(k) + " of " +
+                  std::to_string(pairs.size()) + " pairs");
+  }
+  std::vector<RegistrationFactor> out(indices.size());
   const int threads = std::clamp(options.num_threads, 1, tbb::info::default_concurrency());
   tbb::task_arena arena(threads);
   std::atomic<std::size_t> done{0};
-  const Stopwatch stage_time;
+  const auto build_one = [&](std::size_t p) {
+    const FramePair& pair = pairs[indices[p]];
+    const auto i = static_cast<std::size_t>(pair.target);
+    const auto j = static_cast<std::size_t>(pair.source);
+    const std::shared_ptr<const Frame> target = frames.get(i);
+    const std::shared_ptr<const Frame> source = frames.get(j);
+    check_frame(*target, i);
+    check_frame(*source, j);
+    out[p] = build_factor(*target, *source, pair, indices[p], T_world_frame[i], T_world_frame[j],
+                          options);
+    if (progress) progress(done.fetch_add(1) + 1, indices.size());
+  };
   arena.execute([&] {
-    internal::parallel_for_each_index(pairs.size(), [&](std::size_t k) {
-      const FramePair& pair = pairs[k];
-      const auto i = static_cast<std::size_t>(pair.target);
-      const auto j = static_cast<std::size_t>(pair.source);
-      BuiltFactor& factor = built[k];
-      Stopwatch step;
-      const Eigen::Isometry3d T_ij = T_world_frame[i].inverse() * T_world_frame[j];
-      const std::vector<GicpCorrespondence> correspondences =
-          find_correspondences(frames[i]->cloud(), frames[i]->tree(), frames[j]->cloud(), T_ij,
-                               options.max_correspondence_distance);
-      if (static_cast<int>(correspondences.size()) < options.min_correspondences) {
-        char distance[32];
-        std::snprintf(distance, sizeof(distance), "%g", options.max_correspondence_distance);
-        const std::string names = frames[i]->name().empty() || frames[j]->name().empty()
-                                      ? std::string()
-                                      : " (" + frames[i]->name() + ", " + frames[j]->name() + ")";
-        throw Error("global registration: " + pair_name(pair) + " has only " +
-                    std::to_string(correspondences.size()) + " correspondences within " + distance +
-                    " m (need " + std::to_string(options.min_correspondences) +
-                    "); the frames do not overlap at the initial poses" + names);
-      }
-      auto full = std::make_shared<const GicpBlock>(correspondences, T_ij);
-      factor.correspondences = correspondences.size();
-      factor.correspondence_bytes = full->memory_bytes();
-      factor.correspondence_s = step.restart();
-      switch (options.sampling) {
-        case ResidualSampling::kFull:
-          factor.block = full;
-          break;
-        case ResidualSampling::kExact: {
-          CompressionOptions compression;
-          compression.target_rows = options.residuals;
-          compression.seed = options.seed + k;
-          const double* values[2] = {storage[i].data(), storage[j].data()};
-          factor.block = compress(full, values, compression);
-          break;
-        }
-        case ResidualSampling::kRandom: {
-          RandomSamplingOptions sampling;
-          sampling.group_size = 3;
-          sampling.target_rows = 3 * ((options.residuals + 2) / 3);
-          sampling.seed = options.seed + k;
-          if (sampling.target_rows >= full->num_rows()) {
-            factor.block = full;
-          } else {
-            factor.block = compress_random(full, sampling);
-          }
-          break;
-        }
-        case ResidualSampling::kLossless:
-          factor.block = make_lossless_block(*full, T_ij);
-          break;
-      }
-      factor.compression_s = step.restart();
-      if (options.factor_excess_cauchy_scale > 0.0) {
-        const double* values[2] = {storage[i].data(), storage[j].data()};
-        factor.minimum = block_minimum(*factor.block, values);
-        factor.minimum_s = step.elapsed_s();
-      }
-      if (progress) progress(done.fetch_add(1) + 1, pairs.size());
-    });
+    if (frames.resident()) {
+      internal::parallel_for_each_index(indices.size(), build_one);
+      return;
+    }
+    std::vector<FramePair> chosen;
+    chosen.reserve(indices.size());
+    for (const std::size_t k : indices) chosen.push_back(pairs[k]);
+    const std::vector<std::size_t> order = locality_order(chosen, T_world_frame);
+    internal::parallel_for_in_order(order, threads, build_one);
   });
+  return out;
+}
+
+RegistrationProblem assemble_registration_problem(std::span<const FramePair> pairs,
+                                                  std::vector<RegistrationFactor> factors,
+                                                  std::span<const Eigen::Isometry3d> T_world_frame,
+                                                  const GlobalRegistrationOptions& options,
+                                                  double build_s) {
+  check_options(options);
+  check_inputs(T_world_frame.size(), pairs, T_world_frame);
+  if (factors.size() != pairs.size()) {
+    throw Error("global registration: " + std::to_string(factors.size()) + " factors for " +
+                std::to_string(pairs.size()) + " pairs");
+  }
+  RegistrationProblem out;
+  out.pairs.assign(pairs.begin(), pairs.end());
+  for (const Eigen::Isometry3d& T : T_world_frame)
+    out.frame_variables.push_back(out.problem.add_se3(T));
+  out.problem.set_constant(out.frame_variables.front());
   std::shared_ptr<const LossFunction> loss;
   if (options.factor_cauchy_scale > 0.0)
     loss = std::make_shared<CauchyLoss>(options.factor_cauchy_scale);
@@ -283,40 +329,80 @@ RegistrationProblem build_registration_problem(
     excess_inner = std::make_shared<CauchyLoss>(options.factor_excess_cauchy_scale);
   for (std::size_t k = 0; k < pairs.size(); ++k) {
     const FramePair& pair = pairs[k];
+    RegistrationFactor& factor = factors[k];
+    if (!factor.block) throw Error("global registration: " + pair_name(pair) + " has no block");
     std::shared_ptr<const LossFunction> factor_loss = loss;
     if (options.factor_excess_cauchy_scale > 0.0) {
-      factor_loss = std::make_shared<ExcessLoss>(built[k].minimum, excess_inner);
+      factor_loss = std::make_shared<ExcessLoss>(factor.minimum, excess_inner);
     }
-    out.problem.add_residual_block(built[k].block,
+    RegistrationFactorStats& s = out.stats;
+    s.num_factors += 1;
+    s.num_correspondences += factor.correspondences;
+    s.num_rows += static_cast<std::size_t>(factor.block->num_rows());
+    s.correspondence_bytes += factor.correspondence_bytes;
+    s.residual_bytes += factor.block->memory_bytes();
+    s.correspondence_s += factor.correspondence_s;
+    s.compression_s += factor.compression_s;
+    s.minimum_s += factor.minimum_s;
+    out.factor_correspondences.push_back(factor.correspondences);
+    out.factor_correspondence_bytes.push_back(factor.correspondence_bytes);
+    out.factor_residual_bytes.push_back(factor.block->memory_bytes());
+    out.problem.add_residual_block(std::move(factor.block),
                                    {out.frame_variables[static_cast<std::size_t>(pair.target)],
                                     out.frame_variables[static_cast<std::size_t>(pair.source)]},
                                    std::move(factor_loss));
-    RegistrationFactorStats& s = out.stats;
-    s.num_factors += 1;
-    s.num_correspondences += built[k].correspondences;
-    s.num_rows += static_cast<std::size_t>(built[k].block->num_rows());
-    s.correspondence_bytes += built[k].correspondence_bytes;
-    s.residual_bytes += built[k].block->memory_bytes();
-    s.correspondence_s += built[k].correspondence_s;
-    s.compression_s += built[k].compression_s;
-    s.minimum_s += built[k].minimum_s;
-    out.factor_correspondences.push_back(built[k].correspondences);
-    out.factor_correspondence_bytes.push_back(built[k].correspondence_bytes);
-    out.factor_residual_bytes.push_back(built[k].block->memory_bytes());
   }
   // The stage ran in parallel: split its wall time in proportion to the per-factor CPU times.
-  const double wall = stage_time.elapsed_s();
   const double cpu = out.stats.correspondence_s + out.stats.compression_s + out.stats.minimum_s;
-  if (cpu > 0.0) {
-    out.stats.correspondence_s *= wall / cpu;
-    out.stats.compression_s *= wall / cpu;
-    out.stats.minimum_s *= wall / cpu;
+  if (build_s > 0.0 && cpu > 0.0) {
+    out.stats.correspondence_s *= build_s / cpu;
+    out.stats.compression_s *= build_s / cpu;
+    out.stats.minimum_s *= build_s / cpu;
   }
   return out;
 }
 
+RegistrationProblem build_registration_problem(
+    std::span<const std::shared_ptr<const Frame>> frames, std::span<const FramePair> pairs,
+    std::span<const Eigen::Isometry3d> T_world_frame, const GlobalRegistrationOptions& options,
+    const std::function<void(std::size_t, std::size_t)>& progress) {
+  check_options(options);
+  check_inputs(frames.size(), pairs, T_world_frame);
+  for (std::size_t i = 0; i < frames.size(); ++i) {
+    if (!frames[i]) throw Error("global registration: frame " + std::to_string(i) + " is null");
+    check_frame(*frames[i], i);
+  }
+  FrameStore store(std::vector<std::shared_ptr<const Frame>>(frames.begin(), frames.end()));
+  return build_registration_problem(store, pairs, T_world_frame, options, progress);
+}
+
+RegistrationProblem build_registration_problem(
+    FrameStore& frames, std::span<const FramePair> pairs,
+    std::span<const Eigen::Isometry3d> T_world_frame, const GlobalRegistrationOptions& options,
+    const std::function<void(std::size_t, std::size_t)>& progress) {
+  const Stopwatch stage_time;
+  std::vector<RegistrationFactor> factors =
+      build_registration_factors(frames, pairs, {}, T_world_frame, options, progress);
+  return assemble_registration_problem(pairs, std::move(factors), T_world_frame, options,
+                                       stage_time.elapsed_s());
+}
+
 GlobalRegistrationResult optimize_registration(
     std::span<const std::shared_ptr<const Frame>> frames, std::span<const FramePair> pairs,
+    std::span<const Eigen::Isometry3d> T_world_frame, const GlobalRegistrationOptions& options,
+    const std::function<void(std::size_t, std::size_t)>& progress) {
+  check_options(options);
+  check_inputs(frames.size(), pairs, T_world_frame);
+  for (std::size_t i = 0; i < frames.size(); ++i) {
+    if (!frames[i]) throw Error("global registration: frame " + std::to_string(i) + " is null");
+    check_frame(*frames[i], i);
+  }
+  FrameStore store(std::vector<std::shared_ptr<const Frame>>(frames.begin(), frames.end()));
+  return optimize_registration(store, pairs, T_world_frame, options, progress);
+}
+
+GlobalRegistrationResult optimize_registration(
+    FrameStore& frames, std::span<const FramePair> pairs,
     std::span<const Eigen::Isometry3d> T_world_frame, const GlobalRegistrationOptions& options,
     const std::function<void(std::size_t, std::size_t)>& progress) {
   if (options.rounds < 1)

@@ -65,6 +65,10 @@ int KdTree::knn(const Eigen::Vector3f& query, int k, std::uint32_t* indices,
       impl_->tree.knnSearch(query.data(), static_cast<std::size_t>(k), indices, squared_distances));
 }
 
+std::size_t KdTree::memory_bytes() const {
+  return sizeof(Impl) + impl_->tree.usedMemory(impl_->tree);
+}
+
 bool KdTree::nearest(const Eigen::Vector3f& query, std::uint32_t* index,
                      float* squared_distance) const {
   return knn(query, 1, index, squared_distance) == 1;

@@ -99,10 +99,29 @@ const char* to_string(LoopVerdict verdict) {
   return "unknown";
 }
 
+namespace {
+
+/// A store over frames the caller holds (null frames refused by name).
+FrameStore resident_store(std::span<const std::shared_ptr<const Frame>> frames) {
+  for (std::size_t k = 0; k < frames.size(); ++k)
+    if (!frames[k]) throw Error("loop closure: frame " + std::to_string(k) + " is null");
+  return FrameStore(std::vector<std::shared_ptr<const Frame>>(frames.begin(), frames.end()));
+}
+
+}  // namespace
+
 std::vector<LoopCandidate> find_loop_candidates(
     std::span<const std::shared_ptr<const Frame>> frames,
     std::span<const Eigen::Isometry3d> T_world_guess, const LoopClosureOptions& options,
     std::vector<int>* sparse_frames) {
+  FrameStore store = resident_store(frames);
+  return find_loop_candidates(store, T_world_guess, options, sparse_frames);
+}
+
+std::vector<LoopCandidate> find_loop_candidates(FrameStore& frames,
+                                                std::span<const Eigen::Isometry3d> T_world_guess,
+                                                const LoopClosureOptions& options,
+                                                std::vector<int>* sparse_frames) {
   check_counts(frames.size(), T_world_guess.size());
   check_options(options);
   const std::size_t n = frames.size();
@@ -117,7 +136,7 @@ std::vector<LoopCandidate> find_loop_candidates(
   tbb::task_arena arena(threads);
   arena.execute([&] {
     internal::parallel_for_each_index(n, [&](std::size_t k) {
-      descriptors[k] = make_scan_context(frames[k]->cloud(), options.descriptor);
+      descriptors[k] = make_scan_context(frames.get(k)->cloud(), options.descriptor);
     });
   });
   RingKeys keys;
@@ -184,6 +203,14 @@ std::vector<LoopCheck> validate_loop_candidates(
     std::span<const std::shared_ptr<const Frame>> frames,
     std::span<const Eigen::Isometry3d> T_world_guess, std::span<const LoopCandidate> candidates,
     const LoopClosureOptions& options) {
+  FrameStore store = resident_store(frames);
+  return validate_loop_candidates(store, T_world_guess, candidates, options);
+}
+
+std::vector<LoopCheck> validate_loop_candidates(FrameStore& frames,
+                                                std::span<const Eigen::Isometry3d> T_world_guess,
+                                                std::span<const LoopCandidate> candidates,
+                                                const LoopClosureOptions& options) {
   check_counts(frames.size(), T_world_guess.size());
   check_options(options);
   std::vector<LoopCheck> checks(candidates.size());
@@ -198,8 +225,10 @@ std::vector<LoopCheck> validate_loop_candidates(
         throw Error("loop closure: candidate " + std::to_string(i) + " - " + std::to_string(j) +
                     " names a missing frame");
       }
-      const Frame& target = *frames[i];
-      const Frame& source = *frames[j];
+      const std::shared_ptr<const Frame> target_frame = frames.get(i);
+      const std::shared_ptr<const Frame> source_frame = frames.get(j);
+      const Frame& target = *target_frame;
+      const Frame& source = *source_frame;
       const Eigen::Isometry3d starts[2] = {yaw_pose(candidate.yaw),
                                            T_world_guess[i].inverse() * T_world_guess[j]};
       LoopCheck& check = checks[c];
@@ -237,6 +266,13 @@ std::vector<LoopCheck> validate_loop_candidates(
 
 LoopClosureResult close_loops(std::span<const std::shared_ptr<const Frame>> frames,
                               std::span<const Eigen::Isometry3d> T_world_guess,
+                              const LoopClosureOptions& options,
+                              const std::function<void(std::size_t, std::size_t)>& progress) {
+  FrameStore store = resident_store(frames);
+  return close_loops(store, T_world_guess, options, progress);
+}
+
+LoopClosureResult close_loops(FrameStore& frames, std::span<const Eigen::Isometry3d> T_world_guess,
                               const LoopClosureOptions& options,
                               const std::function<void(std::size_t, std::size_t)>& progress) {
   check_counts(frames.size(), T_world_guess.size());

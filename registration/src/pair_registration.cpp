@@ -18,6 +18,16 @@ std::vector<PairRegistration> register_pairs(
     std::span<const std::shared_ptr<const Frame>> frames, std::span<const FramePair> pairs,
     std::span<const Eigen::Isometry3d> T_world_frame, const AlignSettings& settings,
     int num_threads, const std::function<void(std::size_t, std::size_t)>& progress) {
+  for (std::size_t i = 0; i < frames.size(); ++i)
+    if (!frames[i]) throw Error("register_pairs: frame " + std::to_string(i) + " is null");
+  FrameStore store(std::vector<std::shared_ptr<const Frame>>(frames.begin(), frames.end()));
+  return register_pairs(store, pairs, T_world_frame, settings, num_threads, progress);
+}
+
+std::vector<PairRegistration> register_pairs(
+    FrameStore& frames, std::span<const FramePair> pairs,
+    std::span<const Eigen::Isometry3d> T_world_frame, const AlignSettings& settings,
+    int num_threads, const std::function<void(std::size_t, std::size_t)>& progress) {
   if (frames.size() != T_world_frame.size()) {
     throw Error("register_pairs: " + std::to_string(frames.size()) + " frames but " +
                 std::to_string(T_world_frame.size()) + " poses");
@@ -37,33 +47,42 @@ std::vector<PairRegistration> register_pairs(
   const int threads = std::clamp(num_threads, 1, tbb::info::default_concurrency());
   tbb::task_arena arena(threads);
   std::atomic<std::size_t> done{0};
+  const auto register_one = [&](std::size_t k) {
+    const FramePair& pair = pairs[k];
+    const std::shared_ptr<const Frame> target_frame =
+        frames.get(static_cast<std::size_t>(pair.target));
+    const std::shared_ptr<const Frame> source_frame =
+        frames.get(static_cast<std::size_t>(pair.source));
+    const Frame& target = *target_frame;
+    const Frame& source = *source_frame;
+    const Eigen::Isometry3d T_init =
+        T_world_frame[static_cast<std::size_t>(pair.target)].inverse() *
+        T_world_frame[static_cast<std::size_t>(pair.source)];
+    AlignResult result;
+    const Stopwatch align_time;
+    try {
+      result = align(target.cloud(), target.tree(), source.cloud(), T_init, single);
+    } catch (const Error& e) {
+      throw Error("aligning frame " + std::to_string(pair.source) + " to frame " +
+                  std::to_string(pair.target) + ": " + e.what());
+    }
+    PairRegistration& r = out[k];
+    r.pair = pair;
+    r.T_target_source = result.T_target_source;
+    r.H = result.H;
+    r.error = result.error;
+    r.num_correspondences = result.num_correspondences;
+    r.iterations = result.iterations;
+    r.converged = result.converged;
+    r.align_s = align_time.elapsed_s();
+    if (progress) progress(done.fetch_add(1) + 1, pairs.size());
+  };
   arena.execute([&] {
-    internal::parallel_for_each_index(pairs.size(), [&](std::size_t k) {
-      const FramePair& pair = pairs[k];
-      const Frame& target = *frames[static_cast<std::size_t>(pair.target)];
-      const Frame& source = *frames[static_cast<std::size_t>(pair.source)];
-      const Eigen::Isometry3d T_init =
-          T_world_frame[static_cast<std::size_t>(pair.target)].inverse() *
-          T_world_frame[static_cast<std::size_t>(pair.source)];
-      AlignResult result;
-      const Stopwatch align_time;
-      try {
-        result = align(target.cloud(), target.tree(), source.cloud(), T_init, single);
-      } catch (const Error& e) {
-        throw Error("aligning frame " + std::to_string(pair.source) + " to frame " +
-                    std::to_string(pair.target) + ": " + e.what());
-      }
-      PairRegistration& r = out[k];
-      r.pair = pair;
-      r.T_target_source = result.T_target_source;
-      r.H = result.H;
-      r.error = result.error;
-      r.num_correspondences = result.num_correspondences;
-      r.iterations = result.iterations;
-      r.converged = result.converged;
-      r.align_s = align_time.elapsed_s();
-      if (progress) progress(done.fetch_add(1) + 1, pairs.size());
-    });
+    if (frames.resident()) {
+      internal::parallel_for_each_index(pairs.size(), register_one);
+    } else {
+      internal::parallel_for_in_order(locality_order(pairs, T_world_frame), threads, register_one);
+    }
   });
   return out;
 }

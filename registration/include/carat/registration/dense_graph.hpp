@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "carat/registration/frame.hpp"
+#include "carat/registration/frame_store.hpp"
 
 namespace carat {
 
@@ -37,5 +38,22 @@ std::vector<FramePair> build_dense_graph(
     std::span<const std::shared_ptr<const Frame>> frames,
     std::span<const Eigen::Isometry3d> T_world_frame, const DenseGraphOptions& options = {},
     const std::function<void(std::size_t, std::size_t)>& progress = {});
+
+/// The same graph from frames read on demand: each frame is requested once, in index order, and
+/// only what the overlap tests need of it is kept (its occupied voxels and every
+/// overlap_stride-th point, a few percent of a frame).
+std::vector<FramePair> build_dense_graph(
+    FrameStore& frames, std::span<const Eigen::Isometry3d> T_world_frame,
+    const DenseGraphOptions& options = {},
+    const std::function<void(std::size_t, std::size_t)>& progress = {});
+
+/// A processing order of `pairs` (a permutation of their indices) under which a bounded cache
+/// of frames meets each frame in few separate stretches: pairs sorted by the Morton code of the
+/// cell (cell_size metres) that holds the midpoint of their two frames' positions, then by
+/// target and source. Throws carat::Error for a pair naming a frame without a pose, a
+/// non-finite pose or cell_size <= 0.
+std::vector<std::size_t> locality_order(std::span<const FramePair> pairs,
+                                        std::span<const Eigen::Isometry3d> T_world_frame,
+                                        double cell_size = 25.0);
 
 }  // namespace carat

@@ -41,6 +41,8 @@ class Frame {
   const KdTree& tree() const { return *tree_; }
   /// Number of points.
   std::size_t size() const { return cloud_->size(); }
+  /// Bytes the frame holds: its points, covariances and k-d tree.
+  std::size_t memory_bytes() const;
   /// The name given to preprocess_frame() (a file, "synthetic frame 3"), for messages; may be
   /// empty.
   const std::string& name() const { return name_; }

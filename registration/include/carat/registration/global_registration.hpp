@@ -15,6 +15,7 @@
 
 #include "carat/registration/dense_graph.hpp"
 #include "carat/registration/frame.hpp"
+#include "carat/registration/frame_store.hpp"
 #include "carat/solver/loss_function.hpp"
 #include "carat/solver/problem.hpp"
 #include "carat/solver/solver_options.hpp"
@@ -95,14 +96,52 @@ struct RegistrationProblem {
   RegistrationFactorStats stats;                         ///< what building cost
 };
 
+/// One factor of the dense graph as built: its kept block and what building it cost.
+struct RegistrationFactor {
+  std::shared_ptr<const ResidualBlock> block;  ///< the kept rows (full, exact, random, lossless)
+  std::size_t correspondences = 0;             ///< correspondences found
+  std::size_t correspondence_bytes = 0;        ///< bytes of the full GICP block as built
+  double correspondence_s = 0.0;               ///< CPU time of the search and the full block
+  double compression_s = 0.0;                  ///< CPU time of compressing
+  double minimum_s = 0.0;                      ///< CPU time of the model minimum (excess kernel)
+  double minimum = 0.0;  ///< the block's least squared norm over T_ij (excess kernel only)
+};
+
+/// Builds the factors of pairs[k] for every k in `indices` (every pair when empty), returned
+/// parallel to `indices` (to the pairs when empty), at T_world_frame. Frames come from the
+/// store: a store that loads on demand is walked in locality_order(), so a bounded cache reads
+/// each frame a few times only. Factors do not depend on the thread count, the order or the
+/// other indices (each factor's seed is options.seed + k). Throws carat::Error as
+/// build_registration_problem() does; `progress` gets (factors done, factors).
+std::vector<RegistrationFactor> build_registration_factors(
+    FrameStore& frames, std::span<const FramePair> pairs, std::span<const std::size_t> indices,
+    std::span<const Eigen::Isometry3d> T_world_frame, const GlobalRegistrationOptions& options,
+    const std::function<void(std::size_t, std::size_t)>& progress = {});
+
+/// The problem from built factors (parallel to `pairs`), at T_world_frame, the first pose held
+/// constant. Stats' times are the factors' CPU times scaled so that they add up to `build_s`
+/// (the build stage's wall time; 0 keeps the CPU times). Throws carat::Error for mismatched
+/// counts, a missing block or a non-finite pose.
+RegistrationProblem assemble_registration_problem(std::span<const FramePair> pairs,
+                                                  std::vector<RegistrationFactor> factors,
+                                                  std::span<const Eigen::Isometry3d> T_world_frame,
+                                                  const GlobalRegistrationOptions& options,
+                                                  double build_s = 0.0);
+
 /// Builds the problem at T_world_frame (the first frame's pose held constant). Factors are
 /// built and compressed in parallel; results do not depend on the thread count. Throws
 /// carat::Error for mismatched counts, bad options, non-finite poses, a frame after the first
 /// whose own geometry fixes fewer than 6 directions (Frame::constrained_dof(), e.g. a plane),
-/// or a pair with fewer than min_correspondences correspondences (naming the pair). `progress` gets
-/// (factors done, factors).
+/// or a pair with fewer than min_correspondences correspondences (naming the pair). `progress`
+/// gets (factors done, factors).
 RegistrationProblem build_registration_problem(
     std::span<const std::shared_ptr<const Frame>> frames, std::span<const FramePair> pairs,
+    std::span<const Eigen::Isometry3d> T_world_frame, const GlobalRegistrationOptions& options,
+    const std::function<void(std::size_t, std::size_t)>& progress = {});
+
+/// The same from frames read on demand (see build_registration_factors()).
+RegistrationProblem build_registration_problem(
+    FrameStore& frames, std::span<const FramePair> pairs,
     std::span<const Eigen::Isometry3d> T_world_frame, const GlobalRegistrationOptions& options,
     const std::function<void(std::size_t, std::size_t)>& progress = {});
 
@@ -126,6 +165,13 @@ struct GlobalRegistrationResult {
 /// carat::Error as build_registration_problem() does, or when a solve fails.
 GlobalRegistrationResult optimize_registration(
     std::span<const std::shared_ptr<const Frame>> frames, std::span<const FramePair> pairs,
+    std::span<const Eigen::Isometry3d> T_world_frame, const GlobalRegistrationOptions& options,
+    const std::function<void(std::size_t, std::size_t)>& progress = {});
+
+/// The same from frames read on demand (see build_registration_factors()); each round reads
+/// the frames again.
+GlobalRegistrationResult optimize_registration(
+    FrameStore& frames, std::span<const FramePair> pairs,
     std::span<const Eigen::Isometry3d> T_world_frame, const GlobalRegistrationOptions& options,
     const std::function<void(std::size_t, std::size_t)>& progress = {});
 

@@ -3,6 +3,7 @@
 /// k-nearest-neighbour search over a point cloud's positions (nanoflann k-d tree).
 
 #include <Eigen/Core>
+#include <cstddef>
 #include <cstdint>
 #include <memory>
 #include <vector>
@@ -33,6 +34,9 @@ class KdTree {
   /// nearest distance is within an ulp of the bound), but branches beyond the bound are pruned.
   bool nearest_within(const Eigen::Vector3f& query, float max_squared_distance,
                       std::uint32_t* index, float* squared_distance) const;
+
+  /// Bytes the tree holds (its nodes and its index array; the cloud is not counted).
+  std::size_t memory_bytes() const;
 
  private:
   struct Impl;

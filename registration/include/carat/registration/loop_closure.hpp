@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "carat/registration/frame.hpp"
+#include "carat/registration/frame_store.hpp"
 #include "carat/registration/pair_registration.hpp"
 #include "carat/registration/pose_graph_baseline.hpp"
 #include "carat/registration/scan_context.hpp"
@@ -87,6 +88,12 @@ std::vector<LoopCandidate> find_loop_candidates(
     std::span<const Eigen::Isometry3d> T_world_guess, const LoopClosureOptions& options,
     std::vector<int>* sparse_frames = nullptr);
 
+/// The same from frames read on demand (each requested once, in index order).
+std::vector<LoopCandidate> find_loop_candidates(FrameStore& frames,
+                                                std::span<const Eigen::Isometry3d> T_world_guess,
+                                                const LoopClosureOptions& options,
+                                                std::vector<int>* sparse_frames = nullptr);
+
 /// GICP for every candidate from two starts: the descriptor's yaw (no translation) and the
 /// guess's relative pose; the start whose result matches more of the source's points counts.
 /// Parallel over candidates; results do not depend on the thread count.
@@ -95,6 +102,12 @@ std::vector<LoopCheck> validate_loop_candidates(
     std::span<const Eigen::Isometry3d> T_world_guess, std::span<const LoopCandidate> candidates,
     const LoopClosureOptions& options);
 
+/// The same from frames read on demand.
+std::vector<LoopCheck> validate_loop_candidates(FrameStore& frames,
+                                                std::span<const Eigen::Isometry3d> T_world_guess,
+                                                std::span<const LoopCandidate> candidates,
+                                                const LoopClosureOptions& options);
+
 /// Candidates, their validation, GICP of every consecutive pair from the guess, and (when a loop
 /// was accepted) the pose graph of odometry and loops solved from the guess: first without a
 /// kernel, then with options.graph. Throws carat::Error as the stages do (fewer than 2 frames,
@@ -102,6 +115,11 @@ std::vector<LoopCheck> validate_loop_candidates(
 /// done, steps) from any thread.
 LoopClosureResult close_loops(std::span<const std::shared_ptr<const Frame>> frames,
                               std::span<const Eigen::Isometry3d> T_world_guess,
+                              const LoopClosureOptions& options,
+                              const std::function<void(std::size_t, std::size_t)>& progress = {});
+
+/// The same from frames read on demand.
+LoopClosureResult close_loops(FrameStore& frames, std::span<const Eigen::Isometry3d> T_world_guess,
                               const LoopClosureOptions& options,
                               const std::function<void(std::size_t, std::size_t)>& progress = {});
 

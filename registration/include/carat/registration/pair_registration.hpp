@@ -12,6 +12,7 @@
 #include "carat/registration/align.hpp"
 #include "carat/registration/dense_graph.hpp"
 #include "carat/registration/frame.hpp"
+#include "carat/registration/frame_store.hpp"
 #include "carat/solver/se3.hpp"
 
 namespace carat {
@@ -34,6 +35,12 @@ struct PairRegistration {
 /// alignment fails. `progress`, if set, gets (pairs done, pairs) from any thread.
 std::vector<PairRegistration> register_pairs(
     std::span<const std::shared_ptr<const Frame>> frames, std::span<const FramePair> pairs,
+    std::span<const Eigen::Isometry3d> T_world_frame, const AlignSettings& settings,
+    int num_threads, const std::function<void(std::size_t, std::size_t)>& progress = {});
+
+/// The same from frames read on demand, walked in locality_order() when the store loads them.
+std::vector<PairRegistration> register_pairs(
+    FrameStore& frames, std::span<const FramePair> pairs,
     std::span<const Eigen::Isometry3d> T_world_frame, const AlignSettings& settings,
     int num_threads, const std::function<void(std::size_t, std::size_t)>& progress = {});
 

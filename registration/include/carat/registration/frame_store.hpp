@@ -1,0 +1,75 @@
+#pragma once
+
+/// Frames by index, either all held in memory or read and preprocessed on demand and kept in a
+/// least-recently-used cache under a byte cap, so that a map larger than memory can be built.
+
+#include <condition_variable>
+#include <cstddef>
+#include <functional>
+#include <list>
+#include <memory>
+#include <mutex>
+#include <span>
+#include <vector>
+
+#include "carat/registration/frame.hpp"
+
+namespace carat {
+
+/// What a FrameStore did so far.
+struct FrameStoreStats {
+  std::size_t requests = 0;    ///< get() calls
+  std::size_t hits = 0;        ///< get() calls served from memory
+  std::size_t loads = 0;       ///< frames read and preprocessed (the loader's calls)
+  std::size_t evictions = 0;   ///< frames dropped from the cache to stay under the cap
+  std::size_t peak_bytes = 0;  ///< largest bytes of frames held at once (Frame::memory_bytes())
+  std::size_t max_bytes = 0;   ///< the cap (0: none)
+};
+
+/// Frames 0 .. size()-1 for the registration pipeline. Thread-safe: any thread may call get().
+class FrameStore {
+ public:
+  /// Reads and preprocesses frame k (called from any thread, at most once at a time per frame);
+  /// throws carat::Error naming the frame when it cannot.
+  using Loader = std::function<std::shared_ptr<const Frame>(std::size_t)>;
+
+  /// Every frame already in memory; nothing is loaded or evicted. Throws carat::Error for a
+  /// null frame.
+  explicit FrameStore(std::vector<std::shared_ptr<const Frame>> frames);
+  /// `count` frames that `load` provides on demand, at most `max_bytes` of them cached (frames
+  /// in use by a caller stay and count; the least recently used others are dropped first).
+  /// max_bytes = 0: no cap, every frame is loaded once and kept.
+  FrameStore(std::size_t count, Loader load, std::size_t max_bytes);
+  FrameStore(const FrameStore&) = delete;
+  FrameStore& operator=(const FrameStore&) = delete;
+
+  /// Number of frames.
+  std::size_t size() const { return entries_.size(); }
+  /// Frame k, loaded if it is not in memory. Throws carat::Error for k out of range, or what the
+  /// loader threw (a later get() of the same frame tries again).
+  std::shared_ptr<const Frame> get(std::size_t k);
+  /// True when the frames are held in memory by the caller (the first constructor).
+  bool resident() const { return !load_; }
+  /// Counts so far.
+  FrameStoreStats stats() const;
+
+ private:
+  struct Entry {
+    std::shared_ptr<const Frame> frame;
+    std::size_t bytes = 0;
+    bool loading = false;
+    std::list<std::size_t>::iterator lru;  // valid while frame is set
+  };
+  void evict_locked(std::size_t incoming);  // drops frames until `incoming` more bytes fit
+
+  std::vector<Entry> entries_;
+  Loader load_;
+  std::size_t max_bytes_ = 0;
+  std::size_t bytes_ = 0;
+  std::list<std::size_t> lru_;  // cached frames, most recently used first
+  FrameStoreStats stats_;
+  mutable std::mutex mutex_;
+  std::condition_variable loaded_;
+};
+
+}  // namespace carat

@@ -1,0 +1,93 @@
+#include "carat/registration/frame_store.hpp"
+
+#include <algorithm>
+#include <exception>
+#include <string>
+#include <utility>
+
+#include "carat/base/error.hpp"
+
+namespace carat {
+
+FrameStore::FrameStore(std::vector<std::shared_ptr<const Frame>> frames) : entries_(frames.size()) {
+  for (std::size_t k = 0; k < frames.size(); ++k) {
+    if (!frames[k]) throw Error("frame store: frame " + std::to_string(k) + " is null");
+    entries_[k].bytes = frames[k]->memory_bytes();
+    entries_[k].frame = std::move(frames[k]);
+    bytes_ += entries_[k].bytes;
+  }
+  stats_.peak_bytes = bytes_;
+}
+
+FrameStore::FrameStore(std::size_t count, Loader load, std::size_t max_bytes)
+    : entries_(count), load_(std::move(load)), max_bytes_(max_bytes) {
+  if (!load_) throw Error("frame store: no loader given");
+  stats_.max_bytes = max_bytes;
+}
+
+std::shared_ptr<const Frame> FrameStore::get(std::size_t k) {
+  if (k >= entries_.size()) {
+    throw Error("frame store: frame " + std::to_string(k) + " requested of " +
+                std::to_string(entries_.size()));
+  }
+  std::unique_lock lock(mutex_);
+  ++stats_.requests;
+  Entry& entry = entries_[k];
+  if (!load_) {
+    ++stats_.hits;
+    return entry.frame;
+  }
+  loaded_.wait(lock, [&] { return !entry.loading; });
+  if (entry.frame) {
+    ++stats_.hits;
+    lru_.splice(lru_.begin(), lru_, entry.lru);
+    return entry.frame;
+  }
+  entry.loading = true;
+  lock.unlock();
+  std::shared_ptr<const Frame> frame;
+  try {
+    frame = load_(k);
+    if (!frame) throw Error("frame store: the loader gave no frame " + std::to_string(k));
+  } catch (...) {
+    lock.lock();
+    entry.loading = false;
+    loaded_.notify_all();
+    throw;
+  }
+  const std::size_t bytes = frame->memory_bytes();
+  lock.lock();
+  evict_locked(bytes);
+  entry.loading = false;
+  entry.frame = frame;
+  entry.bytes = bytes;
+  lru_.push_front(k);
+  entry.lru = lru_.begin();
+  bytes_ += bytes;
+  ++stats_.loads;
+  stats_.peak_bytes = std::max(stats_.peak_bytes, bytes_);
+  loaded_.notify_all();
+  return frame;
+}
+
+void FrameStore::evict_locked(std::size_t incoming) {
+  if (max_bytes_ == 0) return;
+  // Least recently used first; a frame some caller still holds stays (it would not free memory).
+  for (auto it = lru_.end(); bytes_ + incoming > max_bytes_ && it != lru_.begin();) {
+    --it;
+    Entry& entry = entries_[*it];
+    if (entry.frame.use_count() > 1) continue;
+    bytes_ -= entry.bytes;
+    entry.frame.reset();
+    entry.bytes = 0;
+    ++stats_.evictions;
+    it = lru_.erase(it);
+  }
+}
+
+FrameStoreStats FrameStore::stats() const {
+  std::lock_guard lock(mutex_);
+  return stats_;
+}
+
+}  // namespace carat
