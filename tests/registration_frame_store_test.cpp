@@ -24,8 +24,8 @@
 namespace carat {
 namespace {
 
-using ::testing::HasSubstr;
 using test::error_of;
+using ::testing::HasSubstr;
 
 /// 24 frames of one lap (8 m apart), preprocessed once; the stores below hand these out.
 struct Drive {
