@@ -1,6 +1,7 @@
 // Cloud preprocessing: the voxel grid, covariance estimation and the k-d tree.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <random>
@@ -108,4 +109,45 @@ TEST(KdTreeTest, NearestWithinMatchesBruteForce) {
 }
 
 }  // namespace
+TEST(KdTreeTest, KnnMatchesBruteForce) {
+  std::mt19937 rng(23);
+  std::uniform_real_distribution<float> u(-5.0f, 5.0f);
+  PointCloud cloud;
+  // A plane, a line and repeated points: cells that are flat, thin or a single position.
+  for (int k = 0; k < 1500; ++k) cloud.points.emplace_back(u(rng), u(rng), 0.0f);
+  for (int k = 0; k < 300; ++k) cloud.points.emplace_back(u(rng), 2.0f, 1.0f);
+  for (int k = 0; k < 60; ++k) cloud.points.emplace_back(1.0f, 1.0f, 1.0f);
+  const KdTree tree(cloud);
+  for (const int k : {1, 10, 25}) {
+    for (int q = 0; q < 300; ++q) {
+      const Eigen::Vector3f query(u(rng), u(rng), 0.3f * u(rng));
+      std::vector<float> brute;
+      for (const auto& p : cloud.points) {
+        const Eigen::Vector3f d = p - query;
+        brute.push_back(d.x() * d.x() + d.y() * d.y() + d.z() * d.z());
+      }
+      std::sort(brute.begin(), brute.end());
+      std::vector<std::uint32_t> indices(static_cast<std::size_t>(k));
+      std::vector<float> distances(static_cast<std::size_t>(k));
+      ASSERT_EQ(tree.knn(query, k, indices.data(), distances.data()), k);
+      for (int n = 0; n < k; ++n) {
+        const auto i = static_cast<std::size_t>(n);
+        EXPECT_EQ(distances[i], brute[i]) << "k " << k << " query " << q << " neighbour " << n;
+        const Eigen::Vector3f d = cloud.points[indices[i]] - query;
+        EXPECT_EQ(distances[i], d.x() * d.x() + d.y() * d.y() + d.z() * d.z());
+      }
+    }
+  }
+  // More neighbours asked for than points: all of them, nearest first.
+  PointCloud small;
+  small.points = {{0, 0, 0}, {3, 0, 0}, {1, 0, 0}};
+  const KdTree small_tree(small);
+  std::uint32_t indices[5];
+  float distances[5];
+  ASSERT_EQ(small_tree.knn(Eigen::Vector3f::Zero(), 5, indices, distances), 3);
+  EXPECT_EQ(indices[0], 0u);
+  EXPECT_EQ(indices[1], 2u);
+  EXPECT_EQ(indices[2], 1u);
+}
+
 }  // namespace carat
