@@ -18,8 +18,25 @@ PointCloud voxel_downsample(const PointCloud& cloud, double voxel_size) {
                 std::to_string(voxel_size));
   }
   constexpr std::int64_t kOffset = std::int64_t{1} << 20;  // 21 bits per axis
-  std::vector<std::pair<std::uint64_t, std::uint32_t>> keys;
-  keys.reserve(cloud.size());
+  constexpr std::uint64_t kEmpty = ~std::uint64_t{0};      // no key has the top bit set
+  // Open addressing from voxel key to voxel, at most half full: each voxel sums its points in
+  // input order, and only the occupied voxels are sorted (by key) for the output.
+  int bits = 4;
+  while ((std::size_t{1} << bits) < 2 * cloud.size()) ++bits;
+  struct Entry {
+    std::uint64_t key = kEmpty;
+    std::uint32_t voxel = 0;
+  };
+  std::vector<Entry> table(std::size_t{1} << bits);
+  const std::size_t mask = table.size() - 1;
+  struct Voxel {
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    std::uint32_t count = 0;
+  };
+  std::vector<Voxel> voxels;
+  std::vector<std::pair<std::uint64_t, std::uint32_t>> keys;  // (key, voxel)
+  std::uint64_t last_key = kEmpty;
+  std::uint32_t last_voxel = 0;
   const double inv = 1.0 / voxel_size;
   for (std::size_t i = 0; i < cloud.size(); ++i) {
     std::uint64_t key = 0;
@@ -34,18 +51,26 @@ PointCloud voxel_downsample(const PointCloud& cloud, double voxel_size) {
       }
       key = (key << 21) | static_cast<std::uint64_t>(static_cast<std::int64_t>(cell) + kOffset);
     }
-    keys.emplace_back(key, static_cast<std::uint32_t>(i));
+    if (key != last_key) {  // consecutive points of a scan often share a voxel
+      std::size_t slot = static_cast<std::size_t>((key * 0x9E3779B97F4A7C15ull) >> (64 - bits));
+      while (table[slot].key != key && table[slot].key != kEmpty) slot = (slot + 1) & mask;
+      if (table[slot].key == kEmpty) {
+        table[slot] = {key, static_cast<std::uint32_t>(voxels.size())};
+        keys.emplace_back(key, static_cast<std::uint32_t>(voxels.size()));
+        voxels.emplace_back();
+      }
+      last_key = key;
+      last_voxel = table[slot].voxel;
+    }
+    Voxel& voxel = voxels[last_voxel];
+    voxel.sum += cloud.point(i);
+    ++voxel.count;
   }
   std::sort(keys.begin(), keys.end());
   PointCloud out;
-  for (std::size_t i = 0; i < keys.size();) {
-    std::size_t j = i;
-    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-    for (; j < keys.size() && keys[j].first == keys[i].first; ++j)
-      sum += cloud.point(keys[j].second);
-    out.points.push_back((sum / static_cast<double>(j - i)).cast<float>());
-    i = j;
-  }
+  out.points.reserve(keys.size());
+  for (const auto& [key, v] : keys)
+    out.points.push_back((voxels[v].sum / static_cast<double>(voxels[v].count)).cast<float>());
   return out;
 }
 

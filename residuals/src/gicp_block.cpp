@@ -1,8 +1,10 @@
 #include "carat/residuals/gicp_block.hpp"
 
+#include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
 #include <array>
+#include <atomic>
 #include <cmath>
 #include <string>
 
@@ -99,6 +101,33 @@ struct Pose {
   J[5] = -a2;
 }
 
+/// The whitening W of the fused covariance C_target + R C_source R^T, both given by their upper
+/// triangles (xx xy xz yy yz zz); false unless it is positive definite.
+bool fused_whitening(const std::array<double, 6>& target, const std::array<double, 6>& source,
+                     const Eigen::Matrix3d& R, std::array<double, 6>* W) {
+  const double s00 = source[0], s01 = source[1], s02 = source[2], s11 = source[3], s12 = source[4],
+               s22 = source[5];
+  double M[3][3];  // R C_source
+  for (int i = 0; i < 3; ++i) {
+    M[i][0] = R(i, 0) * s00 + R(i, 1) * s01 + R(i, 2) * s02;
+    M[i][1] = R(i, 0) * s01 + R(i, 1) * s11 + R(i, 2) * s12;
+    M[i][2] = R(i, 0) * s02 + R(i, 1) * s12 + R(i, 2) * s22;
+  }
+  const auto rotated = [&](int i, int j) {
+    return M[i][0] * R(j, 0) + M[i][1] * R(j, 1) + M[i][2] * R(j, 2);
+  };
+  const std::array<double, 6> fused = {target[0] + rotated(0, 0), target[1] + rotated(0, 1),
+                                       target[2] + rotated(0, 2), target[3] + rotated(1, 1),
+                                       target[4] + rotated(1, 2), target[5] + rotated(2, 2)};
+  return whitening_of(fused, W);
+}
+
+/// The upper triangle of sym(A) = (A + A^T) / 2.
+std::array<double, 6> symmetric_part(const Eigen::Matrix3d& A) {
+  return {A(0, 0), 0.5 * (A(0, 1) + A(1, 0)), 0.5 * (A(0, 2) + A(2, 0)),
+          A(1, 1), 0.5 * (A(1, 2) + A(2, 1)), A(2, 2)};
+}
+
 }  // namespace
 
 GicpBlock::GicpBlock(std::span<const GicpCorrespondence> correspondences,
@@ -117,29 +146,9 @@ GicpBlock::GicpBlock(std::span<const GicpCorrespondence> correspondences,
          !c.covariance_target.allFinite() || !c.covariance_source.allFinite())) {
       throw Error("GicpBlock: correspondence " + std::to_string(k) + " has a non-finite value");
     }
-    // fused = sym(C_target) + R sym(C_source) R^T, upper triangle only, in scalars.
-    const Eigen::Matrix3d& A = c.covariance_source;
-    const double s00 = A(0, 0), s11 = A(1, 1), s22 = A(2, 2);
-    const double s01 = 0.5 * (A(0, 1) + A(1, 0)), s02 = 0.5 * (A(0, 2) + A(2, 0)),
-                 s12 = 0.5 * (A(1, 2) + A(2, 1));
-    double M[3][3];  // R sym(C_source)
-    for (int i = 0; i < 3; ++i) {
-      M[i][0] = R(i, 0) * s00 + R(i, 1) * s01 + R(i, 2) * s02;
-      M[i][1] = R(i, 0) * s01 + R(i, 1) * s11 + R(i, 2) * s12;
-      M[i][2] = R(i, 0) * s02 + R(i, 1) * s12 + R(i, 2) * s22;
-    }
-    const auto rotated = [&](int i, int j) {
-      return M[i][0] * R(j, 0) + M[i][1] * R(j, 1) + M[i][2] * R(j, 2);
-    };
-    const Eigen::Matrix3d& B = c.covariance_target;
-    const std::array<double, 6> fused = {B(0, 0) + rotated(0, 0),
-                                         0.5 * (B(0, 1) + B(1, 0)) + rotated(0, 1),
-                                         0.5 * (B(0, 2) + B(2, 0)) + rotated(0, 2),
-                                         B(1, 1) + rotated(1, 1),
-                                         0.5 * (B(1, 2) + B(2, 1)) + rotated(1, 2),
-                                         B(2, 2) + rotated(2, 2)};
     std::array<double, 6> W;
-    if (!whitening_of(fused, &W)) {
+    if (!fused_whitening(symmetric_part(c.covariance_target), symmetric_part(c.covariance_source),
+                         R, &W)) {
       throw Error("GicpBlock: correspondence " + std::to_string(k) +
                   ": fused covariance is not positive definite");
     }
@@ -148,6 +157,70 @@ GicpBlock::GicpBlock(std::span<const GicpCorrespondence> correspondences,
     p.source = {c.mean_source.x(), c.mean_source.y(), c.mean_source.z()};
     p.whitening = W;
     points_.push_back(p);
+  }
+}
+
+GicpBlock::GicpBlock(std::span<const Eigen::Vector3f> target_means,
+                     std::span<const Eigen::Matrix<float, 6, 1>> target_covariances,
+                     std::span<const Eigen::Vector3f> source_means,
+                     std::span<const Eigen::Matrix<float, 6, 1>> source_covariances,
+                     std::span<const std::array<std::uint32_t, 2>> pairs,
+                     const Eigen::Isometry3d& T_target_source) {
+  if (pairs.empty()) throw Error("GicpBlock: no correspondences");
+  if (target_covariances.size() != target_means.size() ||
+      source_covariances.size() != source_means.size()) {
+    throw Error("GicpBlock: " + std::to_string(target_means.size()) + " target means but " +
+                std::to_string(target_covariances.size()) + " covariances, " +
+                std::to_string(source_means.size()) + " source means but " +
+                std::to_string(source_covariances.size()) + " covariances");
+  }
+  const Eigen::Matrix3d R = T_target_source.linear();
+  enum Fault : int { kNone, kIndex, kNonFinite, kNotPositiveDefinite };
+  // Point k, or why it cannot be built.
+  const auto make = [&](std::size_t k, Point* p) {
+    const auto [t, s] = pairs[k];
+    if (t >= target_means.size() || s >= source_means.size()) return kIndex;
+    const Eigen::Vector3f& mt = target_means[t];
+    const Eigen::Vector3f& ms = source_means[s];
+    const Eigen::Matrix<float, 6, 1>& ct = target_covariances[t];
+    const Eigen::Matrix<float, 6, 1>& cs = source_covariances[s];
+    if (!std::isfinite(mt.sum() + ms.sum() + ct.sum() + cs.sum()) &&
+        (!mt.allFinite() || !ms.allFinite() || !ct.allFinite() || !cs.allFinite())) {
+      return kNonFinite;
+    }
+    const std::array<double, 6> target = {ct[0], ct[1], ct[2], ct[3], ct[4], ct[5]};
+    const std::array<double, 6> source = {cs[0], cs[1], cs[2], cs[3], cs[4], cs[5]};
+    if (!fused_whitening(target, source, R, &p->whitening)) return kNotPositiveDefinite;
+    p->target = {mt.x(), mt.y(), mt.z()};
+    p->source = {ms.x(), ms.y(), ms.z()};
+    return kNone;
+  };
+  points_.resize(pairs.size());
+  std::atomic<std::size_t> first_fault{pairs.size()};
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, pairs.size(), 1024), [&](const auto& range) {
+    for (std::size_t k = range.begin(); k != range.end(); ++k) {
+      if (make(k, &points_[k]) == kNone) continue;
+      std::size_t seen = first_fault.load(std::memory_order_relaxed);
+      while (k < seen && !first_fault.compare_exchange_weak(seen, k, std::memory_order_relaxed)) {
+      }
+      return;
+    }
+  });
+  // The first faulty pair, whatever the scheduling was.
+  const std::size_t k = first_fault.load();
+  if (k == pairs.size()) return;
+  Point unused;
+  switch (make(k, &unused)) {
+    case kIndex:
+      throw Error("GicpBlock: pair " + std::to_string(k) + " names target point " +
+                  std::to_string(pairs[k][0]) + " of " + std::to_string(target_means.size()) +
+                  " and source point " + std::to_string(pairs[k][1]) + " of " +
+                  std::to_string(source_means.size()));
+    case kNonFinite:
+      throw Error("GicpBlock: correspondence " + std::to_string(k) + " has a non-finite value");
+    default:
+      throw Error("GicpBlock: correspondence " + std::to_string(k) +
+                  ": fused covariance is not positive definite");
   }
 }
 
