@@ -5,6 +5,7 @@
 #include <cmath>
 #include <limits>
 #include <numeric>
+#include <type_traits>
 
 namespace carat {
 namespace {
@@ -37,17 +38,23 @@ struct Node {
   return dx * dx + dy * dy + dz * dz;
 }
 
-/// The one nearest point strictly closer than a bound.
+/// The one nearest point strictly closer than a bound; ties keep the point met first.
 struct NearestResult {
+  static constexpr std::uint32_t kNone = ~std::uint32_t{0};
   float worst;
-  std::uint32_t index = 0;
-  bool found = false;
-  void add(float d, std::uint32_t i) {
-    if (d < worst) {
-      worst = d;
-      index = i;
-      found = true;
+  std::uint32_t position = kNone;  ///< in leaf order
+  /// Leaf points [begin, end), without a branch per point.
+  void add_leaf(const LeafPoint* points, std::uint32_t begin, std::uint32_t end, const float* q) {
+    float best = worst;
+    std::uint32_t at = position;
+    for (std::uint32_t j = begin; j < end; ++j) {
+      const float d = squared_distance(points[j], q);
+      const bool closer = d < best;
+      at = closer ? j : at;
+      best = closer ? d : best;
     }
+    worst = best;
+    position = at;
   }
 };
 
@@ -61,6 +68,10 @@ struct KnnResult {
   float worst = std::numeric_limits<float>::infinity();
   std::uint32_t* indices;
   float* distances;
+  void add_leaf(const LeafPoint* points, std::uint32_t begin, std::uint32_t end, const float* q,
+                const std::uint32_t* order) {
+    for (std::uint32_t j = begin; j < end; ++j) add(squared_distance(points[j], q), order[j]);
+  }
   void add(float d, std::uint32_t i) {
     if (!(d < worst)) return;
     int j = count < k ? count++ : k - 1;
@@ -87,8 +98,11 @@ struct KdTree::Impl {
   void search(std::uint32_t node, const float* q, std::array<float, 3>& off, Result& result) const {
     const Node& n = nodes[node];
     if (n.dim == kLeaf) {
-      for (std::uint32_t j = n.right_or_begin; j < n.end; ++j)
-        result.add(squared_distance(points[j], q), order[j]);
+      if constexpr (std::is_same_v<Result, NearestResult>) {
+        result.add_leaf(points.data(), n.right_or_begin, n.end, q);
+      } else {
+        result.add_leaf(points.data(), n.right_or_begin, n.end, q, order.data());
+      }
       return;
     }
     const float diff = q[n.dim] - n.split;
@@ -182,8 +196,8 @@ bool KdTree::nearest_within(const Eigen::Vector3f& query, float max_squared_dist
   NearestResult result{
       std::nextafter(max_squared_distance, std::numeric_limits<float>::infinity())};
   impl_->search(query, result);
-  if (!result.found) return false;
-  *index = result.index;
+  if (result.position == NearestResult::kNone) return false;
+  *index = impl_->order[result.position];
   *squared_distance = result.worst;
   return true;
 }

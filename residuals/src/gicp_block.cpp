@@ -273,39 +273,74 @@ void GicpBlock::evaluate_rows(ParameterPointers params, std::span<const int> row
   }
 }
 
-double GicpBlock::accumulate_at(const Eigen::Isometry3d& T, Eigen::Matrix<double, 6, 6>* H_out,
+double GicpBlock::accumulate_at(const Eigen::Isometry3d& T_target_source,
+                                Eigen::Matrix<double, 6, 6>* H_out,
                                 Eigen::Matrix<double, 6, 1>* b_out) const {
-  const Eigen::Matrix3d R = T.linear();
+  const Pose T(T_target_source);
+  const double* R = T.r;  // column-major: R(i, j) = R[i + 3 j]
   const std::size_t n = points_.size();
   const std::size_t chunks = (n + kChunk - 1) / kChunk;
-  struct Partial {
-    Eigen::Matrix<double, 6, 6> H = Eigen::Matrix<double, 6, 6>::Zero();
-    Eigen::Matrix<double, 6, 1> b = Eigen::Matrix<double, 6, 1>::Zero();
-    double c = 0.0;
-  };
+  // Per chunk: the upper triangle of H (21, row by row), b (6) and c.
+  using Partial = std::array<double, 28>;
   std::vector<Partial> partial(chunks);
   const auto work = [&](std::size_t chunk) {
-    Partial& out = partial[chunk];
+    Partial sum{};
     const std::size_t end = std::min(n, (chunk + 1) * kChunk);
     for (std::size_t k = chunk * kChunk; k < end; ++k) {
       const Point& p = points_[k];
-      Eigen::Matrix3d W;
-      W << p.whitening[0], p.whitening[1], p.whitening[2], 0.0, p.whitening[3], p.whitening[4], 0.0,
-          0.0, p.whitening[5];
-      const Eigen::Vector3d mu(p.source[0], p.source[1], p.source[2]);
-      const Eigen::Vector3d r =
-          W * (Eigen::Vector3d(p.target[0], p.target[1], p.target[2]) - T * mu);
-      const Eigen::Matrix3d WR = W * R;
-      Eigen::Matrix<double, 3, 6> J;
-      for (int c = 0; c < 3; ++c) {
-        const Eigen::Vector3d w = WR.row(c).transpose();
-        J.block<1, 3>(c, 0) = w.cross(mu).transpose();
-        J.block<1, 3>(c, 3) = -w.transpose();
+      const double w0 = p.whitening[0], w1 = p.whitening[1], w2 = p.whitening[2];
+      const double w3 = p.whitening[3], w4 = p.whitening[4], w5 = p.whitening[5];
+      const double m0 = p.source[0], m1 = p.source[1], m2 = p.source[2];
+      const std::array<double, 3> d = T.difference(p.target, p.source);
+      // r = W d; the Jacobian is J = M G with M = W R and G = [[mu]x, -I].
+      const double r0 = w0 * d[0] + w1 * d[1] + w2 * d[2], r1 = w3 * d[1] + w4 * d[2],
+                   r2 = w5 * d[2];
+      double M[3][3];
+      for (int j = 0; j < 3; ++j) {
+        const double R0 = R[3 * j], R1 = R[1 + 3 * j], R2 = R[2 + 3 * j];
+        M[0][j] = w0 * R0 + w1 * R1 + w2 * R2;
+        M[1][j] = w3 * R1 + w4 * R2;
+        M[2][j] = w5 * R2;
       }
-      out.H.noalias() += J.transpose() * J;
-      out.b.noalias() += J.transpose() * r;
-      out.c += r.squaredNorm();
+      // A = M^T M and v = M^T r.
+      double A[3][3], v[3];
+      for (int i = 0; i < 3; ++i) {
+        for (int j = i; j < 3; ++j)
+          A[i][j] = M[0][i] * M[0][j] + M[1][i] * M[1][j] + M[2][i] * M[2][j];
+        v[i] = M[0][i] * r0 + M[1][i] * r1 + M[2][i] * r2;
+      }
+      A[1][0] = A[0][1];
+      A[2][0] = A[0][2];
+      A[2][1] = A[1][2];
+      // H = G^T A G = [-S A S, S A; -A S, A] with S = [mu]x; b = G^T v = [v x mu; -v].
+      double C[3][3];  // S A
+      for (int j = 0; j < 3; ++j) {
+        C[0][j] = m1 * A[2][j] - m2 * A[1][j];
+        C[1][j] = m2 * A[0][j] - m0 * A[2][j];
+        C[2][j] = m0 * A[1][j] - m1 * A[0][j];
+      }
+      double E[3][3];  // -S A S = -C S, upper triangle
+      for (int i = 0; i < 3; ++i) {
+        E[i][0] = C[i][2] * m1 - C[i][1] * m2;
+        E[i][1] = C[i][0] * m2 - C[i][2] * m0;
+        E[i][2] = C[i][1] * m0 - C[i][0] * m1;
+      }
+      int at = 0;
+      for (int i = 0; i < 3; ++i) {
+        for (int j = i; j < 3; ++j) sum[at++] += E[i][j];
+        for (int j = 0; j < 3; ++j) sum[at++] += C[i][j];
+      }
+      for (int i = 0; i < 3; ++i)
+        for (int j = i; j < 3; ++j) sum[at++] += A[i][j];
+      sum[21] += v[1] * m2 - v[2] * m1;
+      sum[22] += v[2] * m0 - v[0] * m2;
+      sum[23] += v[0] * m1 - v[1] * m0;
+      sum[24] -= v[0];
+      sum[25] -= v[1];
+      sum[26] -= v[2];
+      sum[27] += r0 * r0 + r1 * r1 + r2 * r2;
     }
+    partial[chunk] = sum;
   };
   if (chunks > 1) {
     tbb::parallel_for(std::size_t{0}, chunks, work);
@@ -313,15 +348,18 @@ double GicpBlock::accumulate_at(const Eigen::Isometry3d& T, Eigen::Matrix<double
     work(0);
   }
   // Sum the chunks in a fixed order: the same result with any number of threads.
-  Partial total;
-  for (const Partial& p : partial) {
-    total.H += p.H;
-    total.b += p.b;
-    total.c += p.c;
+  Partial total{};
+  for (const Partial& p : partial)
+    for (std::size_t i = 0; i < total.size(); ++i) total[i] += p[i];
+  int at = 0;
+  for (int i = 0; i < 6; ++i) {
+    for (int j = i; j < 6; ++j) {
+      (*H_out)(i, j) = total[static_cast<std::size_t>(at++)];
+      (*H_out)(j, i) = (*H_out)(i, j);
+    }
   }
-  *H_out = total.H;
-  *b_out = total.b;
-  return total.c;
+  for (int i = 0; i < 6; ++i) (*b_out)[i] = total[21 + static_cast<std::size_t>(i)];
+  return total[27];
 }
 
 double GicpBlock::accumulate(ParameterPointers params, Eigen::Ref<Eigen::MatrixXd> H_r,
@@ -337,15 +375,31 @@ double GicpBlock::accumulate(ParameterPointers params, Eigen::Ref<Eigen::MatrixX
 
 double GicpBlock::squared_norm(ParameterPointers params) const {
   if (!rows_.empty()) return ResidualBlock::squared_norm(params);
-  const Eigen::Isometry3d T = relative_pose(params);
-  double c = 0.0;
-  for (const Point& p : points_) {
-    Eigen::Matrix3d W;
-    W << p.whitening[0], p.whitening[1], p.whitening[2], 0.0, p.whitening[3], p.whitening[4], 0.0,
-        0.0, p.whitening[5];
-    const Eigen::Vector3d mu(p.source[0], p.source[1], p.source[2]);
-    c += (W * (Eigen::Vector3d(p.target[0], p.target[1], p.target[2]) - T * mu)).squaredNorm();
+  const Pose T(relative_pose(params));
+  const std::size_t n = points_.size();
+  const std::size_t chunks = (n + kChunk - 1) / kChunk;
+  std::vector<double> partial(chunks, 0.0);
+  const auto work = [&](std::size_t chunk) {
+    double c = 0.0;
+    const std::size_t end = std::min(n, (chunk + 1) * kChunk);
+    for (std::size_t k = chunk * kChunk; k < end; ++k) {
+      const Point& p = points_[k];
+      const std::array<double, 3> d = T.difference(p.target, p.source);
+      const double r0 = p.whitening[0] * d[0] + p.whitening[1] * d[1] + p.whitening[2] * d[2];
+      const double r1 = p.whitening[3] * d[1] + p.whitening[4] * d[2];
+      const double r2 = p.whitening[5] * d[2];
+      c += r0 * r0 + r1 * r1 + r2 * r2;
+    }
+    partial[chunk] = c;
+  };
+  if (chunks > 1) {
+    tbb::parallel_for(std::size_t{0}, chunks, work);
+  } else {
+    work(0);
   }
+  // In a fixed order, as accumulate_at() sums: the same cost with any number of threads.
+  double c = 0.0;
+  for (const double p : partial) c += p;
   return c;
 }
 
