@@ -23,7 +23,7 @@ struct Scan {
 };
 
 Scan preprocess(const carat::PointCloud& raw, int threads) {
-  Scan s{std::make_unique<carat::PointCloud>(carat::voxel_downsample(raw, 0.25)), nullptr};
+  Scan s{std::make_unique<carat::PointCloud>(carat::voxel_downsample(raw, 0.25, threads)), nullptr};
   s.tree = std::make_unique<carat::KdTree>(*s.cloud);
   carat::CovarianceOptions options;
   options.num_threads = threads;

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <limits>
 #include <random>
+#include <string>
 #include <vector>
 
 #include "carat/registration/covariance.hpp"
@@ -28,6 +29,45 @@ TEST(VoxelGridTest, CentroidsPerVoxel) {
   // an undefined float-to-integer conversion.
   cloud.points.push_back({3e38f, 0.0f, 0.0f});
   EXPECT_THROW(voxel_downsample(cloud, 0.5), Error);
+}
+
+TEST(VoxelGridTest, SameCentroidsWithAnyNumberOfThreads) {
+  // Enough points for the voxels to be split between threads, many sharing a voxel.
+  std::mt19937 rng(29);
+  std::uniform_real_distribution<float> u(-20.0f, 20.0f);
+  PointCloud cloud;
+  for (int k = 0; k < 60000; ++k) cloud.points.emplace_back(u(rng), u(rng), 0.05f * u(rng));
+  const PointCloud one = voxel_downsample(cloud, 0.5, 1);
+  ASSERT_GT(one.size(), 1000u);
+  ASSERT_LT(one.size(), cloud.size() / 2);
+  for (const int threads : {2, 3, 8}) {
+    const PointCloud many = voxel_downsample(cloud, 0.5, threads);
+    ASSERT_EQ(many.size(), one.size());
+    for (std::size_t i = 0; i < one.size(); ++i) ASSERT_EQ(many.points[i], one.points[i]) << i;
+  }
+  // Every point in its own voxel: the tables of the parts grow past their first size.
+  PointCloud grid;
+  for (float x = 0.0f; x < 20.0f; x += 0.5f)
+    for (float y = 0.0f; y < 20.0f; y += 0.5f)
+      for (float z = 0.0f; z < 10.0f; z += 0.5f) grid.points.emplace_back(x, -y, z + 0.1f);
+  const PointCloud grid_one = voxel_downsample(grid, 0.5, 1);
+  ASSERT_EQ(grid_one.size(), grid.size());
+  for (const int threads : {2, 8}) {
+    const PointCloud grid_many = voxel_downsample(grid, 0.5, threads);
+    ASSERT_EQ(grid_many.size(), grid.size());
+    for (std::size_t i = 0; i < grid.size(); ++i)
+      ASSERT_EQ(grid_many.points[i], grid_one.points[i]);
+  }
+  // The first point off the grid is named, whatever the scheduling.
+  cloud.points[41234] = {3e38f, 0.0f, 0.0f};
+  cloud.points[50000] = {0.0f, -3e38f, 0.0f};
+  try {
+    (void)voxel_downsample(cloud, 0.5, 2);
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()).rfind("point 41234 is too far from the origin", 0), 0u)
+        << e.what();
+  }
 }
 
 TEST(CovarianceTest, PlaneGetsTheRegularizedShape) {

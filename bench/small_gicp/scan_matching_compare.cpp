@@ -47,7 +47,7 @@ struct CaratScan {
 };
 
 CaratScan carat_preprocess(const carat::PointCloud& raw, int threads) {
-  CaratScan scan{std::make_unique<carat::PointCloud>(carat::voxel_downsample(raw, kVoxel)),
+  CaratScan scan{std::make_unique<carat::PointCloud>(carat::voxel_downsample(raw, kVoxel, threads)),
                  nullptr};
   scan.tree = std::make_unique<carat::KdTree>(*scan.cloud);
   carat::CovarianceOptions options;
