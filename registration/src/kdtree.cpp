@@ -21,7 +21,8 @@ struct alignas(16) LeafPoint {
 };
 
 /// A tree node. Inner: the points with coordinate `dim` below `split` are in the left child
-/// (the next node), those above in the right child (node `right`), those equal in either.
+/// (the next node), those above in the right child (node `right_or_begin`), those equal in
+/// either.
 /// Leaf: points [begin, end) of the leaf-ordered arrays.
 struct Node {
   float split = 0.0f;
@@ -160,11 +161,14 @@ std::uint32_t KdTree::Impl::build(std::uint32_t begin, std::uint32_t end) {
     return node;
   }
   const std::uint32_t middle = begin + (end - begin) / 2;
+  // A NaN coordinate sorts as +infinity, so that the order stays a strict weak order.
+  const auto coordinate = [&](std::uint32_t i) {
+    const float x = cloud.points[i][dim];
+    return std::isnan(x) ? std::numeric_limits<float>::infinity() : x;
+  };
   std::nth_element(order.begin() + begin, order.begin() + middle, order.begin() + end,
-                   [&](std::uint32_t a, std::uint32_t b) {
-                     return cloud.points[a][dim] < cloud.points[b][dim];
-                   });
-  const float split = cloud.points[order[middle]][dim];
+                   [&](std::uint32_t a, std::uint32_t b) { return coordinate(a) < coordinate(b); });
+  const float split = coordinate(order[middle]);
   build(begin, middle);
   const std::uint32_t right = build(middle, end);
   nodes[node].split = split;
