@@ -9,13 +9,14 @@
 #   scripts/paper-size.sh [--out DIR] [--frames N] [--laps L] [--circuit-blocks B]
 #                         [--overlap X] [--voxel V] [--cap MB] [--threads T] [--no-build]
 #
-# Defaults: --out paper-size, 4540 frames, 2 laps of a 5-block circuit, overlap 0.2, 0.5 m voxels,
-# a 2048 MB frame cap, all cores. The drive is kept in DIR/drive and reused by later runs with the
+# Defaults: --out paper-size, 4540 frames, 2 laps of a 10-block circuit (frames ~0.5 m apart),
+# overlap 0.2, 0.25 m voxels,
+# a 1024 MB frame cap, all cores. The drive is kept in DIR/drive and reused by later runs with the
 # same settings. Only needs python3's standard library.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-out=paper-size frames=4540 laps=2 blocks=5 overlap=0.2 voxel=0.5 cap=2048 threads=0 build=1
+out=paper-size frames=4540 laps=2 blocks=10 overlap=0.2 voxel=0.25 cap=1024 threads=0 build=1
 while [[ $# -gt 0 ]]; do
   case "$1" in
     --out) out="$2"; shift 2 ;;

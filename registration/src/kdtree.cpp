@@ -189,7 +189,9 @@ int KdTree::knn(const Eigen::Vector3f& query, int k, std::uint32_t* indices,
 }
 
 std::size_t KdTree::memory_bytes() const {
-  return sizeof(Impl) + impl_->tree.usedMemory(impl_->tree);
+  return sizeof(Impl) + impl_->nodes.capacity() * sizeof(Node) +
+         impl_->order.capacity() * sizeof(std::uint32_t) +
+         impl_->points.capacity() * sizeof(LeafPoint);
 }
 
 bool KdTree::nearest(const Eigen::Vector3f& query, std::uint32_t* index,
