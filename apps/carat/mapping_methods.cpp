@@ -85,8 +85,14 @@ MethodResult run_registration(const MappingInput& input, ResidualSampling sampli
                                            : input.residuals) +
                         ")";
   ProgressBar bar("building factors (" + std::string(to_string(sampling)) + ")", input.progress);
-  const GlobalRegistrationResult result = optimize_registration(
-      input.frames, input.pairs, input.T_world_initial, options, bar.callback());
+  const GlobalRegistrationResult result =
+      input.build_factors ? optimize_registration(
+                                [&](std::span<const Eigen::Isometry3d> T_world_frame) {
+                                  return input.build_factors(input.pairs, T_world_frame, options);
+                                },
+                                input.pairs, input.T_world_initial, options)
+                          : optimize_registration(input.frames, input.pairs, input.T_world_initial,
+                                                  options, bar.callback());
   bar.finish();
   out.T_world_frame = result.T_world_frame;
   const TimeBreakdown& t = result.summary.time;

@@ -1,0 +1,84 @@
+#pragma once
+
+// `mpirun -np N carat map ...`: global registration with the factors built on N processes. Every
+// rank runs the same command; rank 0 reads the frames, finds the dense graph and, each round,
+// sends the pairs and start poses to the other ranks, which build and compress the factors
+// k = rank (mod N) from the frames those pairs need (read from the same --frames folder: a
+// shared filesystem) and send them back as bytes. Rank 0 builds its own share, assembles, solves
+// and writes the result, so the output is the one a single process writes, bit for bit.
+
+#include <Eigen/Geometry>
+#include <cstddef>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "carat/registration/dense_graph.hpp"
+#include "carat/registration/frame.hpp"
+#include "carat/registration/global_registration.hpp"
+#include "carat/registration/io/kitti_io.hpp"
+#include "carat/registration/io/scan_folder.hpp"
+#include "mapping_methods.hpp"
+
+namespace carat::cli {
+
+/// What every rank needs to read and preprocess a frame as rank 0 did.
+struct MpiFrameSource {
+  std::vector<ScanFile> files;   // the frames, in scan order
+  ReadOptions read;              // how they are read
+  PreprocessOptions preprocess;  // how they are downsampled (num_threads is ignored)
+};
+
+/// Refuses what the ranks cannot share: the PGO baselines and full or random sampling (whose
+/// factors are not a few KB each); throws UsageError.
+void check_mpi_applicable(const std::string& method, ResidualSampling sampling);
+
+/// One process of an MPI job of carat map.
+class MpiMapJob {
+ public:
+  /// The job this process is part of, or null when it was not started by mpirun with 2 or more
+  /// ranks. Throws carat::Error when it was, but carat was built without MPI.
+  static std::unique_ptr<MpiMapJob> start();
+  /// Rank 0 tells the other ranks to stop (also when it fails); then MPI ends on every rank.
+  ~MpiMapJob();
+  MpiMapJob(const MpiMapJob&) = delete;
+  MpiMapJob& operator=(const MpiMapJob&) = delete;
+
+  /// This process's rank (0 solves and writes).
+  int rank() const { return rank_; }
+  /// Number of ranks.
+  int size() const { return size_; }
+
+  /// Ranks > 0: builds the factors rank 0 asks for with `threads` threads until it says stop;
+  /// a failure is sent to rank 0 (which reports it) instead of factors. Returns the exit status.
+  int serve(int threads);
+
+  /// Rank 0: makes `input`'s GRE build its factors over the ranks: rank 0 from input->frames,
+  /// the others from `source`. The job must outlive the input's use.
+  void attach(MpiFrameSource source, MappingInput* input);
+  /// Rank 0: one round's factors of every pair, parallel to the pairs, built over the ranks at
+  /// T_world_frame. Throws carat::Error "rank r of N: ..." with the message of the lowest rank
+  /// that failed, after every rank has answered.
+  std::vector<RegistrationFactor> build(std::span<const FramePair> pairs,
+                                        std::span<const Eigen::Isometry3d> T_world_frame,
+                                        const GlobalRegistrationOptions& options);
+  /// Rank 0: ranks, rounds, factors built per rank and bytes gathered, for the JSON report.
+  nlohmann::json report() const;
+  /// Rank 0: the same as one line of the text report.
+  std::string summary_line() const;
+
+ private:
+  MpiMapJob(int rank, int size) : rank_(rank), size_(size) {}
+
+  int rank_ = 0;
+  int size_ = 1;
+  MpiFrameSource source_;
+  std::vector<std::shared_ptr<const Frame>> frames_;
+  int rounds_ = 0;
+  std::size_t bytes_gathered_ = 0;
+  std::vector<std::size_t> factors_per_rank_;
+};
+
+}  // namespace carat::cli
