@@ -30,6 +30,8 @@ int launched_ranks() {
   return 1;
 }
 
+#if CARAT_WITH_MPI
+
 /// What rank 0 sends every round: how to read the frames, how to build, what, and where.
 struct BuildJob {
   MpiFrameSource source;
@@ -164,8 +166,6 @@ std::unique_ptr<FrameStore> frames_from(const MpiFrameSource& source) {
       },
       0);
 }
-
-#if CARAT_WITH_MPI
 
 enum Command : std::uint64_t { kStop = 0, kBuild = 1 };
 constexpr int kAnswerTag = 7;

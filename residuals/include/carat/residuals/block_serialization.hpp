@@ -19,7 +19,7 @@ namespace carat {
 bool has_byte_form(const ResidualBlock& block);
 
 /// Appends `block` to `out`: a GicpBlock takes 96 bytes per correspondence or 56 per single row,
-/// a LosslessRegistrationBlock at most 865 bytes, a CompressedBlock its inner block's bytes and
+/// a LosslessRegistrationBlock at most 870 bytes, a CompressedBlock its inner block's bytes and
 /// 12 per selected row, each plus a few bytes of tags and counts. Throws carat::Error for a
 /// block without a byte form (has_byte_form()).
 void write_block(const ResidualBlock& block, ByteWriter& out);
