@@ -42,7 +42,9 @@ m = b['mpi']
 print(a['ate_rmse'] == b['ate_rmse'] and a['iterations'] == b['iterations']
       and 'mpi' not in a and m['ranks'] == ranks and m['bytes_gathered'] > 0
       and sum(m['factors_per_rank']) == b['factors'] and len(m['factors_per_rank']) == ranks
-      and m['rounds'] >= 1)" "$a.json" "$b.json" "${b##*_}")"
+      and m['rounds'] >= 1 and len(m['build_s_per_rank']) == ranks
+      and m['frames_read_per_rank'][0] == b['frames']
+      and all(0 < n < b['frames'] for n in m['frames_read_per_rank'][1:]))" "$a.json" "$b.json" "${b##*_}")"
 done
 
 # A rank that cannot read a frame: each rank runs in its own folder, as if the shared

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdint>
+#include <cstdio>
 #include <cstdlib>
 #include <new>
 #include <string>
@@ -11,6 +12,7 @@
 
 #include "carat/base/byte_stream.hpp"
 #include "carat/base/error.hpp"
+#include "carat/base/stopwatch.hpp"
 #include "carat/registration/factor_serialization.hpp"
 #include "carat/registration/frame_store.hpp"
 #include "cli_support.hpp"
@@ -38,12 +40,14 @@ struct BuildJob {
   GlobalRegistrationOptions options;
   std::vector<FramePair> pairs;
   std::vector<Eigen::Isometry3d> T_world_frame;
+  std::vector<std::vector<std::size_t>> shares;  // per rank: the pairs it builds
 };
 
 std::vector<std::byte> encode_job(const MpiFrameSource& source,
                                   const GlobalRegistrationOptions& options,
                                   std::span<const FramePair> pairs,
-                                  std::span<const Eigen::Isometry3d> T_world_frame) {
+                                  std::span<const Eigen::Isometry3d> T_world_frame,
+                                  const std::vector<std::vector<std::size_t>>& shares) {
   std::vector<std::byte> bytes;
   ByteWriter out(bytes);
   out.put(static_cast<std::uint64_t>(source.files.size()));
@@ -69,6 +73,11 @@ std::vector<std::byte> encode_job(const MpiFrameSource& source,
   out.put(static_cast<std::uint64_t>(T_world_frame.size()));
   for (const Eigen::Isometry3d& T : T_world_frame)
     out.put_array(std::span<const double>(T.matrix().data(), 16));
+  out.put(static_cast<std::uint64_t>(shares.size()));
+  for (const std::vector<std::size_t>& share : shares) {
+    out.put(static_cast<std::uint64_t>(share.size()));
+    for (const std::size_t k : share) out.put(static_cast<std::uint64_t>(k));
+  }
   return bytes;
 }
 
@@ -105,24 +114,48 @@ BuildJob decode_job(std::span<const std::byte> bytes) {
     std::copy(m.begin(), m.end(), T.matrix().data());
     job.T_world_frame.push_back(T);
   }
+  const auto ranks = in.get<std::uint64_t>();
+  if (ranks > in.remaining() / sizeof(std::uint64_t)) in.garbled("rank count");
+  for (std::uint64_t r = 0; r < ranks; ++r) {
+    std::vector<std::size_t> share;
+    for (const std::uint64_t k :
+         in.get_array<std::uint64_t>(static_cast<std::size_t>(in.get<std::uint64_t>()))) {
+      if (k >= job.pairs.size()) in.garbled("pair index " + std::to_string(k));
+      share.push_back(static_cast<std::size_t>(k));
+    }
+    job.shares.push_back(std::move(share));
+  }
   in.expect_end();
   return job;
 }
 
-/// The factors k = rank (mod ranks) of `count` pairs.
-std::vector<std::size_t> share_of(int rank, int ranks, std::size_t count) {
-  std::vector<std::size_t> indices;
-  for (auto k = static_cast<std::size_t>(rank); k < count; k += static_cast<std::size_t>(ranks))
-    indices.push_back(k);
-  return indices;
+/// The pairs split over `ranks` ranks: contiguous stretches of locality_order() at the first
+/// round's poses, as equal in count as can be, so that each rank reads only the frames of one
+/// part of the map (and a few loop partners). Each share is in increasing index order.
+std::vector<std::vector<std::size_t>> split_pairs(std::span<const FramePair> pairs,
+                                                  std::span<const Eigen::Isometry3d> T_world_frame,
+                                                  int ranks) {
+  const std::vector<std::size_t> order = locality_order(pairs, T_world_frame);
+  std::vector<std::vector<std::size_t>> shares(static_cast<std::size_t>(ranks));
+  const std::size_t n = order.size(), r = shares.size();
+  for (std::size_t q = 0; q < r; ++q) {
+    shares[q].assign(order.begin() + static_cast<std::ptrdiff_t>(q * n / r),
+                     order.begin() + static_cast<std::ptrdiff_t>((q + 1) * n / r));
+    std::sort(shares[q].begin(), shares[q].end());
+  }
+  return shares;
 }
 
-/// A rank's answer: its factors (index and bytes each) or its error message.
+/// A rank's answer: its build time (s), the frames it has read, and its factors (index and
+/// bytes each); or its error message.
 std::vector<std::byte> encode_factors(std::span<const std::size_t> indices,
-                                      std::span<const RegistrationFactor> factors) {
+                                      std::span<const RegistrationFactor> factors, double build_s,
+                                      std::size_t frames_read) {
   std::vector<std::byte> bytes;
   ByteWriter out(bytes);
   out.put(std::uint8_t{1});
+  out.put(build_s);
+  out.put(static_cast<std::uint64_t>(frames_read));
   out.put(static_cast<std::uint64_t>(indices.size()));
   for (std::size_t p = 0; p < indices.size(); ++p) {
     const std::vector<std::byte> factor = serialize_factor(factors[p]);
@@ -265,13 +298,17 @@ int MpiMapJob::serve(int threads) {
       BuildJob job = decode_job(payload);
       job.options.num_threads = threads;
       if (!store) store = frames_from(job.source);
-      const std::vector<std::size_t> indices = share_of(rank_, size_, job.pairs.size());
+      if (job.shares.size() != static_cast<std::size_t>(size_))
+        throw Error("the job from rank 0 has " + std::to_string(job.shares.size()) +
+                    " shares for " + std::to_string(size_) + " ranks");
+      const std::vector<std::size_t>& indices = job.shares[static_cast<std::size_t>(rank_)];
+      const Stopwatch build_time;
       std::vector<RegistrationFactor> factors;
       if (!indices.empty()) {
         factors =
             build_registration_factors(*store, job.pairs, indices, job.T_world_frame, job.options);
       }
-      answer = encode_factors(indices, factors);
+      answer = encode_factors(indices, factors, build_time.elapsed_s(), store->stats().loads);
     } catch (const std::bad_alloc&) {
       answer = encode_failure("out of memory");
     } catch (const std::exception& e) {
@@ -311,11 +348,16 @@ std::vector<RegistrationFactor> MpiMapJob::build(std::span<const FramePair> pair
   std::vector<RegistrationFactor> out(pairs.size());
 #if CARAT_WITH_MPI
   std::uint64_t command = kBuild;
-  std::vector<std::byte> payload = encode_job(source_, options, pairs, T_world_frame);
+  // The shares stay those of the first round, so that each rank keeps the frames it read.
+  if (shares_.empty() || shares_pairs_ != pairs.size())
+    shares_ = split_pairs(pairs, T_world_frame, size_);
+  shares_pairs_ = pairs.size();
+  std::vector<std::byte> payload = encode_job(source_, options, pairs, T_world_frame, shares_);
   broadcast(&command, &payload);
   // Rank 0's own share, while the others build theirs; its failure waits for their answers.
   std::string own_failure;
-  const std::vector<std::size_t> own = share_of(0, size_, pairs.size());
+  const std::vector<std::size_t>& own = shares_[0];
+  const Stopwatch own_time;
   try {
     if (!own.empty()) {
       FrameStore store(frames_);
@@ -328,11 +370,16 @@ std::vector<RegistrationFactor> MpiMapJob::build(std::span<const FramePair> pair
   } catch (const std::exception& e) {
     own_failure = e.what();
   }
+  const double own_s = own_time.elapsed_s();
   std::vector<std::vector<std::byte>> answers(static_cast<std::size_t>(size_));
   for (int r = 1; r < size_; ++r) answers[static_cast<std::size_t>(r)] = receive_answer(r);
   ++rounds_;
   factors_per_rank_.assign(static_cast<std::size_t>(size_), 0);
   factors_per_rank_[0] = own.size();
+  build_s_per_rank_.assign(static_cast<std::size_t>(size_), 0.0);
+  build_s_per_rank_[0] = own_s;
+  frames_read_per_rank_.assign(static_cast<std::size_t>(size_), 0);
+  frames_read_per_rank_[0] = frames_.size();
   const auto failed = [&](int r, const std::string& message) {
     return Error("rank " + std::to_string(r) + " of " + std::to_string(size_) + ": " + message);
   };
@@ -349,7 +396,10 @@ std::vector<RegistrationFactor> MpiMapJob::build(std::span<const FramePair> pair
     const std::string what = "the answer of rank " + std::to_string(r);
     ByteReader in(bytes, what);
     in.get<std::uint8_t>();
-    const std::vector<std::size_t> expected = share_of(r, size_, pairs.size());
+    build_s_per_rank_[static_cast<std::size_t>(r)] = in.get<double>();
+    frames_read_per_rank_[static_cast<std::size_t>(r)] =
+        static_cast<std::size_t>(in.get<std::uint64_t>());
+    const std::vector<std::size_t>& expected = shares_[static_cast<std::size_t>(r)];
     if (in.get<std::uint64_t>() != expected.size()) in.garbled("factor count");
     for (const std::size_t k : expected) {
       if (in.get<std::uint64_t>() != k) in.garbled("factor index");
@@ -369,10 +419,18 @@ std::vector<RegistrationFactor> MpiMapJob::build(std::span<const FramePair> pair
 }
 
 std::string MpiMapJob::summary_line() const {
-  std::string shares;
-  for (const std::size_t n : factors_per_rank_)
-    shares += (shares.empty() ? "" : " / ") + std::to_string(n);
-  return "  mpi: " + std::to_string(size_) + " ranks built " + shares + " factors; " +
+  const auto joined = [](const auto& values, const char* format) {
+    std::string out;
+    for (const auto value : values) {
+      char text[32];
+      std::snprintf(text, sizeof(text), format, value);
+      out += (out.empty() ? "" : " / ") + std::string(text);
+    }
+    return out;
+  };
+  return "  mpi: " + std::to_string(size_) + " ranks built " + joined(factors_per_rank_, "%zu") +
+         " factors in " + joined(build_s_per_rank_, "%.2f") + " s from " +
+         joined(frames_read_per_rank_, "%zu") + " frames; " +
          format_bytes(static_cast<double>(bytes_gathered_)) + " gathered over " +
          std::to_string(rounds_) + (rounds_ == 1 ? " round" : " rounds");
 }
@@ -381,7 +439,9 @@ nlohmann::json MpiMapJob::report() const {
   return {{"ranks", size_},
           {"rounds", rounds_},
           {"bytes_gathered", bytes_gathered_},
-          {"factors_per_rank", factors_per_rank_}};
+          {"factors_per_rank", factors_per_rank_},
+          {"build_s_per_rank", build_s_per_rank_},
+          {"frames_read_per_rank", frames_read_per_rank_}};
 }
 
 }  // namespace carat::cli

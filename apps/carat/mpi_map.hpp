@@ -2,9 +2,10 @@
 
 // `mpirun -np N carat map ...`: global registration with the factors built on N processes. Every
 // rank runs the same command; rank 0 reads the frames, finds the dense graph and, each round,
-// sends the pairs and start poses to the other ranks, which build and compress the factors
-// k = rank (mod N) from the frames those pairs need (read from the same --frames folder: a
-// shared filesystem) and send them back as bytes. Rank 0 builds its own share, assembles, solves
+// sends the pairs and start poses to the other ranks, which build and compress their share of
+// the factors (a stretch of the pairs in locality order, one part of the map) from the frames
+// those pairs need (read from the same --frames folder: a shared filesystem) and send them back
+// as bytes. Rank 0 builds its own share, assembles, solves
 // and writes the result, so the output is the one a single process writes, bit for bit.
 
 #include <Eigen/Geometry>
@@ -64,7 +65,8 @@ class MpiMapJob {
   std::vector<RegistrationFactor> build(std::span<const FramePair> pairs,
                                         std::span<const Eigen::Isometry3d> T_world_frame,
                                         const GlobalRegistrationOptions& options);
-  /// Rank 0: ranks, rounds, factors built per rank and bytes gathered, for the JSON report.
+  /// Rank 0: ranks, rounds, bytes gathered, and per rank the factors built, their build time
+  /// and the frames read, for the JSON report.
   nlohmann::json report() const;
   /// Rank 0: the same as one line of the text report.
   std::string summary_line() const;
@@ -76,9 +78,13 @@ class MpiMapJob {
   int size_ = 1;
   MpiFrameSource source_;
   std::vector<std::shared_ptr<const Frame>> frames_;
+  std::vector<std::vector<std::size_t>> shares_;  // per rank: the pairs it builds
+  std::size_t shares_pairs_ = 0;                  // the pair count they were made for
   int rounds_ = 0;
   std::size_t bytes_gathered_ = 0;
-  std::vector<std::size_t> factors_per_rank_;
+  std::vector<std::size_t> factors_per_rank_;      // the last round's
+  std::vector<double> build_s_per_rank_;           // the last round's wall time of each share
+  std::vector<std::size_t> frames_read_per_rank_;  // frames each rank has read so far
 };
 
 }  // namespace carat::cli
