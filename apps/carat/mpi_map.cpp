@@ -231,15 +231,20 @@ void broadcast(std::uint64_t* command, std::vector<std::byte>* bytes) {
   }
 }
 
+/// Sends an answer to rank 0, which takes it once its own share is built (the wait sleeps).
 void send_answer(const std::vector<std::byte>& bytes) {
   std::uint64_t size = bytes.size();
-  MPI_Send(&size, 1, MPI_UINT64_T, 0, kAnswerTag, MPI_COMM_WORLD);
+  MPI_Request request;
+  MPI_Isend(&size, 1, MPI_UINT64_T, 0, kAnswerTag, MPI_COMM_WORLD, &request);
+  wait(&request);
   for (std::size_t at = 0; at < bytes.size(); at += kChunk) {
     const int count = static_cast<int>(std::min(kChunk, bytes.size() - at));
-    MPI_Send(bytes.data() + at, count, MPI_BYTE, 0, kAnswerTag, MPI_COMM_WORLD);
+    MPI_Isend(bytes.data() + at, count, MPI_BYTE, 0, kAnswerTag, MPI_COMM_WORLD, &request);
+    wait(&request);
   }
 }
 
+/// Receives rank `from`'s answer.
 std::vector<std::byte> receive_answer(int from) {
   std::uint64_t size = 0;
   MPI_Request request;
