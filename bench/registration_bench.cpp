@@ -1,7 +1,7 @@
 // Per-scan registration time on the real KITTI 00 pair (skipped when ../shared/data is absent):
 // preprocess one scan (0.25 m voxels, k-d tree, k = 10 covariances), align 000001 onto 000000
-// (GICP, 1 m), and both, with 1 and 2 threads. Anchor (small_gicp on this kind of machine,
-// same settings): preprocess ~39 ms, align ~44 ms, ~83 ms per scan with 1 thread, ~50 ms with 2.
+// (GICP, 1 m), and both, with 1 and 2 threads. small_gicp on the same pair, in the same run:
+// bench/small_gicp/scan_matching_compare.cpp (docs/benchmarks.md, "Registration").
 #include <benchmark/benchmark.h>
 
 #include <filesystem>
@@ -23,7 +23,7 @@ struct Scan {
 };
 
 Scan preprocess(const carat::PointCloud& raw, int threads) {
-  Scan s{std::make_unique<carat::PointCloud>(carat::voxel_downsample(raw, 0.25)), nullptr};
+  Scan s{std::make_unique<carat::PointCloud>(carat::voxel_downsample(raw, 0.25, threads)), nullptr};
   s.tree = std::make_unique<carat::KdTree>(*s.cloud);
   carat::CovarianceOptions options;
   options.num_threads = threads;

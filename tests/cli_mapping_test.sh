@@ -67,6 +67,17 @@ full_ate=$(json_field "$scratch/map_full.json" "j['ate_rmse']")
 if [[ $(json_field "$scratch/map_lossless.json" "abs(j['ate_rmse'] - $full_ate) <= 1e-9 * $full_ate and j['ate_rmse'] < 0.25 * j['initial_ate_rmse'] and j['method'] == 'gre_lossless'") != "True" ]]; then
   echo "FAIL map --sampling lossless differs from full: $(head -c 300 "$scratch/map_lossless.json")"; fail=$((fail + 1)); else pass=$((pass + 1)); fi
 check map_pgo 0 "" -- "$CARAT" map --frames "$scratch/seq" --poses "$scratch/seq/poses.txt" --perturb-m 0.1 --perturb-deg 1 --method pgo --json
+# Frames read on demand under a 6 MB cap (about 11 of these frames): the same trajectory, the
+# store's counts in the JSON; a cap below one pair is refused up front; a frame that cannot be read
+# midway fails the run by name and leaves no output.
+check map_streamed 0 "" -- "$CARAT" map --frames "$scratch/seq" --poses "$scratch/seq/poses.txt" --perturb-m 0.1 --perturb-deg 1 --out "$scratch/map_streamed.txt" --max-frame-memory 6 --json
+expect map_streamed_same "$(cmp -s "$scratch/map_out.txt" "$scratch/map_streamed.txt" && echo True)"
+expect map_streamed_json "$(json_field "$scratch/out" "(lambda s: s['max_bytes'] == 6 * 2**20 and s['peak_bytes'] <= s['max_bytes'] and s['loads'] > 20 and s['evictions'] > 0 and s['hits'] + s['loads'] == s['requests'])(j['frame_store']) and j['peak_rss_bytes'] > 0")"
+check map_streamed_small_cap 2 "--max-frame-memory 1 MB cannot hold one pair of frames: 000000.bin and 000001.bin take" -- "$CARAT" map --frames "$scratch/seq" --poses "$scratch/seq/poses.txt" --max-frame-memory 1 --out "$scratch/never.txt"
+cp -r "$scratch/seq" "$scratch/midway_seq"
+head -c 1001 "$scratch/seq/000002.bin" >"$scratch/midway_seq/000014.bin"
+check map_streamed_bad_frame 1 "midway_seq/000014.bin: 1001 bytes is not a whole number of 16-byte records" -- "$CARAT" map --frames "$scratch/midway_seq" --poses "$scratch/seq/poses.txt" --max-frame-memory 6 --out "$scratch/never.txt"
+check map_streamed_nan_cap 2 "--max-frame-memory" -- "$CARAT" map --frames "$scratch/seq" --poses "$scratch/seq/poses.txt" --max-frame-memory nan
 # Bad input: clear one-line errors, exit 1, no output file left behind.
 mkdir -p "$scratch/empty_frames"
 check map_empty_folder 1 "empty_frames: no frames" -- "$CARAT" map --frames "$scratch/empty_frames" --poses "$scratch/seq/poses.txt" --out "$scratch/never.txt"

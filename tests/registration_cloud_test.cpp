@@ -1,9 +1,11 @@
 // Cloud preprocessing: the voxel grid, covariance estimation and the k-d tree.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <random>
+#include <string>
 #include <vector>
 
 #include "carat/registration/covariance.hpp"
@@ -27,6 +29,45 @@ TEST(VoxelGridTest, CentroidsPerVoxel) {
   // an undefined float-to-integer conversion.
   cloud.points.push_back({3e38f, 0.0f, 0.0f});
   EXPECT_THROW(voxel_downsample(cloud, 0.5), Error);
+}
+
+TEST(VoxelGridTest, SameCentroidsWithAnyNumberOfThreads) {
+  // Enough points for the voxels to be split between threads, many sharing a voxel.
+  std::mt19937 rng(29);
+  std::uniform_real_distribution<float> u(-20.0f, 20.0f);
+  PointCloud cloud;
+  for (int k = 0; k < 60000; ++k) cloud.points.emplace_back(u(rng), u(rng), 0.05f * u(rng));
+  const PointCloud one = voxel_downsample(cloud, 0.5, 1);
+  ASSERT_GT(one.size(), 1000u);
+  ASSERT_LT(one.size(), cloud.size() / 2);
+  for (const int threads : {2, 3, 8}) {
+    const PointCloud many = voxel_downsample(cloud, 0.5, threads);
+    ASSERT_EQ(many.size(), one.size());
+    for (std::size_t i = 0; i < one.size(); ++i) ASSERT_EQ(many.points[i], one.points[i]) << i;
+  }
+  // Every point in its own voxel: the tables of the parts grow past their first size.
+  PointCloud grid;
+  for (float x = 0.0f; x < 20.0f; x += 0.5f)
+    for (float y = 0.0f; y < 20.0f; y += 0.5f)
+      for (float z = 0.0f; z < 10.0f; z += 0.5f) grid.points.emplace_back(x, -y, z + 0.1f);
+  const PointCloud grid_one = voxel_downsample(grid, 0.5, 1);
+  ASSERT_EQ(grid_one.size(), grid.size());
+  for (const int threads : {2, 8}) {
+    const PointCloud grid_many = voxel_downsample(grid, 0.5, threads);
+    ASSERT_EQ(grid_many.size(), grid.size());
+    for (std::size_t i = 0; i < grid.size(); ++i)
+      ASSERT_EQ(grid_many.points[i], grid_one.points[i]);
+  }
+  // The first point off the grid is named, whatever the scheduling.
+  cloud.points[41234] = {3e38f, 0.0f, 0.0f};
+  cloud.points[50000] = {0.0f, -3e38f, 0.0f};
+  try {
+    (void)voxel_downsample(cloud, 0.5, 2);
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()).rfind("point 41234 is too far from the origin", 0), 0u)
+        << e.what();
+  }
 }
 
 TEST(CovarianceTest, PlaneGetsTheRegularizedShape) {
@@ -108,4 +149,45 @@ TEST(KdTreeTest, NearestWithinMatchesBruteForce) {
 }
 
 }  // namespace
+TEST(KdTreeTest, KnnMatchesBruteForce) {
+  std::mt19937 rng(23);
+  std::uniform_real_distribution<float> u(-5.0f, 5.0f);
+  PointCloud cloud;
+  // A plane, a line and repeated points: cells that are flat, thin or a single position.
+  for (int k = 0; k < 1500; ++k) cloud.points.emplace_back(u(rng), u(rng), 0.0f);
+  for (int k = 0; k < 300; ++k) cloud.points.emplace_back(u(rng), 2.0f, 1.0f);
+  for (int k = 0; k < 60; ++k) cloud.points.emplace_back(1.0f, 1.0f, 1.0f);
+  const KdTree tree(cloud);
+  for (const int k : {1, 10, 25}) {
+    for (int q = 0; q < 300; ++q) {
+      const Eigen::Vector3f query(u(rng), u(rng), 0.3f * u(rng));
+      std::vector<float> brute;
+      for (const auto& p : cloud.points) {
+        const Eigen::Vector3f d = p - query;
+        brute.push_back(d.x() * d.x() + d.y() * d.y() + d.z() * d.z());
+      }
+      std::sort(brute.begin(), brute.end());
+      std::vector<std::uint32_t> indices(static_cast<std::size_t>(k));
+      std::vector<float> distances(static_cast<std::size_t>(k));
+      ASSERT_EQ(tree.knn(query, k, indices.data(), distances.data()), k);
+      for (int n = 0; n < k; ++n) {
+        const auto i = static_cast<std::size_t>(n);
+        EXPECT_EQ(distances[i], brute[i]) << "k " << k << " query " << q << " neighbour " << n;
+        const Eigen::Vector3f d = cloud.points[indices[i]] - query;
+        EXPECT_EQ(distances[i], d.x() * d.x() + d.y() * d.y() + d.z() * d.z());
+      }
+    }
+  }
+  // More neighbours asked for than points: all of them, nearest first.
+  PointCloud small;
+  small.points = {{0, 0, 0}, {3, 0, 0}, {1, 0, 0}};
+  const KdTree small_tree(small);
+  std::uint32_t indices[5];
+  float distances[5];
+  ASSERT_EQ(small_tree.knn(Eigen::Vector3f::Zero(), 5, indices, distances), 3);
+  EXPECT_EQ(indices[0], 0u);
+  EXPECT_EQ(indices[1], 2u);
+  EXPECT_EQ(indices[2], 1u);
+}
+
 }  // namespace carat

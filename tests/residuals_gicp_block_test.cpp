@@ -2,7 +2,9 @@
 // weighted extracts, whole correspondences and bad input.
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
+#include <cstdint>
 #include <random>
 #include <string>
 #include <vector>
@@ -190,6 +192,73 @@ TEST(GicpBlockTest, RejectsBadInput) {
     FAIL();
   } catch (const Error& e) {
     EXPECT_STREQ(e.what(), "GicpBlock: correspondence 1 has a non-finite value");
+  }
+}
+
+TEST(GicpBlockTest, IndexedFloatCloudsGiveTheSameRows) {
+  // Float clouds with covariances as 6 unique entries, and pairs of indices into them.
+  std::mt19937_64 rng(11);
+  std::normal_distribution<float> normal;
+  const auto cloud = [&](int n, std::vector<Eigen::Vector3f>* means,
+                         std::vector<Eigen::Matrix<float, 6, 1>>* covariances) {
+    for (int k = 0; k < n; ++k) {
+      means->emplace_back(5.0f * normal(rng), 5.0f * normal(rng), 5.0f * normal(rng));
+      Eigen::Matrix3f A;
+      for (int i = 0; i < 9; ++i) A.data()[i] = normal(rng);
+      const Eigen::Matrix3f C = A * A.transpose() + 0.01f * Eigen::Matrix3f::Identity();
+      Eigen::Matrix<float, 6, 1> c;
+      c << C(0, 0), C(0, 1), C(0, 2), C(1, 1), C(1, 2), C(2, 2);
+      covariances->push_back(c);
+    }
+  };
+  std::vector<Eigen::Vector3f> target_means, source_means;
+  std::vector<Eigen::Matrix<float, 6, 1>> target_covariances, source_covariances;
+  cloud(300, &target_means, &target_covariances);
+  cloud(2500, &source_means, &source_covariances);
+  std::vector<std::array<std::uint32_t, 2>> pairs;
+  std::vector<GicpCorrespondence> correspondences;
+  const auto as_matrix = [](const Eigen::Matrix<float, 6, 1>& c) {
+    Eigen::Matrix3d C;
+    C << c[0], c[1], c[2], c[1], c[3], c[4], c[2], c[4], c[5];
+    return C;
+  };
+  for (std::uint32_t s = 0; s < 2500; s += 1 + s % 3) {
+    const std::uint32_t t = (7 * s) % 300;
+    pairs.push_back({t, s});
+    correspondences.push_back({target_means[t].cast<double>(), as_matrix(target_covariances[t]),
+                               source_means[s].cast<double>(), as_matrix(source_covariances[s])});
+  }
+  const Eigen::Isometry3d T = se3::exp((se3::Vector6d() << 0.1, -0.2, 0.3, 1, 2, -1).finished());
+  const GicpBlock indexed(target_means, target_covariances, source_means, source_covariances, pairs,
+                          T);
+  const GicpBlock reference(correspondences, T);
+  ASSERT_EQ(indexed.num_rows(), reference.num_rows());
+  const Eigen::Isometry3d at = T * se3::exp(se3::Vector6d::Constant(0.01));
+  Eigen::Matrix<double, 6, 6> H_indexed, H_reference;
+  Eigen::Matrix<double, 6, 1> b_indexed, b_reference;
+  EXPECT_EQ(indexed.accumulate_at(at, &H_indexed, &b_indexed),
+            reference.accumulate_at(at, &H_reference, &b_reference));
+  EXPECT_EQ(H_indexed, H_reference);
+  EXPECT_EQ(b_indexed, b_reference);
+
+  pairs[5][0] = 300;
+  try {
+    GicpBlock block(target_means, target_covariances, source_means, source_covariances, pairs, T);
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_STREQ(e.what(), ("GicpBlock: pair 5 names target point 300 of 300 and source point " +
+                            std::to_string(pairs[5][1]) + " of 2500")
+                               .c_str());
+  }
+  pairs[5][0] = 0;
+  source_covariances[pairs[9][1]][3] = -1.0f;  // not positive definite
+  source_means[pairs[40][1]].y() = std::nanf("");
+  try {
+    GicpBlock block(target_means, target_covariances, source_means, source_covariances, pairs, T);
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_STREQ(e.what(),
+                 "GicpBlock: correspondence 9: fused covariance is not positive definite");
   }
 }
 

@@ -2,6 +2,7 @@
 
 #include <pthread.h>
 #include <signal.h>
+#include <sys/resource.h>
 #include <sys/stat.h>
 #include <tbb/info.h>
 #include <unistd.h>
@@ -182,6 +183,12 @@ void check_output_folder(const std::string& option, const std::string& path,
                        " and would be replaced; write the result elsewhere");
     }
   }
+}
+
+std::uint64_t peak_rss_bytes() {
+  rusage usage{};
+  if (getrusage(RUSAGE_SELF, &usage) != 0) return 0;
+  return static_cast<std::uint64_t>(usage.ru_maxrss) * 1024;  // kilobytes on Linux
 }
 
 std::uint64_t available_memory_bytes() {

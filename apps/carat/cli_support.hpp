@@ -64,6 +64,8 @@ std::uint64_t available_memory_bytes();
 /// Bytes free for an unprivileged writer on the file system that holds `path` (or its nearest
 /// existing parent).
 std::uint64_t available_disk_bytes(const std::filesystem::path& path);
+/// The largest resident set this process has had so far, bytes (getrusage's ru_maxrss).
+std::uint64_t peak_rss_bytes();
 /// Bytes as "12.3 MiB" (binary units).
 std::string format_bytes(double bytes);
 

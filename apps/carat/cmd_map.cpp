@@ -69,16 +69,17 @@ struct MapArgs {
   std::string out;
   int threads = 0;
   bool drop_non_finite = false;
+  double max_frame_memory_mb = 0.0;  // 0: every frame in memory
   bool json = false;
 };
 
 /// Refuses a GRE run with full factors that this machine cannot hold: a factor holds at most 96
-/// bytes per source point.
-void check_full_factor_memory(const std::vector<std::shared_ptr<const Frame>>& frames,
+/// bytes per source point (`points`: per frame, after downsampling).
+void check_full_factor_memory(const std::vector<std::size_t>& points,
                               const std::vector<FramePair>& pairs) {
   double bytes = 0.0;
   for (const FramePair& pair : pairs)
-    bytes += 96.0 * static_cast<double>(frames[pair.source]->size());
+    bytes += 96.0 * static_cast<double>(points[static_cast<std::size_t>(pair.source)]);
   const double available = static_cast<double>(available_memory_bytes());
   if (bytes > 0.8 * available) {
     throw UsageError("--sampling full: the " + std::to_string(pairs.size()) +
@@ -193,31 +194,57 @@ int run_map(const CLI::App& command, const MapArgs& args) {
   preprocess.voxel_size = args.voxel;
   ReadOptions read_options;
   read_options.drop_non_finite = args.drop_non_finite;
-  {
-    ProgressBar bar("reading and preprocessing", true);
-    input.frames = preprocess_frames(
-        files.size(),
-        [&](std::size_t k) {
-          PointCloud scan = read_scan(files[k], read_options);
-          // A scan too small as read is named by its own count, before downsampling merges any.
-          if (scan.size() < static_cast<std::size_t>(preprocess.min_points)) {
-            throw Error(files[k].path.string() + ": only " + std::to_string(scan.size()) +
-                        " points (at least " + std::to_string(preprocess.min_points) +
-                        " are needed)");
-          }
-          return scan;
-        },
-        [&](std::size_t k) { return files[k].path.string(); }, preprocess, threads, bar.callback());
-  }
-  const double preprocess_s = preprocess_time.elapsed_s();
-  for (const auto& frame : input.frames) {
-    if (frame->constrained_dof() < 6) {
-      throw Error(frame->name() + ": the scan fixes only " +
-                  std::to_string(frame->constrained_dof()) +
+  // Reads, checks and preprocesses scan k (every frame, whether all are read up front or on
+  // demand); a scan too small as read is named by its own count, before downsampling merges any.
+  const auto read_frame = [&](std::size_t k) {
+    PointCloud scan = read_scan(files[k], read_options);
+    if (scan.size() < static_cast<std::size_t>(preprocess.min_points)) {
+      throw Error(files[k].path.string() + ": only " + std::to_string(scan.size()) +
+                  " points (at least " + std::to_string(preprocess.min_points) + " are needed)");
+    }
+    return scan;
+  };
+  const auto check_frame = [](const Frame& frame) {
+    if (frame.constrained_dof() < 6) {
+      throw Error(frame.name() + ": the scan fixes only " +
+                  std::to_string(frame.constrained_dof()) +
                   " of 6 degrees of freedom (a degenerate scene, e.g. a single plane), so its "
                   "pose cannot be determined by registration");
     }
+  };
+  std::vector<std::size_t> frame_points(files.size(), 0);  // after downsampling
+  if (args.max_frame_memory_mb > 0.0) {
+    input.store = std::make_shared<FrameStore>(
+        files.size(),
+        [&, read_frame, check_frame](std::size_t k) {
+          auto frame = preprocess_frame(read_frame(k), preprocess, files[k].path.string());
+          check_frame(*frame);
+          frame_points[k] = frame->size();
+          return frame;
+        },
+        static_cast<std::size_t>(args.max_frame_memory_mb * 1024.0 * 1024.0));
+    // A cap that cannot hold the two frames of one factor cannot build any: say so up front.
+    const std::size_t pair_bytes =
+        input.store->get(0)->memory_bytes() + input.store->get(1)->memory_bytes();
+    if (static_cast<double>(pair_bytes) > args.max_frame_memory_mb * 1024.0 * 1024.0) {
+      char cap[32];
+      std::snprintf(cap, sizeof(cap), "%g", args.max_frame_memory_mb);
+      throw UsageError("--max-frame-memory " + std::string(cap) +
+                       " MB cannot hold one pair of frames: " + files[0].path.filename().string() +
+                       " and " + files[1].path.filename().string() + " take " +
+                       format_bytes(static_cast<double>(pair_bytes)));
+    }
+  } else {
+    ProgressBar bar("reading and preprocessing", true);
+    input.frames = preprocess_frames(
+        files.size(), read_frame, [&](std::size_t k) { return files[k].path.string(); }, preprocess,
+        threads, bar.callback());
+    for (std::size_t k = 0; k < input.frames.size(); ++k) {
+      check_frame(*input.frames[k]);
+      frame_points[k] = input.frames[k]->size();
+    }
   }
+  const double preprocess_s = preprocess_time.elapsed_s();
   input.T_world_initial =
       has_initial ? relative_to(T_world_anchor, initial.poses)
                   : perturb_poses(reference_poses, args.perturb_m, args.perturb_deg, args.seed);
@@ -234,7 +261,9 @@ int run_map(const CLI::App& command, const MapArgs& args) {
     LoopClosureResult closed;
     {
       ProgressBar bar("closing loops", !args.json);
-      closed = close_loops(input.frames, input.T_world_initial, loop_options, bar.callback());
+      closed = input.store
+                   ? close_loops(*input.store, input.T_world_initial, loop_options, bar.callback())
+                   : close_loops(input.frames, input.T_world_initial, loop_options, bar.callback());
     }
     nlohmann::json rejected = nlohmann::json::object();
     for (LoopVerdict v :
@@ -276,9 +305,12 @@ int run_map(const CLI::App& command, const MapArgs& args) {
   DenseGraphOptions graph_options;
   graph_options.overlap_threshold = args.overlap;
   graph_options.num_threads = threads;
-  input.pairs = build_dense_graph(input.frames, input.T_world_initial, graph_options);
+  const Stopwatch graph_time;
+  input.pairs = input.store ? build_dense_graph(*input.store, input.T_world_initial, graph_options)
+                            : build_dense_graph(input.frames, input.T_world_initial, graph_options);
+  const double graph_s = graph_time.elapsed_s();
   if (args.method == "gre" && sampling == ResidualSampling::kFull) {
-    check_full_factor_memory(input.frames, input.pairs);
+    check_full_factor_memory(frame_points, input.pairs);
   }
 
   if (mpi) mpi->attach({files, read_options, preprocess}, &input);
@@ -316,8 +348,15 @@ int run_map(const CLI::App& command, const MapArgs& args) {
   }
   if (args.json) {
     nlohmann::json j = to_json(result);
-    j["frames"] = input.frames.size();
+    j["frames"] = files.size();
     j["factors"] = input.pairs.size();
+    if (input.store) {
+      const FrameStoreStats stats = input.store->stats();
+      j["frame_store"] = {{"max_bytes", stats.max_bytes}, {"requests", stats.requests},
+                          {"hits", stats.hits},           {"loads", stats.loads},
+                          {"evictions", stats.evictions}, {"peak_bytes", stats.peak_bytes}};
+    }
+    j["peak_rss_bytes"] = peak_rss_bytes();
     j["start"] = has_initial ? "initial" : "reference";
     j["loops"] = loops_json;
     if (initial_ate) {
@@ -327,12 +366,19 @@ int run_map(const CLI::App& command, const MapArgs& args) {
       j["ate_aligned"] = can_align;
     }
     j["preprocess_s"] = preprocess_s;
+    j["dense_graph_s"] = graph_s;
     if (!args.out.empty()) j["out"] = args.out;
     if (mpi) j["mpi"] = mpi->report();
     std::printf("%s\n", j.dump(2).c_str());
   } else {
-    std::printf("carat map: %zu frames from %s, %zu factors in the dense graph\n",
-                input.frames.size(), args.frames.c_str(), input.pairs.size());
+    std::printf("carat map: %zu frames from %s, %zu factors in the dense graph\n", files.size(),
+                args.frames.c_str(), input.pairs.size());
+    if (input.store) {
+      const FrameStoreStats stats = input.store->stats();
+      std::printf("  frames read on demand under %s: %zu reads for %zu requests, at most %s held\n",
+                  format_bytes(static_cast<double>(stats.max_bytes)).c_str(), stats.loads,
+                  stats.requests, format_bytes(static_cast<double>(stats.peak_bytes)).c_str());
+    }
     if (initial_ate && has_initial) {
       std::printf("  start (%s): ATE RMSE %.4f m, %.3f deg\n", args.initial.c_str(),
                   initial_ate->rmse, initial_ate->rotation_rmse_deg);
@@ -440,6 +486,11 @@ void register_map(CLI::App& app, CommandRegistry& registry) {
       ->capture_default_str();
   cmd->add_flag("--drop-non-finite", args->drop_non_finite,
                 "drop NaN / Inf points while reading (default: they are an error)");
+  cmd->add_option("--max-frame-memory", args->max_frame_memory_mb,
+                  "read frames on demand and keep at most this many MB of them (0: read every "
+                  "frame once and keep all)")
+      ->check(zero_or_real_in(1.0, 1e9))
+      ->capture_default_str();
   cmd->add_flag("--json", args->json, "print one JSON object instead of the report");
   registry.add(cmd, [args, cmd] { return run_map(*cmd, *args); });
 }

@@ -23,6 +23,10 @@ std::vector<PairRegistration> register_graph_pairs(const MappingInput& input) {
   AlignSettings settings;
   settings.max_correspondence_distance = input.max_correspondence_distance;
   ProgressBar bar("registering pairs (GICP)", input.progress);
+  if (input.store) {
+    return register_pairs(*input.store, input.pairs, input.T_world_initial, settings, input.threads,
+                          bar.callback());
+  }
   return register_pairs(input.frames, input.pairs, input.T_world_initial, settings, input.threads,
                         bar.callback());
 }
@@ -91,8 +95,10 @@ MethodResult run_registration(const MappingInput& input, ResidualSampling sampli
                                   return input.build_factors(input.pairs, T_world_frame, options);
                                 },
                                 input.pairs, input.T_world_initial, options)
-                          : optimize_registration(input.frames, input.pairs, input.T_world_initial,
-                                                  options, bar.callback());
+      : input.store ? optimize_registration(*input.store, input.pairs, input.T_world_initial,
+                                            options, bar.callback())
+                    : optimize_registration(input.frames, input.pairs, input.T_world_initial,
+                                            options, bar.callback());
   bar.finish();
   out.T_world_frame = result.T_world_frame;
   const TimeBreakdown& t = result.summary.time;

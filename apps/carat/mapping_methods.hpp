@@ -16,6 +16,7 @@
 
 #include "carat/registration/dense_graph.hpp"
 #include "carat/registration/frame.hpp"
+#include "carat/registration/frame_store.hpp"
 #include "carat/registration/global_registration.hpp"
 #include "carat/registration/pair_registration.hpp"
 #include "carat/registration/pose_graph_baseline.hpp"
@@ -25,16 +26,17 @@ namespace carat::cli {
 
 /// What every method starts from.
 struct MappingInput {
-  std::vector<std::shared_ptr<const Frame>> frames;  // preprocessed scans
-  std::vector<FramePair> pairs;                      // the dense graph
-  std::vector<Eigen::Isometry3d> T_world_initial;    // initial guess
-  int threads = 1;                                   // threads for every stage
-  std::uint64_t seed = 1;                            // coreset / random sampling seed
-  int residuals = 29;                                // M
-  double max_correspondence_distance = 1.0;          // metres
-  int rounds = 1;                                    // GRE correspondence rounds
-  double pgo_cauchy_scale = 1.0;                     // Cauchy scale of the PGO baselines
-  double gre_cauchy_scale = 0.0;                     // Cauchy scale per GRE factor (0: none)
+  std::vector<std::shared_ptr<const Frame>> frames;  // preprocessed scans (empty with a store)
+  std::shared_ptr<FrameStore> store;  // frames read on demand instead of `frames`, when set
+  std::vector<FramePair> pairs;       // the dense graph
+  std::vector<Eigen::Isometry3d> T_world_initial;  // initial guess
+  int threads = 1;                                 // threads for every stage
+  std::uint64_t seed = 1;                          // coreset / random sampling seed
+  int residuals = 29;                              // M
+  double max_correspondence_distance = 1.0;        // metres
+  int rounds = 1;                                  // GRE correspondence rounds
+  double pgo_cauchy_scale = 1.0;                   // Cauchy scale of the PGO baselines
+  double gre_cauchy_scale = 0.0;                   // Cauchy scale per GRE factor (0: none)
   double gre_excess_cauchy_scale = 0.0;  // Cauchy scale on each GRE factor's excess (0: none)
   bool progress = true;                  // progress bars on a terminal
   // When set, GRE builds each round's factors (parallel to the pairs) with this instead of from

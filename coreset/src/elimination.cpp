@@ -13,10 +13,10 @@ namespace {
 /// Row-major matrix with rows padded to a multiple of 8 doubles (zeros beyond the columns), so
 /// that row updates run whole vectors from an aligned column on.
 struct PaddedMatrix {
-  std::vector<double> data;  ///< rows x stride, row-major
-  Eigen::Index rows = 0;     ///< number of rows
-  Eigen::Index cols = 0;     ///< number of live columns
-  Eigen::Index stride = 0;   ///< doubles per row (cols rounded up to 8)
+  AlignedDoubles data;      ///< rows x stride, row-major
+  Eigen::Index rows = 0;    ///< number of rows
+  Eigen::Index cols = 0;    ///< number of live columns
+  Eigen::Index stride = 0;  ///< doubles per row (cols rounded up to 8)
 
   /// Shape r x c; contents unspecified except the padding columns, which are zero.
   void resize(Eigen::Index r, Eigen::Index c) {
@@ -180,7 +180,7 @@ Eigen::Index gauss_jordan(PaddedMatrix& T, double tolerance, std::vector<Eigen::
   // Each row's elimination factor per pivot of the current panel (m x kPanel), and the panel
   // itself column-major (kPanel columns of mp rows, rows past m zero).
   const Eigen::Index mp = (m + 7) / 8 * 8;
-  thread_local std::vector<double> F, panel_columns, factor;
+  thread_local AlignedDoubles F, panel_columns, factor;
   F.resize(static_cast<std::size_t>(m * kPanel));
   panel_columns.assign(static_cast<std::size_t>(kPanel * mp), 0.0);
   factor.resize(static_cast<std::size_t>(mp));
@@ -300,9 +300,9 @@ Eigen::Index gauss_jordan(PaddedMatrix& T, double tolerance, std::vector<Eigen::
 /// The tableau of the free columns, column-major: column k holds the coefficients of free point k
 /// on the current basis rows, padded with zeros to a multiple of eight rows.
 struct Tableau {
-  std::vector<double> data;  ///< cols x stride
-  Eigen::Index rows = 0;     ///< basis rows
-  Eigen::Index stride = 0;   ///< rows rounded up to 8
+  AlignedDoubles data;      ///< cols x stride
+  Eigen::Index rows = 0;    ///< basis rows
+  Eigen::Index stride = 0;  ///< rows rounded up to 8
 
   /// Shape r x c; rows [0, r) unspecified (the caller writes them), the padding rows zero.
   void resize(Eigen::Index r, Eigen::Index c) {
@@ -466,7 +466,7 @@ void step_basis(double* __restrict bw, const double* __restrict column, double a
 /// to c - e_i p_i with p_i = c[row[i]] inverse[i], where e_i is the entering column with 1
 /// subtracted at row[i] (so that c[row[i]] becomes p_i).
 struct PendingExchanges {
-  std::vector<double> columns;   ///< e_i, kPanel x stride
+  AlignedDoubles columns;        ///< e_i, kPanel x stride
   Eigen::Index row[kPanel];      ///< basis row of exchange i
   double inverse[kPanel];        ///< 1 / (entering column at row[i])
   double solve[kPanel][kPanel];  ///< column-major: p = sum_j solve[j] s_j, s_j = c[row[j]]
@@ -535,15 +535,18 @@ void apply_exchanges(Tableau& F, Eigen::Index begin, Eigen::Index end, const Pen
 }
 
 /// Row l of T = (the points' coordinate l - its weighted mean) / max |that| over the n points (0
-/// when the coordinate is constant), for l < L; eight-wide partial sums and maxima in a fixed
-/// order. Points not laid out coordinate by coordinate are gathered into T's row first. T's rows
-/// hold stride_t doubles (a multiple of 8, zero past n, and stay so).
+/// when the coordinate is constant), for l < L; eight-wide partial sums in a fixed order. The
+/// largest |p_i - mean| is the larger of pmax - mean and mean - pmin (rounding is monotone and
+/// symmetric), so one pass finds the mean and the range and one more writes the row. Points not
+/// laid out coordinate by coordinate are gathered into T's row first. T's rows hold stride_t
+/// doubles (a multiple of 8, zero past n, and stay so).
 CARAT_MULTIVERSION_WIDE
 void centre_and_scale(const double* points, Eigen::Index L, Eigen::Index n,
                       const PointLayout& layout, const double* __restrict w, double total,
                       double* T, Eigen::Index stride_t) {
   const Eigen::Index whole = n / 8 * 8;
   const bool direct = layout.point_stride == 1 && layout.point_scale == nullptr;
+  constexpr double inf = std::numeric_limits<double>::infinity();
   for (Eigen::Index l = 0; l < L; ++l) {
     double* t = T + l * stride_t;
     const double* p = points + l * layout.coordinate_stride;
@@ -557,44 +560,106 @@ void centre_and_scale(const double* points, Eigen::Index L, Eigen::Index n,
       p = t;  // centred in place below
     }
     v8d acc = v8d{} * 0.0;
+    v8d high = v8d{} - inf;
+    v8d low = v8d{} + inf;
     for (Eigen::Index i = 0; i < whole; i += 8) {
       v8d pv;
       v8d wv;
       __builtin_memcpy(&pv, p + i, sizeof(pv));
       __builtin_memcpy(&wv, w + i, sizeof(wv));
       acc += pv * wv;
+      high = pv > high ? pv : high;
+      low = pv < low ? pv : low;
     }
     double mean = ((acc[0] + acc[1]) + (acc[2] + acc[3])) + ((acc[4] + acc[5]) + (acc[6] + acc[7]));
-    for (Eigen::Index i = whole; i < n; ++i) mean += p[i] * w[i];
+    double pmax = high[0];
+    double pmin = low[0];
+    for (int q = 1; q < 8; ++q) {
+      pmax = std::max(pmax, high[q]);
+      pmin = std::min(pmin, low[q]);
+    }
+    for (Eigen::Index i = whole; i < n; ++i) {
+      mean += p[i] * w[i];
+      pmax = std::max(pmax, p[i]);
+      pmin = std::min(pmin, p[i]);
+    }
     mean /= total;
-    v8d largest = v8d{} * 0.0;
+    const double scale = std::max(pmax - mean, mean - pmin);
+    // Constant coordinates are only centred (to zeros).
+    const double inverse = scale > 0.0 ? 1.0 / scale : 1.0;
     for (Eigen::Index i = 0; i < whole; i += 8) {
       v8d pv;
       __builtin_memcpy(&pv, p + i, sizeof(pv));
-      const v8d d = pv - mean;
-      __builtin_memcpy(t + i, &d, sizeof(d));
-      const v8d a = d < 0.0 ? -d : d;
-      largest = a > largest ? a : largest;
-    }
-    double scale = 0.0;
-    for (int q = 0; q < 8; ++q) scale = std::max(scale, largest[q]);
-    for (Eigen::Index i = whole; i < n; ++i) {
-      t[i] = p[i] - mean;
-      scale = std::max(scale, std::abs(t[i]));
-    }
-    if (!(scale > 0.0)) continue;
-    const double inverse = 1.0 / scale;
-    // Whole vectors over the padded row: the zeros past n stay zero.
-    for (Eigen::Index i = 0; i < stride_t; i += 8) {
-      v8d d;
-      __builtin_memcpy(&d, t + i, sizeof(d));
-      d *= inverse;
+      const v8d d = (pv - mean) * inverse;
       __builtin_memcpy(t + i, &d, sizeof(d));
     }
+    for (Eigen::Index i = whole; i < n; ++i) t[i] = (p[i] - mean) * inverse;
   }
 }
 
+/// solve_square on the augmented matrix [A, b] held as rows (row_of[r], stride doubles each,
+/// zero past column n): forward elimination with the rows below each pivot updated eight
+/// columns at a time from the pivot's block on, then back substitution.
+CARAT_MULTIVERSION_WIDE
+bool solve_rows(double** row_of, Eigen::Index n, Eigen::Index stride, double* x) {
+  for (Eigen::Index k = 0; k < n; ++k) {
+    Eigen::Index best = k;
+    double best_abs = std::abs(row_of[k][k]);
+    for (Eigen::Index r = k + 1; r < n; ++r) {
+      const double a = std::abs(row_of[r][k]);
+      if (a > best_abs) {
+        best_abs = a;
+        best = r;
+      }
+    }
+    if (!(best_abs > 0.0)) return false;
+    std::swap(row_of[k], row_of[best]);
+    const double* __restrict pivot = row_of[k];
+    const double inverse = 1.0 / pivot[k];
+    const Eigen::Index begin = (k + 1) / 8 * 8;
+    for (Eigen::Index r = k + 1; r < n; ++r) {
+      double* __restrict row = row_of[r];
+      const double f = row[k] * inverse;
+      if (f == 0.0) continue;
+      // Columns before k + 1 in the first block are not read again.
+      for (Eigen::Index c = begin; c < stride; c += 8) {
+        v8d v;
+        v8d p;
+        __builtin_memcpy(&v, row + c, sizeof(v));
+        __builtin_memcpy(&p, pivot + c, sizeof(p));
+        v -= f * p;
+        __builtin_memcpy(row + c, &v, sizeof(v));
+      }
+    }
+  }
+  for (Eigen::Index k = n - 1; k >= 0; --k) {
+    const double* row = row_of[k];
+    double sum = row[n];
+    for (Eigen::Index c = k + 1; c < n; ++c) sum -= row[c] * x[c];
+    x[k] = sum / row[k];
+    if (!std::isfinite(x[k])) return false;
+  }
+  return true;
+}
+
 }  // namespace
+
+bool solve_square(const double* A, Eigen::Index n, const double* b, double* x) {
+  // Scratch of this thread, reused (see eliminate).
+  thread_local AlignedDoubles rows;
+  thread_local std::vector<double*> row_of;
+  const Eigen::Index stride = (n + 1 + 7) / 8 * 8;
+  rows.assign(static_cast<std::size_t>(n * stride), 0.0);
+  row_of.resize(static_cast<std::size_t>(n));
+  for (Eigen::Index r = 0; r < n; ++r)
+    row_of[static_cast<std::size_t>(r)] = rows.data() + r * stride;
+  for (Eigen::Index c = 0; c < n; ++c) {
+    for (Eigen::Index r = 0; r < n; ++r)
+      rows[static_cast<std::size_t>(r * stride + c)] = A[c * n + r];
+  }
+  for (Eigen::Index r = 0; r < n; ++r) rows[static_cast<std::size_t>(r * stride + n)] = b[r];
+  return solve_rows(row_of.data(), n, stride, x);
+}
 
 const std::vector<char>& eliminate(const double* points, Eigen::Index L, Eigen::Index n,
                                    const PointLayout& layout, double* weights,
@@ -634,7 +699,7 @@ const std::vector<char>& eliminate(const double* points, Eigen::Index L, Eigen::
   thread_local std::vector<Eigen::Index> basic;
   basic.assign(pivot_col.begin(), pivot_col.end());
   // The basis points' weights by basis row (padding rows stay 0), written back at the end.
-  thread_local std::vector<double> bw, ratio;
+  thread_local AlignedDoubles bw, ratio;
   bw.assign(static_cast<std::size_t>(F.stride), 0.0);
   ratio.resize(static_cast<std::size_t>(F.stride));
   for (Eigen::Index r = 0; r < rank; ++r)

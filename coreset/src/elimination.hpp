@@ -27,4 +27,8 @@ const std::vector<char>& eliminate(const double* points, Eigen::Index L, Eigen::
                                    const PointLayout& layout, double* weights,
                                    std::span<const long> sizes, long min_rows);
 
+/// Solves A x = b for a square A (n x n, column-major) by an LU factorization with partial
+/// pivoting. Returns false (x unspecified) when A has a zero pivot or x is not finite.
+bool solve_square(const double* A, Eigen::Index n, const double* b, double* x);
+
 }  // namespace carat::internal

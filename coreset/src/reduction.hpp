@@ -10,12 +10,14 @@
 #include <Eigen/Core>
 #include <vector>
 
+#include "simd.hpp"
+
 namespace carat::internal {
 
 /// Items of a reduction: their lifted sums, row counts and per-row weights. Storage only grows
 /// (reuse one Items across calls to avoid page faults on fresh memory).
 struct Items {
-  std::vector<double> sums;    ///< L per item, item-major; items [0, size()) are live
+  AlignedDoubles sums;         ///< L per item, item-major; items [0, size()) are live
   std::vector<long> counts;    ///< rows per item
   std::vector<double> weight;  ///< weight of each row of the item
   std::vector<int> ids;        ///< caller's id of each item

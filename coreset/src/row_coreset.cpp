@@ -1,7 +1,6 @@
 #include "carat/coreset/row_coreset.hpp"
 
 #include <Eigen/Cholesky>
-#include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
 #include <deque>
@@ -10,6 +9,7 @@
 #include <string>
 
 #include "carat/base/error.hpp"
+#include "elimination.hpp"
 #include "lift.hpp"
 #include "reduction.hpp"
 #include "shuffle.hpp"
@@ -68,10 +68,8 @@ void polish_weights(const double* J, const double* e, int r, const Eigen::Vector
   };
   // Exactly L + 1 rows (the minimum): the correction is P^-1 residual when P is regular.
   if (m == L + 1) {
-    thread_local Eigen::PartialPivLU<Eigen::MatrixXd> lu;
-    lu.compute(P);
-    delta.noalias() = lu.solve(residual);
-    if (accept()) return;
+    delta.resize(m);
+    if (internal::solve_square(P.data(), m, residual.data(), delta.data()) && accept()) return;
   }
   // Minimum-norm correction through the (L+1) x (L+1) Gram matrix (semi-definite LDL^T: the
   // directions the rows do not span get no correction, and need none).

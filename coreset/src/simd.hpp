@@ -18,7 +18,33 @@ inline bool cpu_has_avx512() {
 }  // namespace carat::internal
 #endif
 
+#include <cstddef>
+#include <new>
+#include <vector>
+
 namespace carat::internal {
+/// Allocator of 64-byte aligned storage: a vector of eight doubles from the start of such a
+/// buffer then never straddles two cache lines (plain heap blocks are 16-byte aligned).
+template <class T>
+struct CacheAligned {
+  using value_type = T;
+  static constexpr std::align_val_t kAlignment{64};
+  CacheAligned() = default;
+  template <class U>
+  CacheAligned(const CacheAligned<U>&) {}
+  /// Storage for n values.
+  T* allocate(std::size_t n) { return static_cast<T*>(::operator new(n * sizeof(T), kAlignment)); }
+  /// Frees storage from allocate.
+  void deallocate(T* p, std::size_t) { ::operator delete(p, kAlignment); }
+  template <class U>
+  bool operator==(const CacheAligned<U>&) const {
+    return true;
+  }
+};
+
+/// A vector of doubles whose data start on a cache line.
+using AlignedDoubles = std::vector<double, CacheAligned<double>>;
+
 /// Whether the eight-wide lift kernels (and rows kept packed) pay off: with AVX-512, whose 32
 /// registers hold their accumulators; under AddressSanitizer too, to check them; elsewhere the
 /// accumulators would spill and the four-wide kernels over lifted rows are faster.

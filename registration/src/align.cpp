@@ -6,7 +6,9 @@
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <memory>
 #include <string>
@@ -24,23 +26,26 @@
 namespace carat {
 namespace {
 
-/// The residual block of `method` over the correspondences, built at T.
-std::shared_ptr<const ResidualBlock> make_block(RegistrationMethod method,
-                                                const std::vector<GicpCorrespondence>& pairs,
-                                                const Eigen::Isometry3d& T) {
-  if (method == RegistrationMethod::kGicp) return std::make_shared<GicpBlock>(pairs, T);
-  std::vector<Eigen::Vector3d> target, source, normal;
-  for (const auto& p : pairs) {
-    target.push_back(p.mean_target);
-    source.push_back(p.mean_source);
+/// The residual block of `method` over the pairs (target index, source index), built at T.
+std::shared_ptr<const ResidualBlock> make_block(
+    RegistrationMethod method, const PointCloud& target, const PointCloud& source,
+    const std::vector<std::array<std::uint32_t, 2>>& pairs, const Eigen::Isometry3d& T) {
+  if (method == RegistrationMethod::kGicp) {
+    return std::make_shared<GicpBlock>(target.points, target.covariances, source.points,
+                                       source.covariances, pairs, T);
+  }
+  std::vector<Eigen::Vector3d> target_means, source_means, normal;
+  for (const auto& [t, s] : pairs) {
+    target_means.push_back(target.point(t));
+    source_means.push_back(source.point(s));
     if (method == RegistrationMethod::kPointToPlane) {
-      const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(p.covariance_target);
+      const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(target.covariance(t));
       normal.push_back(eig.eigenvectors().col(0));
     }
   }
   if (method == RegistrationMethod::kPointToPlane)
-    return std::make_shared<PointToPlaneBlock>(target, normal, source);
-  return std::make_shared<PointToPointBlock>(target, source);
+    return std::make_shared<PointToPlaneBlock>(target_means, normal, source_means);
+  return std::make_shared<PointToPointBlock>(target_means, source_means);
 }
 
 std::string format_number(double value) {
@@ -86,11 +91,11 @@ AlignResult align(const PointCloud& target, const KdTree& target_tree, const Poi
     options.num_threads = threads;
     options.record_iterations = false;
     std::shared_ptr<const ResidualBlock> last_block;
+    std::vector<std::array<std::uint32_t, 2>> pairs;  // of the last search
     for (int iteration = 0; iteration < settings.max_iterations; ++iteration) {
       Stopwatch stage;
-      const std::vector<GicpCorrespondence> pairs =
-          find_correspondences(target, target_tree, source, result.T_target_source,
-                               settings.max_correspondence_distance);
+      pairs = find_nearest_pairs(target, target_tree, source, result.T_target_source,
+                                 settings.max_correspondence_distance, pairs);
       result.search_s += stage.restart();
       if (static_cast<int>(pairs.size()) < settings.min_correspondences) {
         char distance[32];
@@ -99,7 +104,7 @@ AlignResult align(const PointCloud& target, const KdTree& target_tree, const Poi
                     " m (need " + std::to_string(settings.min_correspondences) +
                     "); the clouds do not overlap at this estimate");
       }
-      const auto block = make_block(settings.method, pairs, result.T_target_source);
+      const auto block = make_block(settings.method, target, source, pairs, result.T_target_source);
       last_block = block;
       Problem problem;
       const VariableId target_pose = problem.add_se3(Eigen::Isometry3d::Identity());
@@ -130,10 +135,10 @@ AlignResult align(const PointCloud& target, const KdTree& target_tree, const Poi
     // below tolerance (they are those of the result), else with a fresh search.
     std::shared_ptr<const ResidualBlock> block = result.converged ? last_block : nullptr;
     if (!block) {
-      const std::vector<GicpCorrespondence> pairs =
-          find_correspondences(target, target_tree, source, result.T_target_source,
-                               settings.max_correspondence_distance);
-      if (!pairs.empty()) block = make_block(settings.method, pairs, result.T_target_source);
+      pairs = find_nearest_pairs(target, target_tree, source, result.T_target_source,
+                                 settings.max_correspondence_distance, pairs);
+      if (!pairs.empty())
+        block = make_block(settings.method, target, source, pairs, result.T_target_source);
     }
     if (block) {
       double identity[7], pose[7];

@@ -38,10 +38,12 @@ void estimate_covariances(PointCloud& cloud, const KdTree& tree, const Covarianc
       }
       mean /= found;
       const Eigen::Matrix3d C = second / found - mean * mean.transpose();
-      const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(C);
-      const Eigen::Vector3d values(1e-3, 1.0, 1.0);  // ascending: the normal gets 1e-3
-      cloud.set_covariance(
-          i, eig.eigenvectors() * values.asDiagonal() * eig.eigenvectors().transpose());
+      // V diag(1e-3, 1, 1) V^T = I - (1 - 1e-3) n n^T with n the eigenvector of the smallest
+      // eigenvalue (the normal): only n is needed, from the closed-form 3 x 3 solver.
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
+      eig.computeDirect(C);
+      const Eigen::Vector3d n = eig.eigenvectors().col(0).normalized();
+      cloud.set_covariance(i, Eigen::Matrix3d::Identity() - (1.0 - 1e-3) * n * n.transpose());
     }
   };
   tbb::task_arena arena(std::clamp(options.num_threads, 1, tbb::info::default_concurrency()));

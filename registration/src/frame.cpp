@@ -84,7 +84,7 @@ std::shared_ptr<const Frame> preprocess_frame(const PointCloud& raw,
     throw Error(name + ": min_points must be >= 4, got " + std::to_string(options.min_points));
   PointCloud cloud;
   try {
-    cloud = voxel_downsample(raw, options.voxel_size);
+    cloud = voxel_downsample(raw, options.voxel_size, options.num_threads);
   } catch (const Error& e) {
     throw Error(name + ": " + e.what());
   }

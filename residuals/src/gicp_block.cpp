@@ -1,8 +1,10 @@
 #include "carat/residuals/gicp_block.hpp"
 
+#include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
 #include <array>
+#include <atomic>
 #include <cmath>
 #include <string>
 
@@ -99,6 +101,33 @@ struct Pose {
   J[5] = -a2;
 }
 
+/// The whitening W of the fused covariance C_target + R C_source R^T, both given by their upper
+/// triangles (xx xy xz yy yz zz); false unless it is positive definite.
+bool fused_whitening(const std::array<double, 6>& target, const std::array<double, 6>& source,
+                     const Eigen::Matrix3d& R, std::array<double, 6>* W) {
+  const double s00 = source[0], s01 = source[1], s02 = source[2], s11 = source[3], s12 = source[4],
+               s22 = source[5];
+  double M[3][3];  // R C_source
+  for (int i = 0; i < 3; ++i) {
+    M[i][0] = R(i, 0) * s00 + R(i, 1) * s01 + R(i, 2) * s02;
+    M[i][1] = R(i, 0) * s01 + R(i, 1) * s11 + R(i, 2) * s12;
+    M[i][2] = R(i, 0) * s02 + R(i, 1) * s12 + R(i, 2) * s22;
+  }
+  const auto rotated = [&](int i, int j) {
+    return M[i][0] * R(j, 0) + M[i][1] * R(j, 1) + M[i][2] * R(j, 2);
+  };
+  const std::array<double, 6> fused = {target[0] + rotated(0, 0), target[1] + rotated(0, 1),
+                                       target[2] + rotated(0, 2), target[3] + rotated(1, 1),
+                                       target[4] + rotated(1, 2), target[5] + rotated(2, 2)};
+  return whitening_of(fused, W);
+}
+
+/// The upper triangle of sym(A) = (A + A^T) / 2.
+std::array<double, 6> symmetric_part(const Eigen::Matrix3d& A) {
+  return {A(0, 0), 0.5 * (A(0, 1) + A(1, 0)), 0.5 * (A(0, 2) + A(2, 0)),
+          A(1, 1), 0.5 * (A(1, 2) + A(2, 1)), A(2, 2)};
+}
+
 }  // namespace
 
 GicpBlock::GicpBlock(std::span<const GicpCorrespondence> correspondences,
@@ -117,29 +146,9 @@ GicpBlock::GicpBlock(std::span<const GicpCorrespondence> correspondences,
          !c.covariance_target.allFinite() || !c.covariance_source.allFinite())) {
       throw Error("GicpBlock: correspondence " + std::to_string(k) + " has a non-finite value");
     }
-    // fused = sym(C_target) + R sym(C_source) R^T, upper triangle only, in scalars.
-    const Eigen::Matrix3d& A = c.covariance_source;
-    const double s00 = A(0, 0), s11 = A(1, 1), s22 = A(2, 2);
-    const double s01 = 0.5 * (A(0, 1) + A(1, 0)), s02 = 0.5 * (A(0, 2) + A(2, 0)),
-                 s12 = 0.5 * (A(1, 2) + A(2, 1));
-    double M[3][3];  // R sym(C_source)
-    for (int i = 0; i < 3; ++i) {
-      M[i][0] = R(i, 0) * s00 + R(i, 1) * s01 + R(i, 2) * s02;
-      M[i][1] = R(i, 0) * s01 + R(i, 1) * s11 + R(i, 2) * s12;
-      M[i][2] = R(i, 0) * s02 + R(i, 1) * s12 + R(i, 2) * s22;
-    }
-    const auto rotated = [&](int i, int j) {
-      return M[i][0] * R(j, 0) + M[i][1] * R(j, 1) + M[i][2] * R(j, 2);
-    };
-    const Eigen::Matrix3d& B = c.covariance_target;
-    const std::array<double, 6> fused = {B(0, 0) + rotated(0, 0),
-                                         0.5 * (B(0, 1) + B(1, 0)) + rotated(0, 1),
-                                         0.5 * (B(0, 2) + B(2, 0)) + rotated(0, 2),
-                                         B(1, 1) + rotated(1, 1),
-                                         0.5 * (B(1, 2) + B(2, 1)) + rotated(1, 2),
-                                         B(2, 2) + rotated(2, 2)};
     std::array<double, 6> W;
-    if (!whitening_of(fused, &W)) {
+    if (!fused_whitening(symmetric_part(c.covariance_target), symmetric_part(c.covariance_source),
+                         R, &W)) {
       throw Error("GicpBlock: correspondence " + std::to_string(k) +
                   ": fused covariance is not positive definite");
     }
@@ -148,6 +157,70 @@ GicpBlock::GicpBlock(std::span<const GicpCorrespondence> correspondences,
     p.source = {c.mean_source.x(), c.mean_source.y(), c.mean_source.z()};
     p.whitening = W;
     points_.push_back(p);
+  }
+}
+
+GicpBlock::GicpBlock(std::span<const Eigen::Vector3f> target_means,
+                     std::span<const Eigen::Matrix<float, 6, 1>> target_covariances,
+                     std::span<const Eigen::Vector3f> source_means,
+                     std::span<const Eigen::Matrix<float, 6, 1>> source_covariances,
+                     std::span<const std::array<std::uint32_t, 2>> pairs,
+                     const Eigen::Isometry3d& T_target_source) {
+  if (pairs.empty()) throw Error("GicpBlock: no correspondences");
+  if (target_covariances.size() != target_means.size() ||
+      source_covariances.size() != source_means.size()) {
+    throw Error("GicpBlock: " + std::to_string(target_means.size()) + " target means but " +
+                std::to_string(target_covariances.size()) + " covariances, " +
+                std::to_string(source_means.size()) + " source means but " +
+                std::to_string(source_covariances.size()) + " covariances");
+  }
+  const Eigen::Matrix3d R = T_target_source.linear();
+  enum Fault : int { kNone, kIndex, kNonFinite, kNotPositiveDefinite };
+  // Point k, or why it cannot be built.
+  const auto make = [&](std::size_t k, Point* p) {
+    const auto [t, s] = pairs[k];
+    if (t >= target_means.size() || s >= source_means.size()) return kIndex;
+    const Eigen::Vector3f& mt = target_means[t];
+    const Eigen::Vector3f& ms = source_means[s];
+    const Eigen::Matrix<float, 6, 1>& ct = target_covariances[t];
+    const Eigen::Matrix<float, 6, 1>& cs = source_covariances[s];
+    if (!std::isfinite(mt.sum() + ms.sum() + ct.sum() + cs.sum()) &&
+        (!mt.allFinite() || !ms.allFinite() || !ct.allFinite() || !cs.allFinite())) {
+      return kNonFinite;
+    }
+    const std::array<double, 6> target = {ct[0], ct[1], ct[2], ct[3], ct[4], ct[5]};
+    const std::array<double, 6> source = {cs[0], cs[1], cs[2], cs[3], cs[4], cs[5]};
+    if (!fused_whitening(target, source, R, &p->whitening)) return kNotPositiveDefinite;
+    p->target = {mt.x(), mt.y(), mt.z()};
+    p->source = {ms.x(), ms.y(), ms.z()};
+    return kNone;
+  };
+  points_.resize(pairs.size());
+  std::atomic<std::size_t> first_fault{pairs.size()};
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, pairs.size(), 1024), [&](const auto& range) {
+    for (std::size_t k = range.begin(); k != range.end(); ++k) {
+      if (make(k, &points_[k]) == kNone) continue;
+      std::size_t seen = first_fault.load(std::memory_order_relaxed);
+      while (k < seen && !first_fault.compare_exchange_weak(seen, k, std::memory_order_relaxed)) {
+      }
+      return;
+    }
+  });
+  // The first faulty pair, whatever the scheduling was.
+  const std::size_t k = first_fault.load();
+  if (k == pairs.size()) return;
+  Point unused;
+  switch (make(k, &unused)) {
+    case kIndex:
+      throw Error("GicpBlock: pair " + std::to_string(k) + " names target point " +
+                  std::to_string(pairs[k][0]) + " of " + std::to_string(target_means.size()) +
+                  " and source point " + std::to_string(pairs[k][1]) + " of " +
+                  std::to_string(source_means.size()));
+    case kNonFinite:
+      throw Error("GicpBlock: correspondence " + std::to_string(k) + " has a non-finite value");
+    default:
+      throw Error("GicpBlock: correspondence " + std::to_string(k) +
+                  ": fused covariance is not positive definite");
   }
 }
 
@@ -200,39 +273,74 @@ void GicpBlock::evaluate_rows(ParameterPointers params, std::span<const int> row
   }
 }
 
-double GicpBlock::accumulate_at(const Eigen::Isometry3d& T, Eigen::Matrix<double, 6, 6>* H_out,
+double GicpBlock::accumulate_at(const Eigen::Isometry3d& T_target_source,
+                                Eigen::Matrix<double, 6, 6>* H_out,
                                 Eigen::Matrix<double, 6, 1>* b_out) const {
-  const Eigen::Matrix3d R = T.linear();
+  const Pose T(T_target_source);
+  const double* R = T.r;  // column-major: R(i, j) = R[i + 3 j]
   const std::size_t n = points_.size();
   const std::size_t chunks = (n + kChunk - 1) / kChunk;
-  struct Partial {
-    Eigen::Matrix<double, 6, 6> H = Eigen::Matrix<double, 6, 6>::Zero();
-    Eigen::Matrix<double, 6, 1> b = Eigen::Matrix<double, 6, 1>::Zero();
-    double c = 0.0;
-  };
+  // Per chunk: the upper triangle of H (21, row by row), b (6) and c.
+  using Partial = std::array<double, 28>;
   std::vector<Partial> partial(chunks);
   const auto work = [&](std::size_t chunk) {
-    Partial& out = partial[chunk];
+    Partial sum{};
     const std::size_t end = std::min(n, (chunk + 1) * kChunk);
     for (std::size_t k = chunk * kChunk; k < end; ++k) {
       const Point& p = points_[k];
-      Eigen::Matrix3d W;
-      W << p.whitening[0], p.whitening[1], p.whitening[2], 0.0, p.whitening[3], p.whitening[4], 0.0,
-          0.0, p.whitening[5];
-      const Eigen::Vector3d mu(p.source[0], p.source[1], p.source[2]);
-      const Eigen::Vector3d r =
-          W * (Eigen::Vector3d(p.target[0], p.target[1], p.target[2]) - T * mu);
-      const Eigen::Matrix3d WR = W * R;
-      Eigen::Matrix<double, 3, 6> J;
-      for (int c = 0; c < 3; ++c) {
-        const Eigen::Vector3d w = WR.row(c).transpose();
-        J.block<1, 3>(c, 0) = w.cross(mu).transpose();
-        J.block<1, 3>(c, 3) = -w.transpose();
+      const double w0 = p.whitening[0], w1 = p.whitening[1], w2 = p.whitening[2];
+      const double w3 = p.whitening[3], w4 = p.whitening[4], w5 = p.whitening[5];
+      const double m0 = p.source[0], m1 = p.source[1], m2 = p.source[2];
+      const std::array<double, 3> d = T.difference(p.target, p.source);
+      // r = W d; the Jacobian is J = M G with M = W R and G = [[mu]x, -I].
+      const double r0 = w0 * d[0] + w1 * d[1] + w2 * d[2], r1 = w3 * d[1] + w4 * d[2],
+                   r2 = w5 * d[2];
+      double M[3][3];
+      for (int j = 0; j < 3; ++j) {
+        const double R0 = R[3 * j], R1 = R[1 + 3 * j], R2 = R[2 + 3 * j];
+        M[0][j] = w0 * R0 + w1 * R1 + w2 * R2;
+        M[1][j] = w3 * R1 + w4 * R2;
+        M[2][j] = w5 * R2;
       }
-      out.H.noalias() += J.transpose() * J;
-      out.b.noalias() += J.transpose() * r;
-      out.c += r.squaredNorm();
+      // A = M^T M and v = M^T r.
+      double A[3][3], v[3];
+      for (int i = 0; i < 3; ++i) {
+        for (int j = i; j < 3; ++j)
+          A[i][j] = M[0][i] * M[0][j] + M[1][i] * M[1][j] + M[2][i] * M[2][j];
+        v[i] = M[0][i] * r0 + M[1][i] * r1 + M[2][i] * r2;
+      }
+      A[1][0] = A[0][1];
+      A[2][0] = A[0][2];
+      A[2][1] = A[1][2];
+      // H = G^T A G = [-S A S, S A; -A S, A] with S = [mu]x; b = G^T v = [v x mu; -v].
+      double C[3][3];  // S A
+      for (int j = 0; j < 3; ++j) {
+        C[0][j] = m1 * A[2][j] - m2 * A[1][j];
+        C[1][j] = m2 * A[0][j] - m0 * A[2][j];
+        C[2][j] = m0 * A[1][j] - m1 * A[0][j];
+      }
+      double E[3][3];  // -S A S = -C S, upper triangle
+      for (int i = 0; i < 3; ++i) {
+        E[i][0] = C[i][2] * m1 - C[i][1] * m2;
+        E[i][1] = C[i][0] * m2 - C[i][2] * m0;
+        E[i][2] = C[i][1] * m0 - C[i][0] * m1;
+      }
+      int at = 0;
+      for (int i = 0; i < 3; ++i) {
+        for (int j = i; j < 3; ++j) sum[at++] += E[i][j];
+        for (int j = 0; j < 3; ++j) sum[at++] += C[i][j];
+      }
+      for (int i = 0; i < 3; ++i)
+        for (int j = i; j < 3; ++j) sum[at++] += A[i][j];
+      sum[21] += v[1] * m2 - v[2] * m1;
+      sum[22] += v[2] * m0 - v[0] * m2;
+      sum[23] += v[0] * m1 - v[1] * m0;
+      sum[24] -= v[0];
+      sum[25] -= v[1];
+      sum[26] -= v[2];
+      sum[27] += r0 * r0 + r1 * r1 + r2 * r2;
     }
+    partial[chunk] = sum;
   };
   if (chunks > 1) {
     tbb::parallel_for(std::size_t{0}, chunks, work);
@@ -240,15 +348,18 @@ double GicpBlock::accumulate_at(const Eigen::Isometry3d& T, Eigen::Matrix<double
     work(0);
   }
   // Sum the chunks in a fixed order: the same result with any number of threads.
-  Partial total;
-  for (const Partial& p : partial) {
-    total.H += p.H;
-    total.b += p.b;
-    total.c += p.c;
+  Partial total{};
+  for (const Partial& p : partial)
+    for (std::size_t i = 0; i < total.size(); ++i) total[i] += p[i];
+  int at = 0;
+  for (int i = 0; i < 6; ++i) {
+    for (int j = i; j < 6; ++j) {
+      (*H_out)(i, j) = total[static_cast<std::size_t>(at++)];
+      (*H_out)(j, i) = (*H_out)(i, j);
+    }
   }
-  *H_out = total.H;
-  *b_out = total.b;
-  return total.c;
+  for (int i = 0; i < 6; ++i) (*b_out)[i] = total[21 + static_cast<std::size_t>(i)];
+  return total[27];
 }
 
 double GicpBlock::accumulate(ParameterPointers params, Eigen::Ref<Eigen::MatrixXd> H_r,
@@ -264,15 +375,31 @@ double GicpBlock::accumulate(ParameterPointers params, Eigen::Ref<Eigen::MatrixX
 
 double GicpBlock::squared_norm(ParameterPointers params) const {
   if (!rows_.empty()) return ResidualBlock::squared_norm(params);
-  const Eigen::Isometry3d T = relative_pose(params);
-  double c = 0.0;
-  for (const Point& p : points_) {
-    Eigen::Matrix3d W;
-    W << p.whitening[0], p.whitening[1], p.whitening[2], 0.0, p.whitening[3], p.whitening[4], 0.0,
-        0.0, p.whitening[5];
-    const Eigen::Vector3d mu(p.source[0], p.source[1], p.source[2]);
-    c += (W * (Eigen::Vector3d(p.target[0], p.target[1], p.target[2]) - T * mu)).squaredNorm();
+  const Pose T(relative_pose(params));
+  const std::size_t n = points_.size();
+  const std::size_t chunks = (n + kChunk - 1) / kChunk;
+  std::vector<double> partial(chunks, 0.0);
+  const auto work = [&](std::size_t chunk) {
+    double c = 0.0;
+    const std::size_t end = std::min(n, (chunk + 1) * kChunk);
+    for (std::size_t k = chunk * kChunk; k < end; ++k) {
+      const Point& p = points_[k];
+      const std::array<double, 3> d = T.difference(p.target, p.source);
+      const double r0 = p.whitening[0] * d[0] + p.whitening[1] * d[1] + p.whitening[2] * d[2];
+      const double r1 = p.whitening[3] * d[1] + p.whitening[4] * d[2];
+      const double r2 = p.whitening[5] * d[2];
+      c += r0 * r0 + r1 * r1 + r2 * r2;
+    }
+    partial[chunk] = c;
+  };
+  if (chunks > 1) {
+    tbb::parallel_for(std::size_t{0}, chunks, work);
+  } else {
+    work(0);
   }
+  // In a fixed order, as accumulate_at() sums: the same cost with any number of threads.
+  double c = 0.0;
+  for (const double p : partial) c += p;
   return c;
 }
 

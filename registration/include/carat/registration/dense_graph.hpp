@@ -54,6 +54,6 @@ std::vector<FramePair> build_dense_graph(
 /// non-finite pose or cell_size <= 0.
 std::vector<std::size_t> locality_order(std::span<const FramePair> pairs,
                                         std::span<const Eigen::Isometry3d> T_world_frame,
-                                        double cell_size = 25.0);
+                                        double cell_size = 10.0);
 
 }  // namespace carat

@@ -20,7 +20,7 @@ struct PreprocessOptions {
   double voxel_size = 0.5;        ///< downsampling voxel edge, metres (> 0)
   int covariance_neighbors = 10;  ///< k of the covariance estimate (>= 4)
   int min_points = 29;            ///< fewer points after downsampling is an error
-  int num_threads = 1;            ///< threads for the covariance estimate
+  int num_threads = 1;            ///< threads for the voxel grid and the covariance estimate
 };
 
 /// A downsampled cloud with covariances and its k-d tree (immutable once built).

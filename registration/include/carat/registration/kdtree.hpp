@@ -1,6 +1,7 @@
 #pragma once
 
-/// k-nearest-neighbour search over a point cloud's positions (nanoflann k-d tree).
+/// k-nearest-neighbour search over a point cloud's positions: a k-d tree split at the median of
+/// each cell's widest axis, its leaves' positions stored contiguously.
 
 #include <Eigen/Core>
 #include <cstddef>
@@ -15,7 +16,7 @@ namespace carat {
 /// A k-d tree over the positions of a cloud; the cloud must outlive the tree and not change.
 class KdTree {
  public:
-  /// Builds the tree (leaf size 10). An empty cloud gives a tree that finds nothing.
+  /// Builds the tree (up to 20 points a leaf). An empty cloud gives a tree that finds nothing.
   explicit KdTree(const PointCloud& cloud);
   ~KdTree();
   KdTree(const KdTree&) = delete;

@@ -44,6 +44,16 @@ class GicpBlock final : public ResidualBlock, public AffinePoseRows {
   /// covariance is not positive definite.
   GicpBlock(std::span<const GicpCorrespondence> correspondences,
             const Eigen::Isometry3d& T_target_source);
+  /// The same rows for the pairs (target index, source index) of two clouds held as float means
+  /// and covariance upper triangles (xx xy xz yy yz zz), without a GicpCorrespondence per pair;
+  /// built in parallel in the calling TBB arena (the rows do not depend on the thread count).
+  /// Throws carat::Error as above (naming the first faulty pair), and for an index out of range.
+  GicpBlock(std::span<const Eigen::Vector3f> target_means,
+            std::span<const Eigen::Matrix<float, 6, 1>> target_covariances,
+            std::span<const Eigen::Vector3f> source_means,
+            std::span<const Eigen::Matrix<float, 6, 1>> source_covariances,
+            std::span<const std::array<std::uint32_t, 2>> pairs,
+            const Eigen::Isometry3d& T_target_source);
 
   int num_rows() const override {
     return static_cast<int>(rows_.empty() ? 3 * points_.size() : rows_.size());

@@ -1,0 +1,213 @@
+// FrameStore: frames on demand under a byte cap (least recently used dropped first, frames in
+// use kept, loader errors passed on and retried), the locality order of pairs, and the dense
+// graph, factors, registration and loop closure from a capped store equal to the resident run.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <array>
+#include <atomic>
+#include <memory>
+#include <numeric>
+#include <string>
+#include <vector>
+
+#include "carat/base/error.hpp"
+#include "carat/registration/dense_graph.hpp"
+#include "carat/registration/frame_store.hpp"
+#include "carat/registration/global_registration.hpp"
+#include "carat/registration/pair_registration.hpp"
+#include "carat/sim/pipeline.hpp"
+#include "carat/solver/se3.hpp"
+#include "test_support.hpp"
+
+namespace carat {
+namespace {
+
+using test::error_of;
+using ::testing::HasSubstr;
+
+/// 24 frames of one lap (8 m apart), preprocessed once; the stores below hand these out.
+struct Drive {
+  std::vector<std::shared_ptr<const Frame>> frames;
+  std::vector<Eigen::Isometry3d> initial;
+};
+
+const Drive& drive() {
+  static const Drive d = [] {
+    SyntheticPipelineOptions options;
+    options.world.seed = 11;
+    options.drive.frames = 24;
+    options.drive.laps = 1;
+    options.preprocess.voxel_size = 0.5;
+    options.drift = {.seed = 5, .translation_sigma = 0.01, .rotation_sigma_deg = 0.05};
+    options.odometry = false;
+    options.dense_graph = false;
+    options.threads = 2;
+    SyntheticPipeline pipeline = simulate_pipeline(options);
+    return Drive{std::move(pipeline.frames), std::move(pipeline.T_world_drift)};
+  }();
+  return d;
+}
+
+/// A fresh frame with drive()'s frame k's points and covariances (as a loader reads one).
+std::shared_ptr<const Frame> copy_of_frame(std::size_t k) {
+  auto frame = std::make_shared<Frame>(PointCloud(drive().frames[k]->cloud()));
+  frame->set_name("frame " + std::to_string(k));
+  return frame;
+}
+
+/// A store of copies of drive()'s frames that counts its loader's calls, capped at
+/// `frames_held` times the largest frame's bytes; with `same_frame`, every index gets a copy of
+/// frame 0 (all frames the same size).
+struct CountingStore {
+  std::shared_ptr<std::atomic<int>> calls = std::make_shared<std::atomic<int>>(0);
+  std::unique_ptr<FrameStore> store;
+  explicit CountingStore(double frames_held, bool same_frame = false) {
+    std::size_t largest = 0;
+    for (std::size_t k = 0; k < drive().frames.size(); ++k)
+      largest = std::max(largest, copy_of_frame(same_frame ? 0 : k)->memory_bytes());
+    auto counter = calls;
+    store = std::make_unique<FrameStore>(
+        drive().frames.size(),
+        [counter, same_frame](std::size_t k) {
+          ++*counter;
+          return copy_of_frame(same_frame ? 0 : k);
+        },
+        static_cast<std::size_t>(frames_held * static_cast<double>(largest)));
+  }
+};
+
+TEST(FrameStoreTest, LoadsOnDemandAndDropsTheLeastRecentlyUsed) {
+  CountingStore s(3.5, true);  // room for three frames
+  FrameStore& store = *s.store;
+  EXPECT_FALSE(store.resident());
+  EXPECT_EQ(store.get(0)->cloud().points, drive().frames[0]->cloud().points);
+  store.get(1);
+  store.get(2);
+  store.get(0);  // 0 is now the most recently used; 1 the least
+  EXPECT_EQ(*s.calls, 3);
+  store.get(3);  // drops 1
+  store.get(0);
+  store.get(2);
+  EXPECT_EQ(*s.calls, 4);
+  store.get(1);  // read again
+  EXPECT_EQ(*s.calls, 5);
+  const FrameStoreStats stats = store.stats();
+  EXPECT_EQ(stats.requests, 8u);
+  EXPECT_EQ(stats.hits, 3u);
+  EXPECT_EQ(stats.loads, 5u);
+  EXPECT_EQ(stats.evictions, 2u);
+  EXPECT_LE(stats.peak_bytes, stats.max_bytes);
+}
+
+TEST(FrameStoreTest, FramesInUseStayAndCount) {
+  CountingStore s(1.5, true);  // room for one frame
+  FrameStore& store = *s.store;
+  const std::shared_ptr<const Frame> held = store.get(0);
+  store.get(1);  // 0 is held by the caller: it stays, and the cap is exceeded while it is
+  EXPECT_GT(store.stats().peak_bytes, store.stats().max_bytes);
+  store.get(0);
+  EXPECT_EQ(*s.calls, 2);
+}
+
+TEST(FrameStoreTest, LoaderErrorsPassThroughAndAreRetried) {
+  int calls = 0;
+  FrameStore store(
+      2,
+      [&](std::size_t k) -> std::shared_ptr<const Frame> {
+        if (++calls == 1) throw Error("frame " + std::to_string(k) + ".bin: truncated");
+        return copy_of_frame(k);
+      },
+      0);
+  EXPECT_EQ(error_of([&] { store.get(1); }), "frame 1.bin: truncated");
+  EXPECT_EQ(store.get(1)->name(), "frame 1");
+  EXPECT_THAT(error_of([&] { store.get(2); }), HasSubstr("frame 2 requested of 2"));
+  EXPECT_THAT(
+      error_of([] { FrameStore nulls(std::vector<std::shared_ptr<const Frame>>{nullptr}); }),
+      HasSubstr("frame 0 is null"));
+}
+
+TEST(FrameStoreTest, LocalityOrderIsAPermutationThatKeepsCellsTogether) {
+  const std::vector<FramePair> pairs = build_dense_graph(drive().frames, drive().initial);
+  const std::vector<std::size_t> order = locality_order(pairs, drive().initial);
+  std::vector<std::size_t> sorted = order;
+  std::sort(sorted.begin(), sorted.end());
+  std::vector<std::size_t> identity(pairs.size());
+  std::iota(identity.begin(), identity.end(), std::size_t{0});
+  EXPECT_EQ(sorted, identity);
+  EXPECT_THAT(error_of([&] { locality_order(pairs, drive().initial, 0.0); }),
+              HasSubstr("cell_size must be finite and > 0"));
+  const std::vector<FramePair> bad = {{0, 99, 0.0}};
+  EXPECT_THAT(error_of([&] { locality_order(bad, drive().initial); }),
+              HasSubstr("pair (0, 99) names a frame without a pose"));
+}
+
+TEST(FrameStoreTest, ACappedStoreGivesTheResidentResults) {
+  const Drive& d = drive();
+  CountingStore s(4.0);
+  const std::vector<FramePair> pairs = build_dense_graph(d.frames, d.initial);
+  const std::vector<FramePair> streamed_pairs = build_dense_graph(*s.store, d.initial);
+  ASSERT_EQ(pairs.size(), streamed_pairs.size());
+  for (std::size_t k = 0; k < pairs.size(); ++k) {
+    EXPECT_EQ(pairs[k].target, streamed_pairs[k].target);
+    EXPECT_EQ(pairs[k].source, streamed_pairs[k].source);
+    EXPECT_EQ(pairs[k].overlap, streamed_pairs[k].overlap);
+  }
+  for (const ResidualSampling sampling : {ResidualSampling::kExact, ResidualSampling::kLossless}) {
+    GlobalRegistrationOptions options;
+    options.sampling = sampling;
+    options.num_threads = 2;
+    options.rounds = 2;
+    const GlobalRegistrationResult resident =
+        optimize_registration(d.frames, pairs, d.initial, options);
+    const GlobalRegistrationResult streamed =
+        optimize_registration(*s.store, pairs, d.initial, options);
+    ASSERT_EQ(resident.T_world_frame.size(), streamed.T_world_frame.size());
+    for (std::size_t i = 0; i < resident.T_world_frame.size(); ++i)
+      EXPECT_EQ(resident.T_world_frame[i].matrix(), streamed.T_world_frame[i].matrix()) << i;
+    EXPECT_EQ(resident.summary.final_cost, streamed.summary.final_cost);
+    EXPECT_EQ(resident.factor_costs, streamed.factor_costs);
+  }
+  const FrameStoreStats stats = s.store->stats();
+  EXPECT_GT(stats.evictions, 0u);
+  EXPECT_LE(stats.peak_bytes, stats.max_bytes);
+  // Pairwise GICP (the pose-graph baselines) too.
+  const auto a = register_pairs(d.frames, pairs, d.initial, AlignSettings{}, 2);
+  const auto b = register_pairs(*s.store, pairs, d.initial, AlignSettings{}, 2);
+  ASSERT_EQ(a.size(), b.size());
+  for (std::size_t k = 0; k < a.size(); ++k)
+    EXPECT_EQ(a[k].T_target_source.matrix(), b[k].T_target_source.matrix()) << k;
+}
+
+TEST(FrameStoreTest, ASubsetOfFactorsEqualsTheSameFactorsOfTheWhole) {
+  const Drive& d = drive();
+  const std::vector<FramePair> pairs = build_dense_graph(d.frames, d.initial);
+  GlobalRegistrationOptions options;
+  options.num_threads = 2;
+  FrameStore resident(d.frames);
+  const auto all = build_registration_factors(resident, pairs, {}, d.initial, options);
+  const std::vector<std::size_t> some = {pairs.size() - 1, 3, 0};
+  CountingStore s(2.0);
+  const auto part = build_registration_factors(*s.store, pairs, some, d.initial, options);
+  ASSERT_EQ(part.size(), some.size());
+  for (std::size_t p = 0; p < some.size(); ++p) {
+    const FramePair& pair = pairs[some[p]];
+    const double* values[2] = {nullptr, nullptr};
+    std::array<double, 7> ti{}, tj{};
+    se3::to_storage(d.initial[static_cast<std::size_t>(pair.target)], ti.data());
+    se3::to_storage(d.initial[static_cast<std::size_t>(pair.source)], tj.data());
+    values[0] = ti.data();
+    values[1] = tj.data();
+    EXPECT_EQ(part[p].block->squared_norm(values), all[some[p]].block->squared_norm(values));
+    EXPECT_EQ(part[p].correspondences, all[some[p]].correspondences);
+  }
+  EXPECT_THAT(error_of([&] {
+                const std::vector<std::size_t> out_of_range = {pairs.size()};
+                build_registration_factors(resident, pairs, out_of_range, d.initial, options);
+              }),
+              HasSubstr("factor index"));
+}
+
+}  // namespace
+}  // namespace carat
