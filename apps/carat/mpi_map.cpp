@@ -61,6 +61,7 @@ std::vector<std::byte> encode_job(const MpiFrameSource& source,
   out.put(source.preprocess.voxel_size);
   out.put(source.preprocess.covariance_neighbors);
   out.put(source.preprocess.min_points);
+  out.put(static_cast<std::uint64_t>(source.max_bytes));
   out.put(static_cast<std::uint8_t>(options.sampling));
   out.put(options.residuals);
   out.put(options.max_correspondence_distance);
@@ -98,6 +99,7 @@ BuildJob decode_job(std::span<const std::byte> bytes) {
   job.source.preprocess.voxel_size = in.get<double>();
   job.source.preprocess.covariance_neighbors = in.get<int>();
   job.source.preprocess.min_points = in.get<int>();
+  job.source.max_bytes = static_cast<std::size_t>(in.get<std::uint64_t>());
   job.options.sampling = static_cast<ResidualSampling>(in.get<std::uint8_t>());
   job.options.residuals = in.get<int>();
   job.options.max_correspondence_distance = in.get<double>();
@@ -182,7 +184,8 @@ std::string answer_failure(std::span<const std::byte> bytes, const std::string& 
   return message.empty() ? std::string("failed") : message;
 }
 
-/// Frames read and preprocessed on demand as rank 0 read them, kept once read.
+/// Frames read and preprocessed on demand as rank 0 read them, under rank 0's cap (none: kept
+/// once read).
 std::unique_ptr<FrameStore> frames_from(const MpiFrameSource& source) {
   PreprocessOptions single = source.preprocess;
   single.num_threads = 1;
@@ -197,7 +200,7 @@ std::unique_ptr<FrameStore> frames_from(const MpiFrameSource& source) {
         }
         return preprocess_frame(scan, single, file.path.string());
       },
-      0);
+      source.max_bytes);
 }
 
 enum Command : std::uint64_t { kStop = 0, kBuild = 1 };
@@ -339,7 +342,9 @@ void check_mpi_applicable(const std::string& method, ResidualSampling sampling) 
 
 void MpiMapJob::attach(MpiFrameSource source, MappingInput* input) {
   source_ = std::move(source);
-  frames_ = input->frames;
+  // Rank 0's own share: from its store of frames read on demand, or from the frames it holds.
+  store_ = input->store ? input->store : std::make_shared<FrameStore>(input->frames);
+  source_.max_bytes = store_->stats().max_bytes;
   input->build_factors = [this](std::span<const FramePair> pairs,
                                 std::span<const Eigen::Isometry3d> T_world_frame,
                                 const GlobalRegistrationOptions& options) {
@@ -365,9 +370,8 @@ std::vector<RegistrationFactor> MpiMapJob::build(std::span<const FramePair> pair
   const Stopwatch own_time;
   try {
     if (!own.empty()) {
-      FrameStore store(frames_);
       std::vector<RegistrationFactor> built =
-          build_registration_factors(store, pairs, own, T_world_frame, options);
+          build_registration_factors(*store_, pairs, own, T_world_frame, options);
       for (std::size_t p = 0; p < own.size(); ++p) out[own[p]] = std::move(built[p]);
     }
   } catch (const std::bad_alloc&) {
@@ -384,7 +388,7 @@ std::vector<RegistrationFactor> MpiMapJob::build(std::span<const FramePair> pair
   build_s_per_rank_.assign(static_cast<std::size_t>(size_), 0.0);
   build_s_per_rank_[0] = own_s;
   frames_read_per_rank_.assign(static_cast<std::size_t>(size_), 0);
-  frames_read_per_rank_[0] = frames_.size();
+  frames_read_per_rank_[0] = store_->resident() ? store_->size() : store_->stats().loads;
   const auto failed = [&](int r, const std::string& message) {
     return Error("rank " + std::to_string(r) + " of " + std::to_string(size_) + ": " + message);
   };

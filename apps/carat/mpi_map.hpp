@@ -18,6 +18,7 @@
 
 #include "carat/registration/dense_graph.hpp"
 #include "carat/registration/frame.hpp"
+#include "carat/registration/frame_store.hpp"
 #include "carat/registration/global_registration.hpp"
 #include "carat/registration/io/kitti_io.hpp"
 #include "carat/registration/io/scan_folder.hpp"
@@ -30,6 +31,7 @@ struct MpiFrameSource {
   std::vector<ScanFile> files;   // the frames, in scan order
   ReadOptions read;              // how they are read
   PreprocessOptions preprocess;  // how they are downsampled (num_threads is ignored)
+  std::size_t max_bytes = 0;     // each rank's cap on frames in memory (0: none)
 };
 
 /// Refuses what the ranks cannot share: the PGO baselines and full or random sampling (whose
@@ -56,8 +58,9 @@ class MpiMapJob {
   /// a failure is sent to rank 0 (which reports it) instead of factors. Returns the exit status.
   int serve(int threads);
 
-  /// Rank 0: makes `input`'s GRE build its factors over the ranks: rank 0 from input->frames,
-  /// the others from `source`. The job must outlive the input's use.
+  /// Rank 0: makes `input`'s GRE build its factors over the ranks: rank 0 from input->store or
+  /// input->frames, the others from `source` (under input->store's cap, if any). The job must
+  /// outlive the input's use.
   void attach(MpiFrameSource source, MappingInput* input);
   /// Rank 0: one round's factors of every pair, parallel to the pairs, built over the ranks at
   /// T_world_frame. Throws carat::Error "rank r of N: ..." with the message of the lowest rank
@@ -77,7 +80,7 @@ class MpiMapJob {
   int rank_ = 0;
   int size_ = 1;
   MpiFrameSource source_;
-  std::vector<std::shared_ptr<const Frame>> frames_;
+  std::shared_ptr<FrameStore> store_;             // rank 0's frames
   std::vector<std::vector<std::size_t>> shares_;  // per rank: the pairs it builds
   std::size_t shares_pairs_ = 0;                  // the pair count they were made for
   int rounds_ = 0;
