@@ -27,6 +27,9 @@ check map_exact_1 0 "" -- "$CARAT" "${args[@]}" --out exact_1.txt
 cp out exact_1.json
 check map_exact_2 0 "" -- mpi 2 "${args[@]}" --out exact_2.txt
 cp out exact_2.json
+# Frames read on demand under a cap, on every rank: still the same poses.
+check map_exact_2_capped 0 "" -- mpi 2 "${args[@]}" --max-frame-memory 20 --out exact_2_capped.txt
+expect exact_2_capped_same_poses "$(cmp -s exact_1.txt exact_2_capped.txt && echo True)"
 check map_lossless_1 0 "" -- "$CARAT" "${args[@]}" --sampling lossless --out lossless_1.txt
 cp out lossless_1.json
 check map_lossless_3 0 "" -- mpi 3 "${args[@]}" --sampling lossless --out lossless_3.txt
