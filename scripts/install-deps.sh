@@ -14,6 +14,9 @@ packages=(
   # BLAS/LAPACK for CHOLMOD's supernodal factorization: OpenBLAS, single-threaded
   # (measured faster than ATLAS and reference BLAS on carat's pose-graph benchmark; see README).
   libopenblas0-serial
+  # OpenMPI, for `mpirun -np N carat map` and its test (CARAT_MPI=AUTO builds it when found):
+  # about 90 MB installed with what it pulls in (gfortran among it).
+  libopenmpi-dev openmpi-bin
 )
 if [[ "${CARAT_WITH_CERES:-0}" == "1" ]]; then
   packages+=(libceres-dev)

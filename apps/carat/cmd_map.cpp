@@ -37,6 +37,7 @@
 #include "cli_support.hpp"
 #include "commands.hpp"
 #include "mapping_methods.hpp"
+#include "mpi_map.hpp"
 #include "progress.hpp"
 
 namespace carat::cli {
@@ -114,9 +115,13 @@ std::vector<Eigen::Isometry3d> relative_to(const Eigen::Isometry3d& T_world_anch
 }
 
 int run_map(const CLI::App& command, const MapArgs& args) {
+  // Under mpirun every rank but 0 only builds the factors rank 0 asks for (mpi_map.hpp).
+  const std::unique_ptr<MpiMapJob> mpi = MpiMapJob::start();
+  if (mpi && mpi->rank() > 0) return mpi->serve(thread_count(args.threads));
   const ResidualSampling sampling = parse_residual_sampling(args.sampling);
   const PoseGraphInformation information = parse_pose_graph_information(args.information);
   check_applicable(command, args, sampling);
+  if (mpi) check_mpi_applicable(args.method, sampling);
   const int threads = thread_count(args.threads);
   const bool has_reference = !args.poses.empty();
   const bool has_initial = !args.initial.empty();
@@ -308,6 +313,8 @@ int run_map(const CLI::App& command, const MapArgs& args) {
     check_full_factor_memory(frame_points, input.pairs);
   }
 
+  if (mpi) mpi->attach({files, read_options, preprocess}, &input);
+
   MethodResult result;
   if (args.method == "pgo") {
     const auto registrations = register_graph_pairs(input);
@@ -361,6 +368,7 @@ int run_map(const CLI::App& command, const MapArgs& args) {
     j["preprocess_s"] = preprocess_s;
     j["dense_graph_s"] = graph_s;
     if (!args.out.empty()) j["out"] = args.out;
+    if (mpi) j["mpi"] = mpi->report();
     std::printf("%s\n", j.dump(2).c_str());
   } else {
     std::printf("carat map: %zu frames from %s, %zu factors in the dense graph\n", files.size(),
@@ -382,6 +390,7 @@ int run_map(const CLI::App& command, const MapArgs& args) {
       std::printf("  start: %s (no --poses: no ATE)\n", args.initial.c_str());
     }
     std::printf("%s\n", loops_line.c_str());
+    if (mpi) std::printf("%s\n", mpi->summary_line().c_str());
     std::printf("%s", results_table({result}).c_str());
     if (result.ate) {
       std::printf("  rotation ATE RMSE %.4f deg; termination %s\n", result.ate->rotation_rmse_deg,

@@ -90,10 +90,15 @@ MethodResult run_registration(const MappingInput& input, ResidualSampling sampli
                         ")";
   ProgressBar bar("building factors (" + std::string(to_string(sampling)) + ")", input.progress);
   const GlobalRegistrationResult result =
-      input.store ? optimize_registration(*input.store, input.pairs, input.T_world_initial, options,
-                                          bar.callback())
-                  : optimize_registration(input.frames, input.pairs, input.T_world_initial, options,
-                                          bar.callback());
+      input.build_factors ? optimize_registration(
+                                [&](std::span<const Eigen::Isometry3d> T_world_frame) {
+                                  return input.build_factors(input.pairs, T_world_frame, options);
+                                },
+                                input.pairs, input.T_world_initial, options)
+      : input.store ? optimize_registration(*input.store, input.pairs, input.T_world_initial,
+                                            options, bar.callback())
+                    : optimize_registration(input.frames, input.pairs, input.T_world_initial,
+                                            options, bar.callback());
   bar.finish();
   out.T_world_frame = result.T_world_frame;
   const TimeBreakdown& t = result.summary.time;

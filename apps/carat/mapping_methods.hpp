@@ -5,9 +5,11 @@
 
 #include <Eigen/Geometry>
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <optional>
+#include <span>
 #include <string>
 #include <utility>
 #include <vector>
@@ -37,6 +39,12 @@ struct MappingInput {
   double gre_cauchy_scale = 0.0;                   // Cauchy scale per GRE factor (0: none)
   double gre_excess_cauchy_scale = 0.0;  // Cauchy scale on each GRE factor's excess (0: none)
   bool progress = true;                  // progress bars on a terminal
+  // When set, GRE builds each round's factors (parallel to the pairs) with this instead of from
+  // `frames` (carat map under MPI: over the ranks).
+  std::function<std::vector<RegistrationFactor>(std::span<const FramePair>,
+                                                std::span<const Eigen::Isometry3d>,
+                                                const GlobalRegistrationOptions&)>
+      build_factors;
 };
 
 /// One method's result and costs.

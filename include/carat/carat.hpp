@@ -4,6 +4,7 @@
 // would rather include one file. Each header stands alone as well.
 
 #include <carat/base/atomic_file.hpp>
+#include <carat/base/byte_stream.hpp>
 #include <carat/base/error.hpp>
 #include <carat/base/input_file.hpp>
 #include <carat/base/multiversion.hpp>
@@ -23,7 +24,9 @@
 #include <carat/registration/correspondences.hpp>
 #include <carat/registration/covariance.hpp>
 #include <carat/registration/dense_graph.hpp>
+#include <carat/registration/factor_serialization.hpp>
 #include <carat/registration/frame.hpp>
+#include <carat/registration/frame_store.hpp>
 #include <carat/registration/global_registration.hpp>
 #include <carat/registration/io/kitti_io.hpp>
 #include <carat/registration/io/point_cloud_io.hpp>
@@ -41,6 +44,7 @@
 #include <carat/registration/trajectory_error.hpp>
 #include <carat/registration/voxel_grid.hpp>
 #include <carat/residuals/bal_problem.hpp>
+#include <carat/residuals/block_serialization.hpp>
 #include <carat/residuals/gicp_block.hpp>
 #include <carat/residuals/io/bal_io.hpp>
 #include <carat/residuals/io/g2o_io.hpp>

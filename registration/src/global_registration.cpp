@@ -405,6 +405,17 @@ GlobalRegistrationResult optimize_registration(
     FrameStore& frames, std::span<const FramePair> pairs,
     std::span<const Eigen::Isometry3d> T_world_frame, const GlobalRegistrationOptions& options,
     const std::function<void(std::size_t, std::size_t)>& progress) {
+  return optimize_registration(
+      [&](std::span<const Eigen::Isometry3d> T_world_start) {
+        return build_registration_factors(frames, pairs, {}, T_world_start, options, progress);
+      },
+      pairs, T_world_frame, options);
+}
+
+GlobalRegistrationResult optimize_registration(const RegistrationFactorBuilder& build,
+                                               std::span<const FramePair> pairs,
+                                               std::span<const Eigen::Isometry3d> T_world_frame,
+                                               const GlobalRegistrationOptions& options) {
   if (options.rounds < 1)
     throw Error("global registration: rounds must be >= 1, got " + std::to_string(options.rounds));
   GlobalRegistrationResult out;
@@ -412,8 +423,10 @@ GlobalRegistrationResult optimize_registration(
   SolverOptions solver = options.solver;
   solver.num_threads = options.num_threads;
   for (int round = 0; round < options.rounds; ++round) {
-    RegistrationProblem built =
-        build_registration_problem(frames, pairs, out.T_world_frame, options, progress);
+    const Stopwatch stage_time;
+    std::vector<RegistrationFactor> factors = build(out.T_world_frame);
+    RegistrationProblem built = assemble_registration_problem(
+        pairs, std::move(factors), out.T_world_frame, options, stage_time.elapsed_s());
     if (options.iteration_callback) {
       solver.update_state_every_iteration = true;
       solver.iteration_callback =

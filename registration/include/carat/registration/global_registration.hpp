@@ -175,4 +175,18 @@ GlobalRegistrationResult optimize_registration(
     std::span<const Eigen::Isometry3d> T_world_frame, const GlobalRegistrationOptions& options,
     const std::function<void(std::size_t, std::size_t)>& progress = {});
 
+/// Builds the factors of every pair at T_world_frame, parallel to the pairs: one round's build
+/// stage in optimize_registration() (e.g. shards built by other processes and gathered).
+using RegistrationFactorBuilder =
+    std::function<std::vector<RegistrationFactor>(std::span<const Eigen::Isometry3d>)>;
+
+/// The same with the factors of each round from `build` (called once per round at that round's
+/// start poses); `pairs` and T_world_frame give the problem's shape. Throws carat::Error as
+/// assemble_registration_problem() does, for a factor count that is not the pair count, or when
+/// a solve fails; what `build` throws passes through.
+GlobalRegistrationResult optimize_registration(const RegistrationFactorBuilder& build,
+                                               std::span<const FramePair> pairs,
+                                               std::span<const Eigen::Isometry3d> T_world_frame,
+                                               const GlobalRegistrationOptions& options);
+
 }  // namespace carat

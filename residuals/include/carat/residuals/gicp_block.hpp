@@ -24,6 +24,10 @@
 
 namespace carat {
 
+namespace internal {
+class BlockCodec;  // block_serialization.cpp: reads and writes the private state
+}  // namespace internal
+
 /// One GICP correspondence: a target point and a source point with their covariances.
 struct GicpCorrespondence {
   Eigen::Vector3d mean_target;        ///< point in the target frame (metres)
@@ -92,6 +96,7 @@ class GicpBlock final : public ResidualBlock, public AffinePoseRows {
     double offset;
     std::array<double, 3> source;
   };
+  friend class internal::BlockCodec;
   GicpBlock() = default;
   /// Row `row` of this block in the single-row form.
   Row row_of(int row) const;

@@ -24,6 +24,10 @@
 
 namespace carat {
 
+namespace internal {
+class BlockCodec;  // block_serialization.cpp: reads and writes the private state
+}  // namespace internal
+
 /// At most 13 rows with the cost function of the block whose Gram matrix they factor.
 class LosslessRegistrationBlock final : public ResidualBlock {
  public:
@@ -45,6 +49,8 @@ class LosslessRegistrationBlock final : public ResidualBlock {
   std::size_t original_rows() const { return original_rows_; }
 
  private:
+  friend class internal::BlockCodec;
+  LosslessRegistrationBlock() = default;
   static constexpr std::array<int, 2> kDims{6, 6};
   /// Offset of row i's first entry in upper_: rows hold 13, 12, ..., entries.
   static constexpr int row_offset(int i) { return i * 13 - i * (i - 1) / 2; }

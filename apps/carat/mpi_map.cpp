@@ -1,0 +1,456 @@
+#include "mpi_map.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <new>
+#include <string>
+#include <thread>
+#include <utility>
+
+#include "carat/base/byte_stream.hpp"
+#include "carat/base/error.hpp"
+#include "carat/base/stopwatch.hpp"
+#include "carat/registration/factor_serialization.hpp"
+#include "carat/registration/frame_store.hpp"
+#include "cli_support.hpp"
+
+#if CARAT_WITH_MPI
+#include <mpi.h>
+#endif
+
+namespace carat::cli {
+namespace {
+
+/// The number of ranks mpirun announced to this process (1 when it did not start it).
+int launched_ranks() {
+  for (const char* name : {"OMPI_COMM_WORLD_SIZE", "PMI_SIZE"}) {
+    if (const char* value = std::getenv(name)) return std::max(1, std::atoi(value));
+  }
+  return 1;
+}
+
+#if CARAT_WITH_MPI
+
+/// What rank 0 sends every round: how to read the frames, how to build, what, and where.
+struct BuildJob {
+  MpiFrameSource source;
+  GlobalRegistrationOptions options;
+  std::vector<FramePair> pairs;
+  std::vector<Eigen::Isometry3d> T_world_frame;
+  std::vector<std::vector<std::size_t>> shares;  // per rank: the pairs it builds
+};
+
+std::vector<std::byte> encode_job(const MpiFrameSource& source,
+                                  const GlobalRegistrationOptions& options,
+                                  std::span<const FramePair> pairs,
+                                  std::span<const Eigen::Isometry3d> T_world_frame,
+                                  const std::vector<std::vector<std::size_t>>& shares) {
+  std::vector<std::byte> bytes;
+  ByteWriter out(bytes);
+  out.put(static_cast<std::uint64_t>(source.files.size()));
+  for (const ScanFile& file : source.files) {
+    out.put_string(file.path.string());
+    out.put_string(file.name);
+    out.put(static_cast<std::uint8_t>(file.bin_format));
+  }
+  out.put(static_cast<std::uint8_t>(source.read.drop_non_finite));
+  out.put(static_cast<std::uint64_t>(source.read.max_points));
+  out.put(source.preprocess.voxel_size);
+  out.put(source.preprocess.covariance_neighbors);
+  out.put(source.preprocess.min_points);
+  out.put(static_cast<std::uint64_t>(source.max_bytes));
+  out.put(static_cast<std::uint8_t>(options.sampling));
+  out.put(options.residuals);
+  out.put(options.max_correspondence_distance);
+  out.put(options.min_correspondences);
+  out.put(options.seed);
+  out.put(options.factor_cauchy_scale);
+  out.put(options.factor_excess_cauchy_scale);
+  out.put(static_cast<std::uint64_t>(pairs.size()));
+  out.put_array(pairs);
+  out.put(static_cast<std::uint64_t>(T_world_frame.size()));
+  for (const Eigen::Isometry3d& T : T_world_frame)
+    out.put_array(std::span<const double>(T.matrix().data(), 16));
+  out.put(static_cast<std::uint64_t>(shares.size()));
+  for (const std::vector<std::size_t>& share : shares) {
+    out.put(static_cast<std::uint64_t>(share.size()));
+    for (const std::size_t k : share) out.put(static_cast<std::uint64_t>(k));
+  }
+  return bytes;
+}
+
+BuildJob decode_job(std::span<const std::byte> bytes) {
+  ByteReader in(bytes, "the job from rank 0");
+  BuildJob job;
+  const auto files = in.get<std::uint64_t>();
+  if (files > in.remaining()) in.garbled("frame count");
+  for (std::uint64_t k = 0; k < files; ++k) {
+    ScanFile file;
+    file.path = in.get_string();
+    file.name = in.get_string();
+    file.bin_format = static_cast<KittiFormat>(in.get<std::uint8_t>());
+    job.source.files.push_back(std::move(file));
+  }
+  job.source.read.drop_non_finite = in.get<std::uint8_t>() != 0;
+  job.source.read.max_points = static_cast<std::size_t>(in.get<std::uint64_t>());
+  job.source.preprocess.voxel_size = in.get<double>();
+  job.source.preprocess.covariance_neighbors = in.get<int>();
+  job.source.preprocess.min_points = in.get<int>();
+  job.source.max_bytes = static_cast<std::size_t>(in.get<std::uint64_t>());
+  job.options.sampling = static_cast<ResidualSampling>(in.get<std::uint8_t>());
+  job.options.residuals = in.get<int>();
+  job.options.max_correspondence_distance = in.get<double>();
+  job.options.min_correspondences = in.get<int>();
+  job.options.seed = in.get<std::uint64_t>();
+  job.options.factor_cauchy_scale = in.get<double>();
+  job.options.factor_excess_cauchy_scale = in.get<double>();
+  job.pairs = in.get_array<FramePair>(static_cast<std::size_t>(in.get<std::uint64_t>()));
+  const auto poses = in.get<std::uint64_t>();
+  if (poses > in.remaining() / (16 * sizeof(double))) in.garbled("pose count");
+  for (std::uint64_t k = 0; k < poses; ++k) {
+    Eigen::Isometry3d T;
+    const std::vector<double> m = in.get_array<double>(16);
+    std::copy(m.begin(), m.end(), T.matrix().data());
+    job.T_world_frame.push_back(T);
+  }
+  const auto ranks = in.get<std::uint64_t>();
+  if (ranks > in.remaining() / sizeof(std::uint64_t)) in.garbled("rank count");
+  for (std::uint64_t r = 0; r < ranks; ++r) {
+    std::vector<std::size_t> share;
+    for (const std::uint64_t k :
+         in.get_array<std::uint64_t>(static_cast<std::size_t>(in.get<std::uint64_t>()))) {
+      if (k >= job.pairs.size()) in.garbled("pair index " + std::to_string(k));
+      share.push_back(static_cast<std::size_t>(k));
+    }
+    job.shares.push_back(std::move(share));
+  }
+  in.expect_end();
+  return job;
+}
+
+/// The pairs split over `ranks` ranks: contiguous stretches of locality_order() at the first
+/// round's poses, as equal in count as can be, so that each rank reads only the frames of one
+/// part of the map (and a few loop partners). Each share is in increasing index order.
+std::vector<std::vector<std::size_t>> split_pairs(std::span<const FramePair> pairs,
+                                                  std::span<const Eigen::Isometry3d> T_world_frame,
+                                                  int ranks) {
+  const std::vector<std::size_t> order = locality_order(pairs, T_world_frame);
+  std::vector<std::vector<std::size_t>> shares(static_cast<std::size_t>(ranks));
+  const std::size_t n = order.size(), r = shares.size();
+  for (std::size_t q = 0; q < r; ++q) {
+    shares[q].assign(order.begin() + static_cast<std::ptrdiff_t>(q * n / r),
+                     order.begin() + static_cast<std::ptrdiff_t>((q + 1) * n / r));
+    std::sort(shares[q].begin(), shares[q].end());
+  }
+  return shares;
+}
+
+/// A rank's answer: its build time (s), the frames it has read, and its factors (index and
+/// bytes each); or its error message.
+std::vector<std::byte> encode_factors(std::span<const std::size_t> indices,
+                                      std::span<const RegistrationFactor> factors, double build_s,
+                                      std::size_t frames_read) {
+  std::vector<std::byte> bytes;
+  ByteWriter out(bytes);
+  out.put(std::uint8_t{1});
+  out.put(build_s);
+  out.put(static_cast<std::uint64_t>(frames_read));
+  out.put(static_cast<std::uint64_t>(indices.size()));
+  for (std::size_t p = 0; p < indices.size(); ++p) {
+    const std::vector<std::byte> factor = serialize_factor(factors[p]);
+    out.put(static_cast<std::uint64_t>(indices[p]));
+    out.put(static_cast<std::uint64_t>(factor.size()));
+    out.put_array(std::span<const std::byte>(factor));
+  }
+  return bytes;
+}
+
+std::vector<std::byte> encode_failure(const std::string& message) {
+  std::vector<std::byte> bytes;
+  ByteWriter out(bytes);
+  out.put(std::uint8_t{0});
+  out.put_string(message);
+  return bytes;
+}
+
+/// The message of a failed answer, or empty for factors.
+std::string answer_failure(std::span<const std::byte> bytes, const std::string& what) {
+  ByteReader in(bytes, what);
+  if (in.get<std::uint8_t>() != 0) return {};
+  std::string message = in.get_string();
+  return message.empty() ? std::string("failed") : message;
+}
+
+/// Frames read and preprocessed on demand as rank 0 read them, under rank 0's cap (none: kept
+/// once read).
+std::unique_ptr<FrameStore> frames_from(const MpiFrameSource& source) {
+  PreprocessOptions single = source.preprocess;
+  single.num_threads = 1;
+  return std::make_unique<FrameStore>(
+      source.files.size(),
+      [source, single](std::size_t k) {
+        const ScanFile& file = source.files[k];
+        PointCloud scan = read_scan(file, source.read);
+        if (scan.size() < static_cast<std::size_t>(single.min_points)) {
+          throw Error(file.path.string() + ": only " + std::to_string(scan.size()) +
+                      " points (at least " + std::to_string(single.min_points) + " are needed)");
+        }
+        return preprocess_frame(scan, single, file.path.string());
+      },
+      source.max_bytes);
+}
+
+enum Command : std::uint64_t { kStop = 0, kBuild = 1 };
+constexpr int kAnswerTag = 7;
+constexpr std::size_t kChunk = std::size_t{1} << 30;  // MPI counts are int
+
+/// Waits for a request without spinning a core that the builders or the solver could use.
+void wait(MPI_Request* request) {
+  int done = 0;
+  auto pause = std::chrono::microseconds(20);
+  for (;;) {
+    MPI_Test(request, &done, MPI_STATUS_IGNORE);
+    if (done) return;
+    std::this_thread::sleep_for(pause);
+    pause = std::min(pause * 2, std::chrono::microseconds(2000));
+  }
+}
+
+/// Rank 0 sends (others receive) a command and its bytes.
+void broadcast(std::uint64_t* command, std::vector<std::byte>* bytes) {
+  std::uint64_t header[2] = {*command, bytes->size()};
+  MPI_Request request;
+  MPI_Ibcast(header, 2, MPI_UINT64_T, 0, MPI_COMM_WORLD, &request);
+  wait(&request);
+  *command = header[0];
+  bytes->resize(static_cast<std::size_t>(header[1]));
+  for (std::size_t at = 0; at < bytes->size(); at += kChunk) {
+    const int count = static_cast<int>(std::min(kChunk, bytes->size() - at));
+    MPI_Ibcast(bytes->data() + at, count, MPI_BYTE, 0, MPI_COMM_WORLD, &request);
+    wait(&request);
+  }
+}
+
+/// Sends an answer to rank 0, which takes it once its own share is built (the wait sleeps).
+void send_answer(const std::vector<std::byte>& bytes) {
+  std::uint64_t size = bytes.size();
+  MPI_Request request;
+  MPI_Isend(&size, 1, MPI_UINT64_T, 0, kAnswerTag, MPI_COMM_WORLD, &request);
+  wait(&request);
+  for (std::size_t at = 0; at < bytes.size(); at += kChunk) {
+    const int count = static_cast<int>(std::min(kChunk, bytes.size() - at));
+    MPI_Isend(bytes.data() + at, count, MPI_BYTE, 0, kAnswerTag, MPI_COMM_WORLD, &request);
+    wait(&request);
+  }
+}
+
+/// Receives rank `from`'s answer.
+std::vector<std::byte> receive_answer(int from) {
+  std::uint64_t size = 0;
+  MPI_Request request;
+  MPI_Irecv(&size, 1, MPI_UINT64_T, from, kAnswerTag, MPI_COMM_WORLD, &request);
+  wait(&request);
+  std::vector<std::byte> bytes(static_cast<std::size_t>(size));
+  for (std::size_t at = 0; at < bytes.size(); at += kChunk) {
+    const int count = static_cast<int>(std::min(kChunk, bytes.size() - at));
+    MPI_Irecv(bytes.data() + at, count, MPI_BYTE, from, kAnswerTag, MPI_COMM_WORLD, &request);
+    wait(&request);
+  }
+  return bytes;
+}
+
+#endif
+
+}  // namespace
+
+std::unique_ptr<MpiMapJob> MpiMapJob::start() {
+  if (launched_ranks() < 2) return nullptr;
+#if CARAT_WITH_MPI
+  int provided = 0;
+  MPI_Init_thread(nullptr, nullptr, MPI_THREAD_FUNNELED, &provided);
+  int rank = 0, size = 1;
+  MPI_Comm_rank(MPI_COMM_WORLD, &rank);
+  MPI_Comm_size(MPI_COMM_WORLD, &size);
+  return std::unique_ptr<MpiMapJob>(new MpiMapJob(rank, size));
+#else
+  throw Error("started by mpirun with " + std::to_string(launched_ranks()) +
+              " ranks, but this carat was built without MPI (configure with -DCARAT_MPI=ON and "
+              "OpenMPI's development files installed)");
+#endif
+}
+
+MpiMapJob::~MpiMapJob() {
+#if CARAT_WITH_MPI
+  if (rank_ == 0) {
+    std::uint64_t command = kStop;
+    std::vector<std::byte> none;
+    broadcast(&command, &none);
+  }
+  MPI_Finalize();
+#endif
+}
+
+int MpiMapJob::serve(int threads) {
+#if CARAT_WITH_MPI
+  std::unique_ptr<FrameStore> store;
+  for (;;) {
+    std::uint64_t command = kStop;
+    std::vector<std::byte> payload;
+    broadcast(&command, &payload);
+    if (command != kBuild) return 0;
+    std::vector<std::byte> answer;
+    try {
+      BuildJob job = decode_job(payload);
+      job.options.num_threads = threads;
+      if (!store) store = frames_from(job.source);
+      if (job.shares.size() != static_cast<std::size_t>(size_))
+        throw Error("the job from rank 0 has " + std::to_string(job.shares.size()) +
+                    " shares for " + std::to_string(size_) + " ranks");
+      const std::vector<std::size_t>& indices = job.shares[static_cast<std::size_t>(rank_)];
+      const Stopwatch build_time;
+      std::vector<RegistrationFactor> factors;
+      if (!indices.empty()) {
+        factors =
+            build_registration_factors(*store, job.pairs, indices, job.T_world_frame, job.options);
+      }
+      answer = encode_factors(indices, factors, build_time.elapsed_s(), store->stats().loads);
+    } catch (const std::bad_alloc&) {
+      answer = encode_failure("out of memory");
+    } catch (const std::exception& e) {
+      answer = encode_failure(e.what());
+    }
+    send_answer(answer);
+  }
+#else
+  (void)threads;
+  return 1;
+#endif
+}
+
+void check_mpi_applicable(const std::string& method, ResidualSampling sampling) {
+  if (method != "gre")
+    throw UsageError("--method " + method + " runs in one process; under mpirun use --method gre");
+  if (sampling != ResidualSampling::kExact && sampling != ResidualSampling::kLossless) {
+    throw UsageError(std::string("--sampling ") + to_string(sampling) +
+                     " runs in one process; under mpirun use --sampling exact or lossless (a "
+                     "few KB per factor to gather)");
+  }
+}
+
+void MpiMapJob::attach(MpiFrameSource source, MappingInput* input) {
+  source_ = std::move(source);
+  // Rank 0's own share: from its store of frames read on demand, or from the frames it holds.
+  store_ = input->store ? input->store : std::make_shared<FrameStore>(input->frames);
+  source_.max_bytes = store_->stats().max_bytes;
+  input->build_factors = [this](std::span<const FramePair> pairs,
+                                std::span<const Eigen::Isometry3d> T_world_frame,
+                                const GlobalRegistrationOptions& options) {
+    return build(pairs, T_world_frame, options);
+  };
+}
+
+std::vector<RegistrationFactor> MpiMapJob::build(std::span<const FramePair> pairs,
+                                                 std::span<const Eigen::Isometry3d> T_world_frame,
+                                                 const GlobalRegistrationOptions& options) {
+  std::vector<RegistrationFactor> out(pairs.size());
+#if CARAT_WITH_MPI
+  std::uint64_t command = kBuild;
+  // The shares stay those of the first round, so that each rank keeps the frames it read.
+  if (shares_.empty() || shares_pairs_ != pairs.size())
+    shares_ = split_pairs(pairs, T_world_frame, size_);
+  shares_pairs_ = pairs.size();
+  std::vector<std::byte> payload = encode_job(source_, options, pairs, T_world_frame, shares_);
+  broadcast(&command, &payload);
+  // Rank 0's own share, while the others build theirs; its failure waits for their answers.
+  std::string own_failure;
+  const std::vector<std::size_t>& own = shares_[0];
+  const Stopwatch own_time;
+  try {
+    if (!own.empty()) {
+      std::vector<RegistrationFactor> built =
+          build_registration_factors(*store_, pairs, own, T_world_frame, options);
+      for (std::size_t p = 0; p < own.size(); ++p) out[own[p]] = std::move(built[p]);
+    }
+  } catch (const std::bad_alloc&) {
+    own_failure = "out of memory";
+  } catch (const std::exception& e) {
+    own_failure = e.what();
+  }
+  const double own_s = own_time.elapsed_s();
+  std::vector<std::vector<std::byte>> answers(static_cast<std::size_t>(size_));
+  for (int r = 1; r < size_; ++r) answers[static_cast<std::size_t>(r)] = receive_answer(r);
+  ++rounds_;
+  factors_per_rank_.assign(static_cast<std::size_t>(size_), 0);
+  factors_per_rank_[0] = own.size();
+  build_s_per_rank_.assign(static_cast<std::size_t>(size_), 0.0);
+  build_s_per_rank_[0] = own_s;
+  frames_read_per_rank_.assign(static_cast<std::size_t>(size_), 0);
+  frames_read_per_rank_[0] = store_->resident() ? store_->size() : store_->stats().loads;
+  const auto failed = [&](int r, const std::string& message) {
+    return Error("rank " + std::to_string(r) + " of " + std::to_string(size_) + ": " + message);
+  };
+  if (!own_failure.empty()) throw failed(0, own_failure);
+  for (int r = 1; r < size_; ++r) {
+    const std::vector<std::byte>& bytes = answers[static_cast<std::size_t>(r)];
+    bytes_gathered_ += bytes.size();
+    const std::string what = "the answer of rank " + std::to_string(r);
+    const std::string message = answer_failure(bytes, what);
+    if (!message.empty()) throw failed(r, message);
+  }
+  for (int r = 1; r < size_; ++r) {
+    const std::vector<std::byte>& bytes = answers[static_cast<std::size_t>(r)];
+    const std::string what = "the answer of rank " + std::to_string(r);
+    ByteReader in(bytes, what);
+    in.get<std::uint8_t>();
+    build_s_per_rank_[static_cast<std::size_t>(r)] = in.get<double>();
+    frames_read_per_rank_[static_cast<std::size_t>(r)] =
+        static_cast<std::size_t>(in.get<std::uint64_t>());
+    const std::vector<std::size_t>& expected = shares_[static_cast<std::size_t>(r)];
+    if (in.get<std::uint64_t>() != expected.size()) in.garbled("factor count");
+    for (const std::size_t k : expected) {
+      if (in.get<std::uint64_t>() != k) in.garbled("factor index");
+      const auto length = in.get<std::uint64_t>();
+      out[k] = deserialize_factor(in.get_bytes(static_cast<std::size_t>(length)),
+                                  what + ", factor " + std::to_string(k));
+    }
+    in.expect_end();
+    factors_per_rank_[static_cast<std::size_t>(r)] = expected.size();
+  }
+#else
+  (void)pairs;
+  (void)T_world_frame;
+  (void)options;
+#endif
+  return out;
+}
+
+std::string MpiMapJob::summary_line() const {
+  const auto joined = [](const auto& values, const char* format) {
+    std::string out;
+    for (const auto value : values) {
+      char text[32];
+      std::snprintf(text, sizeof(text), format, value);
+      out += (out.empty() ? "" : " / ") + std::string(text);
+    }
+    return out;
+  };
+  return "  mpi: " + std::to_string(size_) + " ranks built " + joined(factors_per_rank_, "%zu") +
+         " factors in " + joined(build_s_per_rank_, "%.2f") + " s from " +
+         joined(frames_read_per_rank_, "%zu") + " frames; " +
+         format_bytes(static_cast<double>(bytes_gathered_)) + " gathered over " +
+         std::to_string(rounds_) + (rounds_ == 1 ? " round" : " rounds");
+}
+
+nlohmann::json MpiMapJob::report() const {
+  return {{"ranks", size_},
+          {"rounds", rounds_},
+          {"bytes_gathered", bytes_gathered_},
+          {"factors_per_rank", factors_per_rank_},
+          {"build_s_per_rank", build_s_per_rank_},
+          {"frames_read_per_rank", frames_read_per_rank_}};
+}
+
+}  // namespace carat::cli

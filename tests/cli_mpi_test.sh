@@ -1,0 +1,76 @@
+#!/usr/bin/env bash
+# carat map under mpirun: 2 and 3 ranks give the poses of one process bit for bit (the --out
+# files and the JSON ATE), and a rank that fails (a frame it cannot read), rank 0 failing before
+# the ranks build, and sampling the ranks cannot share end the whole run cleanly: one line naming
+# the rank and the frame, exit non-zero, no --out, no hang. Skips (exit 77) when carat was built
+# without MPI or mpirun is missing. Needs CARAT (the binary) and CARAT_WITH_MPI (ON or OFF).
+source "$(dirname "$0")/cli_common.sh"
+
+if [[ "${CARAT_WITH_MPI:-OFF}" != "ON" ]] || ! command -v mpirun >/dev/null; then
+  echo "SKIP: carat was built without MPI (or mpirun is missing)"
+  exit 77
+fi
+# OpenMPI refuses to start as root unless asked twice (containers and CI run as root).
+export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
+mpi() {  # mpi NP ARGS...: carat on NP ranks, quiet, never more than 5 minutes
+  local np=$1
+  shift
+  timeout 300 mpirun -q --oversubscribe -np "$np" "$CARAT" "$@"
+}
+
+check simulate 0 "" -- "$CARAT" simulate --out "$scratch/seq" --frames 20 --laps 1
+cd "$scratch" || exit 1
+args=(map --frames seq --poses seq/poses.txt --perturb-m 0.3 --perturb-deg 1 --threads 1 --json)
+
+# Exact (several correspondence rounds) on 1 and 2 ranks; lossless on 1 and 3 ranks.
+check map_exact_1 0 "" -- "$CARAT" "${args[@]}" --out exact_1.txt
+cp out exact_1.json
+check map_exact_2 0 "" -- mpi 2 "${args[@]}" --out exact_2.txt
+cp out exact_2.json
+# Frames read on demand under a cap, on every rank: still the same poses.
+check map_exact_2_capped 0 "" -- mpi 2 "${args[@]}" --max-frame-memory 20 --out exact_2_capped.txt
+expect exact_2_capped_same_poses "$(cmp -s exact_1.txt exact_2_capped.txt && echo True)"
+check map_lossless_1 0 "" -- "$CARAT" "${args[@]}" --sampling lossless --out lossless_1.txt
+cp out lossless_1.json
+check map_lossless_3 0 "" -- mpi 3 "${args[@]}" --sampling lossless --out lossless_3.txt
+cp out lossless_3.json
+for pair in exact_1:exact_2 lossless_1:lossless_3; do
+  a=${pair%:*} b=${pair#*:}
+  expect "${b}_same_poses" "$(cmp -s "$a.txt" "$b.txt" && echo True)"
+  expect "${b}_same_ate" "$(python3 -c "
+import json, sys
+a, b = (json.load(open(f)) for f in sys.argv[1:3])
+ranks = int(sys.argv[3])
+m = b['mpi']
+print(a['ate_rmse'] == b['ate_rmse'] and a['iterations'] == b['iterations']
+      and 'mpi' not in a and m['ranks'] == ranks and m['bytes_gathered'] > 0
+      and sum(m['factors_per_rank']) == b['factors'] and len(m['factors_per_rank']) == ranks
+      and m['rounds'] >= 1 and len(m['build_s_per_rank']) == ranks
+      and m['frames_read_per_rank'][0] == b['frames']
+      and all(0 < n < b['frames'] for n in m['frames_read_per_rank'][1:]))" "$a.json" "$b.json" "${b##*_}")"
+done
+
+# A rank that cannot read a frame: each rank runs in its own folder, as if the shared
+# filesystem served rank 1 a truncated copy of frame 3 (rank 0 reads every frame; rank 1 only the
+# frames of its factors, frame 3 among them).
+mkdir -p good bad/seq
+ln -s ../seq good/seq
+cp seq/* bad/seq/
+head -c 100 seq/000003.bin >bad/seq/000003.bin
+check rank_fails 1 "carat: error: rank 1 of 2: seq/000003.bin: 100 bytes is not a whole number" -- \
+  timeout 300 mpirun -q --oversubscribe -np 1 --wdir "$scratch/good" "$CARAT" "${args[@]}" --out out.txt : \
+  -np 1 --wdir "$scratch/bad" "$CARAT" "${args[@]}" --out out.txt
+expect rank_fails_no_out "$([[ ! -e good/out.txt && ! -e bad/out.txt ]] && echo True)"
+# Rank 0 fails before the ranks build: the others are told to stop.
+check rank0_fails 1 "carat: error: seq/000003.bin: 100 bytes is not a whole number" -- \
+  timeout 300 mpirun -q --oversubscribe -np 1 --wdir "$scratch/bad" "$CARAT" "${args[@]}" --out out.txt : \
+  -np 1 --wdir "$scratch/good" "$CARAT" "${args[@]}" --out out.txt
+expect rank0_fails_no_out "$([[ ! -e good/out.txt && ! -e bad/out.txt ]] && echo True)"
+# What the ranks cannot share.
+check mpi_full 2 "--sampling full runs in one process; under mpirun use --sampling exact or lossless" -- \
+  mpi 2 "${args[@]}" --sampling full
+check mpi_random 2 "--sampling random runs in one process" -- mpi 2 "${args[@]}" --sampling random
+check mpi_pgo 2 "--method pgo runs in one process" -- mpi 2 "${args[@]}" --method pgo
+
+echo "cli_mpi: $pass passed, $fail failed"
+[[ $fail -eq 0 ]]

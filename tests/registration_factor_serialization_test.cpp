@@ -1,0 +1,258 @@
+// Registration factors as bytes (what carat map's MPI ranks send to rank 0): every sampling's
+// factors read back equal bit for bit (rows, Jacobians, squared norm, normal equations, counts,
+// bytes, the bytes written again), a solve over factors moved through bytes equals the solve
+// over the factors as built, and truncated or garbled bytes are refused with carat::Error.
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <array>
+#include <cstring>
+#include <limits>
+#include <memory>
+#include <numeric>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "carat/base/byte_stream.hpp"
+#include "carat/base/error.hpp"
+#include "carat/registration/dense_graph.hpp"
+#include "carat/registration/factor_serialization.hpp"
+#include "carat/registration/frame_store.hpp"
+#include "carat/registration/global_registration.hpp"
+#include "carat/residuals/block_serialization.hpp"
+#include "carat/residuals/relative_pose_block.hpp"
+#include "carat/sim/pipeline.hpp"
+#include "carat/solver/se3.hpp"
+
+namespace carat {
+namespace {
+
+using ::testing::HasSubstr;
+
+/// A 16-frame drive with drift: frames, drifted poses and the dense graph at them.
+struct Drive {
+  std::vector<std::shared_ptr<const Frame>> frames;
+  std::vector<Eigen::Isometry3d> initial;
+  std::vector<FramePair> pairs;
+};
+
+const Drive& drive() {
+  static const Drive d = [] {
+    SyntheticPipelineOptions options;
+    options.world.seed = 5;
+    options.drive.frames = 16;
+    options.drive.laps = 1;
+    options.preprocess.voxel_size = 0.5;
+    options.drift = {.seed = 2, .translation_sigma = 0.005, .rotation_sigma_deg = 0.03};
+    options.odometry = false;
+    options.dense_graph = false;
+    options.threads = 2;
+    SyntheticPipeline pipeline = simulate_pipeline(options);
+    Drive out;
+    out.frames = std::move(pipeline.frames);
+    out.initial = std::move(pipeline.T_world_drift);
+    out.pairs = build_dense_graph(out.frames, out.initial);
+    return out;
+  }();
+  return d;
+}
+
+GlobalRegistrationOptions options_for(ResidualSampling sampling) {
+  GlobalRegistrationOptions options;
+  options.sampling = sampling;
+  options.num_threads = 2;
+  return options;
+}
+
+std::vector<RegistrationFactor> build(const GlobalRegistrationOptions& options) {
+  FrameStore store(drive().frames);
+  return build_registration_factors(store, drive().pairs, {}, drive().initial, options);
+}
+
+/// Bitwise equality of two arrays of doubles (NaN-safe, -0 != +0).
+bool same_bits(std::span<const double> a, std::span<const double> b) {
+  return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size_bytes()) == 0;
+}
+
+/// Every row, Jacobian, squared norm and normal equation of the two blocks at `values`.
+void expect_identical(const ResidualBlock& a, const ResidualBlock& b, ParameterPointers values) {
+  ASSERT_EQ(a.num_rows(), b.num_rows());
+  ASSERT_EQ(a.memory_bytes(), b.memory_bytes());
+  ASSERT_EQ(a.reduced_dim(), b.reduced_dim());
+  const int n = a.num_rows(), r = a.reduced_dim();
+  std::vector<int> rows(static_cast<std::size_t>(n));
+  std::iota(rows.begin(), rows.end(), 0);
+  std::vector<double> ra(rows.size()), rb(rows.size()), ja(rows.size() * 6), jb(rows.size() * 6);
+  a.evaluate_rows(values, rows, ra.data(), ja.data());
+  b.evaluate_rows(values, rows, rb.data(), jb.data());
+  EXPECT_TRUE(same_bits(ra, rb));
+  EXPECT_TRUE(same_bits(ja, jb));
+  const double sa = a.squared_norm(values), sb = b.squared_norm(values);
+  EXPECT_TRUE(same_bits({&sa, 1}, {&sb, 1}));
+  Eigen::MatrixXd Ha = Eigen::MatrixXd::Zero(r, r), Hb = Eigen::MatrixXd::Zero(r, r);
+  Eigen::VectorXd ba = Eigen::VectorXd::Zero(r), bb = Eigen::VectorXd::Zero(r);
+  const double ca = a.accumulate(values, Ha, ba), cb = b.accumulate(values, Hb, bb);
+  EXPECT_TRUE(same_bits({&ca, 1}, {&cb, 1}));
+  EXPECT_TRUE(same_bits({Ha.data(), static_cast<std::size_t>(r * r)},
+                        {Hb.data(), static_cast<std::size_t>(r * r)}));
+  EXPECT_TRUE(same_bits({ba.data(), static_cast<std::size_t>(r)},
+                        {bb.data(), static_cast<std::size_t>(r)}));
+}
+
+class FactorBytesTest : public ::testing::TestWithParam<ResidualSampling> {};
+
+TEST_P(FactorBytesTest, RoundTripIsBitIdentical) {
+  GlobalRegistrationOptions options = options_for(GetParam());
+  options.factor_excess_cauchy_scale = 1.0;  // a model minimum to carry
+  const std::vector<RegistrationFactor> factors = build(options);
+  ASSERT_FALSE(factors.empty());
+  for (std::size_t k = 0; k < factors.size(); ++k) {
+    SCOPED_TRACE("factor " + std::to_string(k));
+    const RegistrationFactor& f = factors[k];
+    ASSERT_TRUE(has_byte_form(*f.block));
+    const std::vector<std::byte> bytes = serialize_factor(f);
+    const RegistrationFactor g = deserialize_factor(bytes, "factor");
+    EXPECT_EQ(g.correspondences, f.correspondences);
+    EXPECT_EQ(g.correspondence_bytes, f.correspondence_bytes);
+    EXPECT_EQ(g.correspondence_s, f.correspondence_s);
+    EXPECT_EQ(g.compression_s, f.compression_s);
+    EXPECT_EQ(g.minimum_s, f.minimum_s);
+    EXPECT_EQ(g.minimum, f.minimum);
+    EXPECT_EQ(serialize_factor(g), bytes);
+    // At the initial poses and 0.3 m / a few degrees away from them.
+    const FramePair& pair = drive().pairs[k];
+    for (const double shift : {0.0, 0.3}) {
+      std::array<double, 7> target{}, source{};
+      se3::to_storage(drive().initial[static_cast<std::size_t>(pair.target)], target.data());
+      se3::Vector6d step;
+      step << 0.05 * shift, -0.02 * shift, 0.04 * shift, shift, -shift, 0.5 * shift;
+      se3::to_storage(drive().initial[static_cast<std::size_t>(pair.source)] * se3::exp(step),
+                      source.data());
+      const double* values[2] = {target.data(), source.data()};
+      expect_identical(*f.block, *g.block, values);
+    }
+  }
+}
+
+TEST_P(FactorBytesTest, SolveOverFactorsMovedThroughBytesIsTheSame) {
+  GlobalRegistrationOptions options = options_for(GetParam());
+  options.rounds = 2;
+  const Drive& d = drive();
+  const GlobalRegistrationResult direct =
+      optimize_registration(d.frames, d.pairs, d.initial, options);
+  FrameStore store(d.frames);
+  std::size_t moved = 0;
+  const GlobalRegistrationResult through_bytes = optimize_registration(
+      [&](std::span<const Eigen::Isometry3d> T_world_frame) {
+        std::vector<RegistrationFactor> factors =
+            build_registration_factors(store, d.pairs, {}, T_world_frame, options);
+        for (RegistrationFactor& f : factors) {
+          const std::vector<std::byte> bytes = serialize_factor(f);
+          moved += bytes.size();
+          f = deserialize_factor(bytes, "factor");
+        }
+        return factors;
+      },
+      d.pairs, d.initial, options);
+  EXPECT_GT(moved, 0u);
+  ASSERT_EQ(direct.T_world_frame.size(), through_bytes.T_world_frame.size());
+  EXPECT_EQ(direct.rounds, through_bytes.rounds);
+  EXPECT_EQ(direct.summary.num_iterations, through_bytes.summary.num_iterations);
+  for (std::size_t i = 0; i < direct.T_world_frame.size(); ++i) {
+    EXPECT_TRUE(same_bits({direct.T_world_frame[i].matrix().data(), 16},
+                          {through_bytes.T_world_frame[i].matrix().data(), 16}))
+        << "pose " << i;
+  }
+  EXPECT_EQ(direct.factor_costs, through_bytes.factor_costs);
+}
+
+INSTANTIATE_TEST_SUITE_P(Samplings, FactorBytesTest,
+                         ::testing::Values(ResidualSampling::kExact, ResidualSampling::kLossless,
+                                           ResidualSampling::kFull, ResidualSampling::kRandom),
+                         [](const auto& param_info) {
+                           return std::string(to_string(param_info.param));
+                         });
+
+/// One factor's bytes for the bad-input tests.
+std::vector<std::byte> one_factor(ResidualSampling sampling) {
+  const GlobalRegistrationOptions options = options_for(sampling);
+  FrameStore store(drive().frames);
+  const std::size_t first = 0;
+  return serialize_factor(
+      build_registration_factors(store, drive().pairs, {&first, 1}, drive().initial, options)[0]);
+}
+
+/// `bytes` with a new checksum, so that a change inside passes the checksum.
+std::vector<std::byte> resealed(std::vector<std::byte> bytes) {
+  const std::uint64_t sum = fnv1a_checksum(std::span(bytes).first(bytes.size() - 8));
+  std::memcpy(bytes.data() + bytes.size() - 8, &sum, 8);
+  return bytes;
+}
+
+TEST(FactorBytesBadInputTest, EveryTruncationIsRefused) {
+  for (const ResidualSampling sampling : {ResidualSampling::kExact, ResidualSampling::kLossless}) {
+    const std::vector<std::byte> bytes = one_factor(sampling);
+    for (std::size_t n = 0; n < bytes.size(); ++n) {
+      EXPECT_THAT([&] { deserialize_factor(std::span(bytes).first(n), "the answer"); },
+                  ::testing::ThrowsMessage<Error>(HasSubstr("the answer: truncated")))
+          << n << " of " << bytes.size() << " bytes";
+    }
+  }
+}
+
+TEST(FactorBytesBadInputTest, EveryChangedByteIsRefused) {
+  for (const ResidualSampling sampling : {ResidualSampling::kExact, ResidualSampling::kLossless}) {
+    const std::vector<std::byte> bytes = one_factor(sampling);
+    for (std::size_t at = 0; at < bytes.size(); ++at) {
+      std::vector<std::byte> changed = bytes;
+      changed[at] ^= std::byte{0x10};
+      EXPECT_THAT([&] { deserialize_factor(changed, "the answer"); },
+                  ::testing::ThrowsMessage<Error>(HasSubstr("the answer: ")))
+          << "byte " << at;
+    }
+    std::vector<std::byte> longer = bytes;
+    longer.push_back(std::byte{0});
+    EXPECT_THAT([&] { deserialize_factor(longer, "x"); },
+                ::testing::ThrowsMessage<Error>(HasSubstr("x: garbled")));
+  }
+}
+
+TEST(FactorBytesBadInputTest, ValuesNoWriterProducesAreRefused) {
+  // Byte 12 is the block's tag (after the factor's tag and length).
+  std::vector<std::byte> bytes = one_factor(ResidualSampling::kLossless);
+  bytes[12] = std::byte{9};
+  EXPECT_THAT([&] { deserialize_factor(resealed(bytes), "f"); },
+              ::testing::ThrowsMessage<Error>(HasSubstr("f: garbled: unknown block tag 9")));
+  // A lossless block's rank follows its 15 doubles of reference pose and centre.
+  bytes = one_factor(ResidualSampling::kLossless);
+  bytes[13 + 120] = std::byte{14};
+  EXPECT_THAT([&] { deserialize_factor(resealed(bytes), "f"); },
+              ::testing::ThrowsMessage<Error>(HasSubstr("lossless block of rank 14")));
+  bytes = one_factor(ResidualSampling::kLossless);
+  bytes[13 + 121] = bytes[13 + 122];  // the pivot order repeats a coordinate
+  EXPECT_THAT([&] { deserialize_factor(resealed(bytes), "f"); },
+              ::testing::ThrowsMessage<Error>(HasSubstr("not a permutation")));
+  // A non-finite value in an exact factor's rows.
+  bytes = one_factor(ResidualSampling::kExact);
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  std::memcpy(bytes.data() + 13 + 1 + 16 + 8, &nan, 8);
+  EXPECT_THAT([&] { deserialize_factor(resealed(bytes), "f"); },
+              ::testing::ThrowsMessage<Error>(HasSubstr("non-finite")));
+}
+
+TEST(FactorBytesBadInputTest, BlocksWithoutAByteFormAreRefused) {
+  const RelativePoseBlock block(Eigen::Isometry3d::Identity(),
+                                Eigen::Matrix<double, 6, 6>::Identity());
+  EXPECT_FALSE(has_byte_form(block));
+  std::vector<std::byte> bytes;
+  ByteWriter out(bytes);
+  EXPECT_THAT([&] { write_block(block, out); },
+              ::testing::ThrowsMessage<Error>(HasSubstr("no byte form")));
+  EXPECT_THAT([] { serialize_factor(RegistrationFactor{}); },
+              ::testing::ThrowsMessage<Error>(HasSubstr("no block")));
+}
+
+}  // namespace
+}  // namespace carat
