@@ -362,17 +362,30 @@ RegistrationProblem assemble_registration_problem(std::span<const FramePair> pai
   return out;
 }
 
-RegistrationProblem build_registration_problem(
-    std::span<const std::shared_ptr<const Frame>> frames, std::span<const FramePair> pairs,
-    std::span<const Eigen::Isometry3d> T_world_frame, const GlobalRegistrationOptions& options,
-    const std::function<void(std::size_t, std::size_t)>& progress) {
+namespace {
+
+/// Checks frames held by the caller up front (every frame, degenerate ones by name, before any
+/// factor is built) and wraps them in a resident store.
+FrameStore checked_store(std::span<const std::shared_ptr<const Frame>> frames,
+                         std::span<const FramePair> pairs,
+                         std::span<const Eigen::Isometry3d> T_world_frame,
+                         const GlobalRegistrationOptions& options) {
   check_options(options);
   check_inputs(frames.size(), pairs, T_world_frame);
   for (std::size_t i = 0; i < frames.size(); ++i) {
     if (!frames[i]) throw Error("global registration: frame " + std::to_string(i) + " is null");
     check_frame(*frames[i], i);
   }
-  FrameStore store(std::vector<std::shared_ptr<const Frame>>(frames.begin(), frames.end()));
+  return FrameStore(std::vector<std::shared_ptr<const Frame>>(frames.begin(), frames.end()));
+}
+
+}  // namespace
+
+RegistrationProblem build_registration_problem(
+    std::span<const std::shared_ptr<const Frame>> frames, std::span<const FramePair> pairs,
+    std::span<const Eigen::Isometry3d> T_world_frame, const GlobalRegistrationOptions& options,
+    const std::function<void(std::size_t, std::size_t)>& progress) {
+  FrameStore store = checked_store(frames, pairs, T_world_frame, options);
   return build_registration_problem(store, pairs, T_world_frame, options, progress);
 }
 
@@ -391,13 +404,7 @@ GlobalRegistrationResult optimize_registration(
     std::span<const std::shared_ptr<const Frame>> frames, std::span<const FramePair> pairs,
     std::span<const Eigen::Isometry3d> T_world_frame, const GlobalRegistrationOptions& options,
     const std::function<void(std::size_t, std::size_t)>& progress) {
-  check_options(options);
-  check_inputs(frames.size(), pairs, T_world_frame);
-  for (std::size_t i = 0; i < frames.size(); ++i) {
-    if (!frames[i]) throw Error("global registration: frame " + std::to_string(i) + " is null");
-    check_frame(*frames[i], i);
-  }
-  FrameStore store(std::vector<std::shared_ptr<const Frame>>(frames.begin(), frames.end()));
+  FrameStore store = checked_store(frames, pairs, T_world_frame, options);
   return optimize_registration(store, pairs, T_world_frame, options, progress);
 }
 
