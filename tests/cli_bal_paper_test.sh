@@ -55,8 +55,13 @@ fi
 # paper --quick: the report, the figures and the JSON numbers the issue asks for.
 paper_data=()
 if [[ -d "${CARAT_DATA_DIR:-}" ]]; then paper_data=(--data "$CARAT_DATA_DIR"); fi
-check paper_quick 0 "" -- "$CARAT" paper --quick --json --out "$scratch/paper" "${paper_data[@]}"
+# --full-size on a 40-frame drive, its factors' memory capped between M = 256's and M = 1024's.
+check paper_quick 0 "" -- "$CARAT" paper --quick --json --out "$scratch/paper" "${paper_data[@]}" \
+  --full-size --full-size-frames 40 --full-size-memory 0.01
 cp "$scratch/out" "$scratch/paper.json"
+expect paper_full_size "$(json_field "$scratch/paper.json" "j['full_size']['ran'] and j['full_size']['frames'] == 40 and [r['solved'] for r in j['full_size']['table4']] == [True, True, False, True, False] and 'over the limit' in j['full_size']['table4'][2]['why_not_solved']")"
+check paper_full_size_needs_flag 2 "usage error: --full-size-frames requires --full-size" -- \
+  "$CARAT" paper --quick --full-size-frames 40 --out "$scratch/paper_refused"
 for f in report.md paper.json fig7_time_breakdown.svg; do
   if [[ ! -s "$scratch/paper/$f" ]]; then echo "FAIL paper did not write $f"; fail=$((fail + 1)); else pass=$((pass + 1)); fi
 done

@@ -142,6 +142,49 @@ if real:
 else:
     check("figure3 skipped", j["figure3"] == {"skipped": True} and "## Fig. 3" in report, j["figure3"])
 
+# --full-size: the paper's rows beside each method, which methods were solved, and the memory.
+fs = j["full_size"]
+if fs.get("ran"):
+    f4, f5 = fs["table4"], fs["table5"]
+    check("full_size methods", [(r["method"], r.get("residuals")) for r in f4] ==
+          [("gre_exact", 29), ("gre_exact", 256), ("gre_exact", 1024), ("gre_lossless", None),
+           ("gre_full", None)] and [r["method"] for r in f5] == [r["method"] for r in f4], f4)
+    okp = True
+    for r4, r5 in zip(f4, f5):
+        m = 0 if r4["method"] == "gre_full" else r4.get("residuals")
+        if m is None:
+            okp &= not any(k.startswith("paper") for k in list(r4) + list(r5))
+            continue
+        ate_mean, ate_std, hours, corr, sampled = TABLES45[m]
+        okp &= (r4["paper_ate_mean"], r4["paper_ate_std"], r4["paper_hours"]) == (ate_mean, ate_std,
+                                                                                 hours)
+        okp &= close(r4["paper_time_vs_m29"], hours / 1.67, 1e-9)
+        held = corr if m == 0 else sampled
+        okp &= (r5["paper_correspondences_gb"], r5["paper_sampled_residuals_gb"]) == (corr, sampled)
+        okp &= close(r5["paper_bytes_per_factor"], held * 1e9 / FACTORS, 1e-9)
+        okp &= close(r5["per_factor_ratio_to_paper"],
+                     r5["memory_bytes_per_factor"] / r5["paper_bytes_per_factor"], 1e-9)
+    check("full_size paper", okp, (f4, f5))
+    limit = fs["memory_limit_bytes"]
+    oks = all(r5["memory_measured"] == r4["solved"] for r4, r5 in zip(f4, f5))
+    oks &= all((r5["memory_bytes"] <= limit) == r4["solved"] for r4, r5 in zip(f4[:4], f5[:4]))
+    oks &= all(("why_not_solved" in r4) != r4["solved"] for r4 in f4) and not f4[4]["solved"]
+    oks &= all(close(r5["memory_bytes_per_factor"] * fs["factors"], r5["memory_bytes"], 1e-9)
+               for r5 in f5)
+    check("full_size solved within the limit", oks, [(r["label"], r["solved"]) for r in f4])
+    if f4[0]["solved"]:
+        # Full's memory is every factor's correspondences as built by the M = 29 run.
+        check("full_size full memory", f5[4]["memory_bytes"] == f4[0]["correspondence_bytes"]
+              and close(f4[0]["time_vs_m29"], 1.0), (f5[4], f4[0]))
+    lossless = f4[3]
+    if lossless["solved"]:
+        check("full_size lossless is full's optimum", lossless["ate_change_vs_lossless_percent"] == 0
+              and all(abs(r["ate_change_vs_lossless_percent"]) < 5 for r in f4 if r["solved"]), f4)
+    check("full_size report", "## Tables IV and V at the paper's size" in report and
+          "| paper time vs M=29 |" in report and "| 2.36 | 1.41 |" in report, "")
+else:
+    check("full_size absent", fs == {"ran": False}, fs)
+
 files = [f.rsplit("/", 1)[-1] for f in j["files"]]
 wanted = ["fig6_registration_error.svg", "fig6_ate.svg"] + (["fig3_sampled_residuals.svg"] if real else [])
 check("files listed", all(f in files for f in wanted), files)
@@ -152,6 +195,8 @@ keys = {"paper_ms", "speedup_over_paper", "paper", "threads", "table5", "figure3
 keys |= {k for r in t4 for k in r if k.startswith("paper")}
 keys |= {k for r in t5 for k in r}
 keys |= {k for m in f6 for k in m}
+if fs.get("ran"):
+    keys |= set(fs) | set(fs["frame_store"]) | {k for r in fs["table4"] + fs["table5"] for k in r}
 if real:
     keys |= set(j["figure3"]) | {k for r in j["figure3"]["rows"] for k in r}
 prose = re.sub(r"```.*?```", "", docs, flags=re.S)  # code blocks are not code spans

@@ -7,6 +7,7 @@
 #include "carat/registration/correspondences.hpp"
 #include "carat/registration/io/kitti_io.hpp"
 #include "carat/solver/se3.hpp"
+#include "cli_support.hpp"
 #include "paper.hpp"
 
 namespace carat::cli::paper {
@@ -15,6 +16,44 @@ std::string fmt(const char* format, double value) {
   char text[64];
   std::snprintf(text, sizeof(text), format, value);
   return text;
+}
+
+std::string mean_std(const published::Ate& ate) {
+  return fmt("%.4f", ate.mean) + " ± " + fmt("%.4f", ate.std);
+}
+
+std::string thousands(long long count) {
+  std::string digits = std::to_string(count), out;
+  for (std::size_t k = 0; k < digits.size(); ++k) {
+    if (k > 0 && (digits.size() - k) % 3 == 0) out += ',';
+    out += digits[k];
+  }
+  return out;
+}
+
+std::optional<published::SamplingRow> published_sampling_row(int residuals) {
+  for (const auto& row : published::kTables4And5)
+    if (row.residuals == residuals) return row;
+  return std::nullopt;
+}
+
+void add_paper_table4(const published::SamplingRow& row, nlohmann::json* fields) {
+  (*fields)["paper_ate_mean"] = row.ate.mean;
+  (*fields)["paper_ate_std"] = row.ate.std;
+  (*fields)["paper_hours"] = row.hours;
+}
+
+void add_paper_table5(const published::SamplingRow& row, double per_factor, nlohmann::json* fields,
+                      std::vector<std::string>* cells) {
+  const double held_gb = row.residuals == 0 ? row.correspondences_gb : row.sampled_residuals_gb;
+  const double paper_per_factor = held_gb * 1e9 / published::kSequence00Factors;
+  (*fields)["paper_correspondences_gb"] = row.correspondences_gb;
+  (*fields)["paper_sampled_residuals_gb"] = row.sampled_residuals_gb;
+  (*fields)["paper_bytes_per_factor"] = paper_per_factor;
+  (*fields)["per_factor_ratio_to_paper"] = per_factor / paper_per_factor;
+  cells->insert(cells->end(),
+                {fmt("%.2f", row.correspondences_gb), fmt("%.2f", row.sampled_residuals_gb),
+                 format_bytes(paper_per_factor), fmt("%.2f", per_factor / paper_per_factor)});
 }
 
 bool data_present(const fs::path& path) {

@@ -9,12 +9,14 @@
 #include <filesystem>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "carat/registration/frame.hpp"
 #include "carat/residuals/gicp_block.hpp"
 #include "iteration_trace.hpp"
+#include "published.hpp"
 
 namespace carat::cli::paper {
 
@@ -29,6 +31,9 @@ struct PaperArgs {
   int threads = 0;
   std::uint64_t seed = 1;
   double gre_excess_cauchy = 0.0;
+  bool full_size = false;          // also run Tables IV/V at the paper's problem size
+  int full_size_frames = 4540;     // frames of that drive (the paper's KITTI 00 poses)
+  double full_size_memory_gb = 0;  // factors' memory limit there, GB (0: 80 % of what is free)
 };
 
 /// A number as printf's `format` writes it.
@@ -49,6 +54,27 @@ struct RealPair {
   std::shared_ptr<const GicpBlock> block;               // over the correspondences
   std::array<double, 7> identity{}, pose{};
 };
+
+/// A published ATE as "mean ± std" (4 decimals).
+std::string mean_std(const published::Ate& ate);
+
+/// A count with thousands separators: 585417 -> "585,417".
+std::string thousands(long long count);
+
+/// The paper's Table IV/V row of exact sampling with M = `residuals`, or of all residuals
+/// (`residuals` 0); none for another M.
+std::optional<published::SamplingRow> published_sampling_row(int residuals);
+
+/// Puts the paper's Table IV ATE and hours of `row` into a JSON row: paper_ate_mean,
+/// paper_ate_std (metres), paper_hours.
+void add_paper_table4(const published::SamplingRow& row, nlohmann::json* fields);
+
+/// Puts the paper's Table V memory of `row` beside carat's `per_factor` bytes into a JSON row
+/// (paper_correspondences_gb, paper_sampled_residuals_gb, paper_bytes_per_factor: what it held
+/// during the optimization over its factors, GB read as 10^9 bytes; per_factor_ratio_to_paper)
+/// and the same four as Markdown cells.
+void add_paper_table5(const published::SamplingRow& row, double per_factor, nlohmann::json* fields,
+                      std::vector<std::string>* cells);
 
 /// Whether a data file is there; an entry that is there but is not a regular file (a FIFO, a
 /// folder, a loop of links) is an error naming it, never a wait or a silent skip.
@@ -80,6 +106,11 @@ void synthetic_tables(const PaperArgs& args, int threads, const fs::path& dir, R
 
 /// Fig. 6: registration error and ATE per LM iteration of each trace; the SVGs go into `dir`.
 void figure_six(const std::vector<IterationTrace>& traces, const fs::path& dir, Report* report);
+
+/// Tables IV/V at the paper's problem size (`--full-size`): a drive of args.full_size_frames
+/// frames scanned on demand, its dense graph, and GRE exact M = 29 / 256 / 1024 and lossless,
+/// each solved when its factors fit in memory; full's memory from its factors' bytes.
+void full_size_tables(const PaperArgs& args, int threads, Report* report);
 
 /// The real KITTI 07 dense graph from a perturbed start.
 void kitti07(const PaperArgs& args, int threads, Report* report);

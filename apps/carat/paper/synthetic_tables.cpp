@@ -17,11 +17,6 @@
 namespace carat::cli::paper {
 namespace {
 
-/// "mean ± std" of a published ATE.
-std::string mean_std(const published::Ate& ate) {
-  return fmt("%.4f", ate.mean) + " ± " + fmt("%.4f", ate.std);
-}
-
 /// A published ATE per KITTI sequence as JSON: {"00": {"mean": ..., "std": ...}, ...}.
 nlohmann::json sequences_json(const std::array<published::Ate, 4>& ates) {
   nlohmann::json j = nlohmann::json::object();
@@ -30,31 +25,12 @@ nlohmann::json sequences_json(const std::array<published::Ate, 4>& ates) {
   return j;
 }
 
-/// A count with thousands separators: 585417 -> "585,417".
-std::string thousands(long count) {
-  std::string digits = std::to_string(count), out;
-  for (std::size_t k = 0; k < digits.size(); ++k) {
-    if (k > 0 && (digits.size() - k) % 3 == 0) out += ',';
-    out += digits[k];
-  }
-  return out;
-}
-
 /// Bytes per factor as the mean of the per-factor list (0 when empty).
 double mean_bytes(const std::vector<std::size_t>& bytes) {
   if (bytes.empty()) return 0.0;
   double total = 0.0;
   for (std::size_t b : bytes) total += static_cast<double>(b);
   return total / static_cast<double>(bytes.size());
-}
-
-/// The paper's Table IV/V row of a GRE method (full: the original points; exact: its M), if it
-/// has one.
-std::optional<published::SamplingRow> published_row(const MethodResult& r, int exact_residuals) {
-  const int wanted = r.key == "gre_full" ? 0 : r.key == "gre_exact" ? exact_residuals : -1;
-  for (const auto& row : published::kTables4And5)
-    if (row.residuals == wanted) return row;
-  return std::nullopt;
 }
 
 }  // namespace
@@ -175,26 +151,16 @@ void synthetic_tables(const PaperArgs& args, int threads, const fs::path& dir, R
     std::vector<std::string> c5{r.label, format_bytes(static_cast<double>(r.correspondence_bytes)),
                                 format_bytes(static_cast<double>(r.memory_bytes)),
                                 fmt("%+.2f %%", memory_change), format_bytes(per_factor)};
-    if (const auto paper_row = published_row(r, table4_residuals[k])) {
+    const int paper_residuals = r.key == "gre_full"    ? 0
+                                : r.key == "gre_exact" ? table4_residuals[k]
+                                                       : -1;
+    if (const auto paper_row = published_sampling_row(paper_residuals)) {
       const double paper_time_change = 100.0 * (paper_row->hours / paper_full.hours - 1.0);
-      // Held during the optimization, per factor: GB read as 10^9 bytes over the factors.
-      const double paper_gb = paper_row->residuals == 0 ? paper_row->correspondences_gb
-                                                        : paper_row->sampled_residuals_gb;
-      const double paper_per_factor = paper_gb * 1e9 / published::kSequence00Factors;
-      j["paper_ate_mean"] = paper_row->ate.mean;
-      j["paper_ate_std"] = paper_row->ate.std;
-      j["paper_hours"] = paper_row->hours;
+      add_paper_table4(*paper_row, &j);
       j["paper_time_change_percent"] = paper_time_change;
-      j5["paper_correspondences_gb"] = paper_row->correspondences_gb;
-      j5["paper_sampled_residuals_gb"] = paper_row->sampled_residuals_gb;
-      j5["paper_bytes_per_factor"] = paper_per_factor;
-      j5["per_factor_ratio_to_paper"] = per_factor / paper_per_factor;
+      add_paper_table5(*paper_row, per_factor, &j5, &c5);
       c4.insert(c4.end(), {mean_std(paper_row->ate), fmt("%.2f", paper_row->hours),
                            fmt("%+.1f %%", paper_time_change)});
-      c5.insert(
-          c5.end(),
-          {fmt("%.2f", paper_row->correspondences_gb), fmt("%.2f", paper_row->sampled_residuals_gb),
-           format_bytes(paper_per_factor), fmt("%.2f", per_factor / paper_per_factor)});
     } else {
       c4.insert(c4.end(), {"—", "—", "—"});
       c5.insert(c5.end(), {"—", "—", "—", "—"});
