@@ -62,6 +62,14 @@ cp "$scratch/out" "$scratch/paper.json"
 expect paper_full_size "$(json_field "$scratch/paper.json" "j['full_size']['ran'] and j['full_size']['frames'] == 40 and [r['solved'] for r in j['full_size']['table4']] == [True, True, False, True, False] and 'over the limit' in j['full_size']['table4'][2]['why_not_solved']")"
 check paper_full_size_needs_flag 2 "usage error: --full-size-frames requires --full-size" -- \
   "$CARAT" paper --quick --full-size-frames 40 --out "$scratch/paper_refused"
+check paper_full_size_memory_needs_flag 2 "usage error: --full-size-memory requires --full-size" -- \
+  "$CARAT" paper --quick --full-size-memory 1 --out "$scratch/paper_refused"
+expect paper_full_size_refused_no_output "$([[ ! -e "$scratch/paper_refused" ]] && echo True)"
+# Without --full-size: no such section, {"ran": false} (real data left out: an empty --data).
+mkdir -p "$scratch/no_data"
+check paper_quick_plain 0 "" -- "$CARAT" paper --quick --json --out "$scratch/paper_plain" --data "$scratch/no_data"
+expect paper_quick_plain_no_full_size "$(json_field "$scratch/out" "j['full_size'] == {'ran': False}")"
+if grep -q "paper's size" "$scratch/paper_plain/report.md"; then echo "FAIL paper_quick_plain report has the full-size section"; fail=$((fail + 1)); else pass=$((pass + 1)); fi
 for f in report.md paper.json fig7_time_breakdown.svg; do
   if [[ ! -s "$scratch/paper/$f" ]]; then echo "FAIL paper did not write $f"; fail=$((fail + 1)); else pass=$((pass + 1)); fi
 done

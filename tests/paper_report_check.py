@@ -165,21 +165,28 @@ if fs.get("ran"):
         okp &= close(r5["per_factor_ratio_to_paper"],
                      r5["memory_bytes_per_factor"] / r5["paper_bytes_per_factor"], 1e-9)
     check("full_size paper", okp, (f4, f5))
+    # A method is solved exactly when the sample's projection of its factors fits the limit, and
+    # the projection is within 5 % of what the solved ones held.
     limit = fs["memory_limit_bytes"]
-    oks = all(r5["memory_measured"] == r4["solved"] for r4, r5 in zip(f4, f5))
-    oks &= all((r5["memory_bytes"] <= limit) == r4["solved"] for r4, r5 in zip(f4[:4], f5[:4]))
+    oks = all((r5["projected_bytes"] <= limit) == r4["solved"] for r4, r5 in zip(f4[:4], f5[:4]))
     oks &= all(("why_not_solved" in r4) != r4["solved"] for r4 in f4) and not f4[4]["solved"]
-    oks &= all(close(r5["memory_bytes_per_factor"] * fs["factors"], r5["memory_bytes"], 1e-9)
-               for r5 in f5)
-    check("full_size solved within the limit", oks, [(r["label"], r["solved"]) for r in f4])
+    oks &= all(r5["memory_source"] == ("measured" if r4["solved"] else "projected")
+               for r4, r5 in zip(f4[:4], f5[:4]))
+    oks &= all(abs(r5["projected_bytes"] / r5["memory_bytes"] - 1) < 0.05
+               for r4, r5 in zip(f4, f5) if r4["solved"])
+    check("full_size solved within the limit", oks,
+          [(r4["label"], r4["solved"], r5["projected_bytes"], r5["memory_bytes"], limit)
+           for r4, r5 in zip(f4, f5)])
     if f4[0]["solved"]:
-        # Full's memory is every factor's correspondences as built by the M = 29 run.
-        check("full_size full memory", f5[4]["memory_bytes"] == f4[0]["correspondence_bytes"]
-              and close(f4[0]["time_vs_m29"], 1.0), (f5[4], f4[0]))
-    lossless = f4[3]
-    if lossless["solved"]:
-        check("full_size lossless is full's optimum", lossless["ate_change_vs_lossless_percent"] == 0
-              and all(abs(r["ate_change_vs_lossless_percent"]) < 5 for r in f4 if r["solved"]), f4)
+        # Full's memory is every factor's correspondences as built by the M = 29 run, and the
+        # sample projected it within 10 %.
+        check("full_size full memory", f5[4]["memory_source"] == "as built"
+              and f5[4]["memory_bytes"] == f4[0]["correspondence_bytes"]
+              and abs(f5[4]["projected_bytes"] / f5[4]["memory_bytes"] - 1) < 0.1, (f5[4], f4[0]))
+    # Exact sampling ends within 1 % of lossless's ATE (full's optimum) on the drive.
+    check("full_size ATE near full's optimum", all(
+        abs(r["ate_change_vs_lossless_percent"]) < 1 for r in f4 if r["solved"]) and f4[3]["solved"],
+        f4)
     check("full_size report", "## Tables IV and V at the paper's size" in report and
           "| paper time vs M=29 |" in report and "| 2.36 | 1.41 |" in report, "")
 else:

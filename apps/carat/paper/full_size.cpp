@@ -26,10 +26,10 @@
 namespace carat::cli::paper {
 namespace {
 
-constexpr double kVoxel = 0.25;             // metres: about 6,800 correspondences a factor
-constexpr double kPerturbMetres = 0.1;      // start: every pose but the first moved this far
-constexpr double kPerturbDegrees = 0.5;     // and turned this much
-constexpr std::size_t kFrameCapMb = 1024;   // frames held at once
+constexpr double kVoxel = 0.25;          // metres: about 6,800 correspondences a factor
+constexpr double kPerturbMetres = 0.1;   // start: every pose but the first moved this far
+constexpr double kPerturbDegrees = 0.5;  // and turned this much
+constexpr std::size_t kFrameCapBytes = std::size_t{1} << 30;  // frames held at once: 1 GiB
 constexpr std::size_t kSampleFactors = 64;  // factors built to project a method's memory
 constexpr double kMemoryShare = 0.8;        // of the memory free at the start, for the factors
 constexpr int kPaperBlocks = 10;            // circuit blocks at the paper's 4,540 frames
@@ -86,13 +86,13 @@ void full_size_tables(const PaperArgs& args, int threads, Report* report) {
   truth.reserve(T_world_sensor.size());
   for (const auto& T : T_world_sensor) truth.push_back(T_world_sensor.front().inverse() * T);
 
+  PreprocessOptions preprocess;
+  preprocess.voxel_size = kVoxel;
+  preprocess.num_threads = 1;  // frames load in parallel already
   MappingInput input;
   input.threads = threads;
   input.seed = args.seed;
   input.progress = !args.json;
-  PreprocessOptions preprocess;
-  preprocess.voxel_size = kVoxel;
-  preprocess.num_threads = 1;  // frames load in parallel already
   input.store = std::make_shared<FrameStore>(
       truth.size(),
       [&](std::size_t k) {
@@ -101,14 +101,14 @@ void full_size_tables(const PaperArgs& args, int threads, Report* report) {
             world.scan(T_world_sensor[k], synthetic_frame_noise_seed(world_options.seed, k)),
             preprocess, name);
       },
-      kFrameCapMb * 1024 * 1024);
+      kFrameCapBytes);
   input.T_world_initial = perturb_poses(truth, kPerturbMetres, kPerturbDegrees, args.seed);
   const AteStatistics initial = compute_ate(input.T_world_initial, truth);
 
   const double available = static_cast<double>(available_memory_bytes());
   const double limit = args.full_size_memory_gb > 0.0
                            ? args.full_size_memory_gb * 1e9
-                           : kMemoryShare * available - double(kFrameCapMb) * 1024 * 1024;
+                           : std::max(0.0, kMemoryShare * available - double(kFrameCapBytes));
   DenseGraphOptions graph_options;
   graph_options.num_threads = threads;
   const Stopwatch graph_time;
@@ -129,7 +129,9 @@ void full_size_tables(const PaperArgs& args, int threads, Report* report) {
   std::vector<FullSizeRow> rows;
   for (int m : {29, 256, 1024}) rows.push_back(planned(ResidualSampling::kExact, m));
   rows.push_back(planned(ResidualSampling::kLossless, 0));
-  double full_bytes = 0.0;  // correspondences of every factor as built: what full would hold
+  // What full would hold, every factor's correspondences: projected from the first sample, and
+  // as built once a method has built every factor.
+  double full_projected = 0.0, full_built = 0.0;
   for (FullSizeRow& row : rows) {
     GlobalRegistrationOptions options;
     options.sampling = row.sampling;
@@ -144,7 +146,7 @@ void full_size_tables(const PaperArgs& args, int threads, Report* report) {
     }
     const double scale = double(input.pairs.size()) / double(sample.size());
     row.projected_bytes = sample_bytes * scale;
-    if (full_bytes == 0.0) full_bytes = sample_correspondence_bytes * scale;
+    if (full_projected == 0.0) full_projected = sample_correspondence_bytes * scale;
     if (row.projected_bytes > limit) continue;
     input.residuals = options.residuals;
     const Stopwatch wall;
@@ -153,9 +155,11 @@ void full_size_tables(const PaperArgs& args, int threads, Report* report) {
     row.result->ate = compute_ate(row.result->T_world_frame, truth);
     row.result->T_world_frame.clear();
     // Every factor was built: full's memory is their correspondences' bytes, not a projection.
-    full_bytes = static_cast<double>(row.result->correspondence_bytes);
+    full_built = static_cast<double>(row.result->correspondence_bytes);
   }
-  rows.push_back(planned(ResidualSampling::kFull, 0, full_bytes));
+  rows.push_back(planned(ResidualSampling::kFull, 0, full_projected));
+  const bool any_solved =
+      std::any_of(rows.begin(), rows.end(), [](const FullSizeRow& row) { return row.result; });
 
   const FullSizeRow* lossless = nullptr;
   const FullSizeRow* smallest = nullptr;  // exact M = 29, when solved
@@ -177,11 +181,19 @@ void full_size_tables(const PaperArgs& args, int threads, Report* report) {
     nlohmann::json j5{{"method", key}, {"label", label}};
     if (row.sampling == ResidualSampling::kExact) j4["residuals"] = j5["residuals"] = row.residuals;
     std::vector<std::string> c4{label}, c5{label};
-    const double bytes =
-        row.result ? static_cast<double>(row.result->memory_bytes) : row.projected_bytes;
+    const double bytes = row.result ? static_cast<double>(row.result->memory_bytes)
+                         : row.sampling == ResidualSampling::kFull && any_solved
+                             ? full_built
+                             : row.projected_bytes;
     const double per_factor = bytes / double(input.pairs.size());
     j5["memory_bytes"] = bytes;
-    j5["memory_measured"] = row.result.has_value();
+    // Measured when solved; projected from the sample; full's: its correspondences as built by
+    // a solved method (projected when none was solved).
+    const char* source = row.result                                              ? "measured"
+                         : row.sampling == ResidualSampling::kFull && any_solved ? "as built"
+                                                                                 : "projected";
+    j5["memory_source"] = source;
+    j5["projected_bytes"] = row.projected_bytes;
     j5["memory_bytes_per_factor"] = per_factor;
     if (row.result) {
       const MethodResult& r = *row.result;
@@ -222,8 +234,8 @@ void full_size_tables(const PaperArgs& args, int threads, Report* report) {
     const int paper_residuals = row.sampling == ResidualSampling::kFull    ? 0
                                 : row.sampling == ResidualSampling::kExact ? row.residuals
                                                                            : -1;
-    c5.insert(c5.end(),
-              {format_bytes(bytes) + (row.result ? "" : " (computed)"), format_bytes(per_factor)});
+    c5.insert(c5.end(), {format_bytes(bytes) + (row.result ? "" : " (" + std::string(source) + ")"),
+                         format_bytes(per_factor)});
     if (const auto paper = published_sampling_row(paper_residuals)) {
       const double paper_vs_29 = paper->hours / paper_29.hours;
       add_paper_table4(*paper, &j4);
@@ -245,7 +257,7 @@ void full_size_tables(const PaperArgs& args, int threads, Report* report) {
   md += "## Tables IV and V at the paper's size (`--full-size`)\n\n";
   md += thousands(frames) + " synthetic frames (two laps of a " + std::to_string(blocks) +
         "-block circuit), scanned and preprocessed on demand (" + fmt("%g", kVoxel) +
-        " m voxels) with at most " + std::to_string(kFrameCapMb) + " MB of frames held; " +
+        " m voxels) with at most " + format_bytes(double(kFrameCapBytes)) + " of frames held; " +
         thousands(static_cast<long long>(input.pairs.size())) +
         " dense factors (the paper's KITTI 00: " + thousands(published::kSequence00Poses) +
         " poses, " + thousands(published::kSequence00Factors) +

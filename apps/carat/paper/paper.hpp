@@ -24,16 +24,16 @@ namespace fs = std::filesystem;
 
 /// The settings of `carat paper`.
 struct PaperArgs {
-  std::string out = "carat-paper";
-  std::string data = "../shared/data";
-  bool quick = false;
-  bool json = false;
-  int threads = 0;
-  std::uint64_t seed = 1;
-  double gre_excess_cauchy = 0.0;
-  bool full_size = false;          // also run Tables IV/V at the paper's problem size
-  int full_size_frames = 4540;     // frames of that drive (the paper's KITTI 00 poses)
-  double full_size_memory_gb = 0;  // factors' memory limit there, GB (0: 80 % of what is free)
+  std::string out = "carat-paper";      ///< output folder
+  std::string data = "../shared/data";  ///< folder of the real data
+  bool quick = false;                   ///< fewer trials and a smaller sequence
+  bool json = false;                    ///< print the JSON instead of the report
+  int threads = 0;                      ///< threads (0: all cores)
+  std::uint64_t seed = 1;               ///< random seed
+  double gre_excess_cauchy = 0.0;       ///< Cauchy scale on each GRE factor's excess (0: none)
+  bool full_size = false;               ///< also Tables IV/V at the paper's problem size
+  int full_size_frames = 4540;          ///< frames of that drive (the paper's KITTI 00 poses)
+  double full_size_memory_gb = 0.0;  ///< factors' memory limit there, GB (0: 80 % of what is free)
 };
 
 /// A number as printf's `format` writes it.
