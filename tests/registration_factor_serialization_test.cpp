@@ -25,6 +25,7 @@
 #include "carat/residuals/relative_pose_block.hpp"
 #include "carat/sim/pipeline.hpp"
 #include "carat/solver/se3.hpp"
+#include "registration_test_drive.hpp"
 
 namespace carat {
 namespace {
@@ -40,16 +41,8 @@ struct Drive {
 
 const Drive& drive() {
   static const Drive d = [] {
-    SyntheticPipelineOptions options;
-    options.world.seed = 5;
-    options.drive.frames = 16;
-    options.drive.laps = 1;
-    options.preprocess.voxel_size = 0.5;
-    options.drift = {.seed = 2, .translation_sigma = 0.005, .rotation_sigma_deg = 0.03};
-    options.odometry = false;
-    options.dense_graph = false;
-    options.threads = 2;
-    SyntheticPipeline pipeline = simulate_pipeline(options);
+    SyntheticPipeline pipeline = test::simulate_test_drive(
+        5, 16, 1, {.seed = 2, .translation_sigma = 0.005, .rotation_sigma_deg = 0.03});
     Drive out;
     out.frames = std::move(pipeline.frames);
     out.initial = std::move(pipeline.T_world_drift);

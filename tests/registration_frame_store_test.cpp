@@ -19,6 +19,7 @@
 #include "carat/registration/pair_registration.hpp"
 #include "carat/sim/pipeline.hpp"
 #include "carat/solver/se3.hpp"
+#include "registration_test_drive.hpp"
 #include "test_support.hpp"
 
 namespace carat {
@@ -35,16 +36,8 @@ struct Drive {
 
 const Drive& drive() {
   static const Drive d = [] {
-    SyntheticPipelineOptions options;
-    options.world.seed = 11;
-    options.drive.frames = 24;
-    options.drive.laps = 1;
-    options.preprocess.voxel_size = 0.5;
-    options.drift = {.seed = 5, .translation_sigma = 0.01, .rotation_sigma_deg = 0.05};
-    options.odometry = false;
-    options.dense_graph = false;
-    options.threads = 2;
-    SyntheticPipeline pipeline = simulate_pipeline(options);
+    SyntheticPipeline pipeline = test::simulate_test_drive(
+        11, 24, 1, {.seed = 5, .translation_sigma = 0.01, .rotation_sigma_deg = 0.05});
     return Drive{std::move(pipeline.frames), std::move(pipeline.T_world_drift)};
   }();
   return d;

@@ -32,6 +32,7 @@
 #include "carat/solver/loss_function.hpp"
 #include "carat/solver/se3.hpp"
 #include "carat/solver/solve.hpp"
+#include "registration_test_drive.hpp"
 #include "test_support.hpp"
 
 namespace carat {
@@ -48,16 +49,8 @@ struct SmallWorld {
 
 const SmallWorld& small_world() {
   static const SmallWorld world = [] {
-    SyntheticPipelineOptions options;
-    options.world.seed = 7;
-    options.drive.frames = 40;
-    options.drive.laps = 2;
-    options.preprocess.voxel_size = 0.5;
-    options.drift = {.seed = 3, .translation_sigma = 0.005, .rotation_sigma_deg = 0.03};
-    options.odometry = false;
-    options.dense_graph = false;
-    options.threads = 2;
-    SyntheticPipeline pipeline = simulate_pipeline(options);
+    SyntheticPipeline pipeline = test::simulate_test_drive(
+        7, 40, 2, {.seed = 3, .translation_sigma = 0.005, .rotation_sigma_deg = 0.03});
     SmallWorld out;
     out.frames = std::move(pipeline.frames);
     out.truth = std::move(pipeline.T_world_truth);
