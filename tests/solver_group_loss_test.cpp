@@ -61,6 +61,15 @@ TEST(GroupLossTest, EachObservationIsWeightedByItsOwnLoss) {
   const Manifold* manifolds[] = {euclid.get()};
   const BlockCheckReport check = check_residual_block(*block, manifolds, params);
   EXPECT_TRUE(check.ok) << check.summary();
+  // So do extracts whose rows end mid-group (with the loss, and without).
+  const std::vector<int> rows{5, 2, 3, 100, 101, 7, 799};
+  const std::shared_ptr<ResidualBlock> plain =
+      make_autodiff_block<2, VariableSize<2>>(Shift{}, data);
+  for (const auto& source : {block, plain}) {
+    const auto part = source->extract_rows(rows);
+    const BlockCheckReport extract = check_residual_block(*part, manifolds, params);
+    EXPECT_TRUE(extract.ok) << extract.summary();
+  }
   // H, b, c by hand: J_g = -I for every observation.
   Eigen::Matrix2d H_hand = Eigen::Matrix2d::Zero();
   Eigen::Vector2d b_hand = Eigen::Vector2d::Zero();

@@ -226,6 +226,19 @@ class GroupedRowsBlock : public ResidualBlock {
           b[j] += g[static_cast<std::size_t>(j)];
           for (int k = j; k < R; ++k) H(k, j) += h[static_cast<std::size_t>(slot++)];
         }
+      } else if constexpr (R != Eigen::Dynamic && R <= 8) {
+        // Up to 8 columns: each group's small product, coefficient by coefficient, stays in
+        // registers (a packed rank-k update spends more on packing than on these sizes).
+        int i = 0;
+        for (; i + kGroupRows <= used; i += kGroupRows) {
+          const auto Jg = J.template middleRows<kGroupRows>(i);
+          H.noalias() += Jg.transpose() * Jg;
+          b.noalias() += Jg.transpose() * e.template segment<kGroupRows>(i);
+        }
+        for (; i < used; ++i) {  // an extract's last rows need not make a whole group
+          H.noalias() += J.row(i).transpose() * J.row(i);
+          b.noalias() += J.row(i).transpose() * e[i];
+        }
       } else if (used == kBatchRows) {
         H.template selfadjointView<Eigen::Lower>().rankUpdate(J.transpose());
         b.noalias() += J.transpose() * e;
