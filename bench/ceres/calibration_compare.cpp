@@ -12,7 +12,9 @@
 //                     turned into a rotation for every observation), default options;
 //   carat_prepared    the same functor with prepare() (the pose once per evaluation);
 //   carat_compressed  carat_prepared's blocks compressed once, then solved (not the optimum);
-//   carat_recompressed  solve_recompressed() with its default options (the full optimum).
+//   carat_recompressed  solve_recompressed() with its default options (CompressionMode::
+//                     kSurrogate: the full optimum);
+//   carat_auto        solve_recompressed() with CompressionMode::kAuto.
 // With --outliers S a share S of the observations is displaced by 15 px: Ceres gets a HuberLoss
 // (1 px) per observation (ceres_per_obs only: a per-view cost function cannot weight single
 // observations), carat a group loss per observation (with_group_loss()) in carat_prepared,
@@ -261,6 +263,18 @@ int main(int argc, char** argv) {
       out["carat_compressed"] = judge(scene, intrinsics_of(p), poses_of(p), huber,
                                       stopwatch.elapsed_s(), s.num_iterations);
     }
+    if (wanted("carat_auto")) {
+      carat::Problem p = carat_problem<calibration_scene::PreparedReprojection>(
+          scene, scene.K_start, scene.T_world_camera_start, huber);
+      carat::RecompressedSolveOptions automatic;
+      automatic.inner = solver;
+      automatic.mode = carat::CompressionMode::kAuto;
+      const carat::Stopwatch stopwatch;
+      const carat::RecompressedSolveSummary s = carat::solve_recompressed(p, automatic);
+      out["carat_auto"] = judge(scene, intrinsics_of(p), poses_of(p), huber, stopwatch.elapsed_s(),
+                                s.full_iterations + s.inner_iterations);
+      out["carat_auto"]["switched_to_compression"] = s.switched_to_compression;
+    }
     if (wanted("carat_recompressed")) {
       carat::Problem p = carat_problem<calibration_scene::PreparedReprojection>(
           scene, scene.K_start, scene.T_world_camera_start, huber);
@@ -283,7 +297,8 @@ int main(int argc, char** argv) {
     for (auto& [name, method] : out.items()) {
       if (!method.is_object() || !method.contains("full_cost")) continue;
       method["cost_vs_optimum"] = method["full_cost"].get<double>() / optimum - 1.0;
-      for (const char* reference : {"ceres_per_view", "ceres_per_obs", "carat_full"}) {
+      for (const char* reference :
+         {"ceres_per_view", "ceres_per_obs", "carat_full", "carat_prepared"}) {
         if (out.contains(reference)) {
           method[std::string("time_vs_") + reference] =
               method["time_s"].get<double>() / out[reference]["time_s"].get<double>();
