@@ -138,6 +138,8 @@ class Problem {
   void check(VariableId id) const;
   /// Index into values_ of a bounded coordinate; throws for a variable bounds cannot apply to.
   std::size_t bound_index(VariableId id, int coordinate, const char* who) const;
+  /// set_lower_bound() (lower) or set_upper_bound().
+  void set_bound(VariableId id, int coordinate, double bound, bool lower);
 
   std::vector<std::shared_ptr<const Manifold>> manifolds_;
   std::vector<std::size_t> offsets_;
