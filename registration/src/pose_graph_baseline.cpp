@@ -49,6 +49,20 @@ PoseGraphBaselineResult optimize_pose_graph_baseline(
     throw Error("pose graph: cauchy_scale must be finite and >= 0 (0: no kernel), got " +
                 std::to_string(options.cauchy_scale));
   }
+  std::string unconverged;
+  std::size_t count = 0;
+  for (const PairRegistration& r : registrations) {
+    if (r.converged || count++ >= 5) continue;
+    unconverged += (unconverged.empty() ? "" : ", ") + std::string("(") +
+                   std::to_string(r.pair.target) + ", " + std::to_string(r.pair.source) + ")";
+  }
+  if (count > 0) {
+    throw Error("pose graph: " + std::to_string(count) + " of " +
+                std::to_string(registrations.size()) +
+                " pair registrations did not converge from the initial poses: " + unconverged +
+                (count > 5 ? " and " + std::to_string(count - 5) + " more" : std::string()) +
+                "; a graph of them would converge to wrong poses (start closer to the truth)");
+  }
   PoseGraph graph;
   for (std::size_t i = 0; i < T_world_initial.size(); ++i)
     graph.vertices.push_back({static_cast<std::int64_t>(i), T_world_initial[i]});

@@ -48,8 +48,10 @@ se3::Matrix6d relative_pose_information(const Eigen::Isometry3d& T_target_source
                                         const se3::Matrix6d& H);
 
 /// Optimizes the poses from T_world_initial with one factor per registration. Throws
-/// carat::Error when a registration names a missing frame or its information is not positive
-/// definite, or when the solve fails.
+/// carat::Error when a registration did not converge (its relative pose would pull the graph to
+/// a wrong optimum reported as converged; the pairs are named), names a missing frame or has
+/// information that is not positive definite, when a frame is tied to no fixed one, or when the
+/// solve fails.
 PoseGraphBaselineResult optimize_pose_graph_baseline(
     std::span<const Eigen::Isometry3d> T_world_initial,
     std::span<const PairRegistration> registrations, const PoseGraphBaselineOptions& options = {});
