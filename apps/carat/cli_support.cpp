@@ -9,6 +9,7 @@
 
 #include <cerrno>
 #include <charconv>
+#include <chrono>
 #include <cmath>
 #include <csignal>
 #include <cstdio>
@@ -240,7 +241,7 @@ namespace {
 
 }  // namespace
 
-void install_interrupt_cleanup() {
+void install_interrupt_cleanup(int delay_ms) {
   sigset_t set;
   sigemptyset(&set);
   for (int sig :
@@ -248,10 +249,11 @@ void install_interrupt_cleanup() {
     sigaddset(&set, sig);
   }
   pthread_sigmask(SIG_BLOCK, &set, nullptr);
-  std::thread([set] {
+  std::thread([set, delay_ms] {
     int sig = 0;
     while (sigwait(&set, &sig) != 0) {
     }
+    if (delay_ms > 0) std::this_thread::sleep_for(std::chrono::milliseconds(delay_ms));
     end_by_signal(sig);
   }).detach();
 }

@@ -76,7 +76,10 @@ std::uint64_t peak_rss_bytes();
 /// SIGQUIT, SIGUSR1, SIGUSR2, SIGALRM, SIGPIPE, SIGXCPU, SIGXFSZ) in the calling thread (so in
 /// every thread started after) and starts a thread that, when one arrives, removes carat's
 /// temporary files and folders and ends the process by that signal. Call first thing in main().
-void install_interrupt_cleanup();
+/// `delay_ms` postpones the cleanup and the end: a rank other than 0 of an mpirun job, which
+/// holds no output, passes one so that rank 0 has removed its temporaries before mpirun, seeing
+/// a rank end by a signal, kills every rank with SIGKILL (as it does at once).
+void install_interrupt_cleanup(int delay_ms = 0);
 
 /// Flushes standard output before outputs are committed: throws carat::Error if a write to it
 /// failed (a full disk), so that the run ends without replacing its outputs; a closed pipe

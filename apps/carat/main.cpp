@@ -26,11 +26,13 @@ std::string one_line(const std::string& message) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  // Before any thread starts: interruptions remove carat's temporary files and folders.
-  carat::cli::install_interrupt_cleanup();
   // Under mpirun only rank 0 prints (help, usage errors, errors: one message, not one per rank),
   // and only `carat map` runs on the other ranks; every other subcommand runs on rank 0 alone.
   const bool quiet = carat::cli::mpi_launch().secondary();
+  // Before any thread starts: interruptions remove carat's temporary files and folders. The other
+  // ranks end half a second after a signal, once rank 0 has removed its temporaries: mpirun
+  // kills every rank with SIGKILL as soon as one ends by a signal.
+  carat::cli::install_interrupt_cleanup(quiet ? 500 : 0);
   CLI::App app{"carat: sparse nonlinear least squares with exact residual-block compression"};
   app.require_subcommand(1);
   app.set_version_flag("--version", std::string("carat ") + carat::version());

@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <charconv>
 #include <cstdio>
 #include <fstream>
 #include <string>
@@ -14,12 +15,15 @@ namespace {
 /// The value (kB) of `key` in a /proc file of "Key: value kB" lines, in bytes; 0 when absent.
 std::uint64_t proc_kilobytes(const char* file, const std::string& key) {
   std::ifstream in(file);
-  std::string name;
-  std::uint64_t kilobytes = 0;
-  std::string rest;
-  while (in >> name >> kilobytes) {
-    std::getline(in, rest);
-    if (name == key) return kilobytes * 1024;
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.compare(0, key.size(), key) != 0) continue;
+    std::uint64_t kilobytes = 0;
+    const char* first = line.data() + key.size();
+    const char* last = line.data() + line.size();
+    while (first < last && (*first == ' ' || *first == '\t')) ++first;
+    std::from_chars(first, last, kilobytes);
+    return kilobytes * 1024;
   }
   return 0;
 }

@@ -153,6 +153,7 @@ MappingResult pose_graph(const py::handle& frames_in, const py::handle& graph,
   out.poses = read_only(array_from_poses(result.T_world_frame));
   out.summary = summary_dict(result.summary);
   out.stats["factors"] = pairs.size();
+  out.stats["unconverged_pairs"] = result.unconverged_pairs;
   out.stats["registration_s"] = registration_s;
   out.factor_costs = py::array_t<double>(0);
   return out;

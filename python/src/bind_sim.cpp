@@ -9,6 +9,7 @@
 #include "arrays.hpp"
 #include "bindings.hpp"
 #include "carat/base/machine_memory.hpp"
+#include "carat/registration/frame.hpp"
 #include "carat/sim/pipeline.hpp"
 #include "carat/sim/sequence.hpp"
 #include "carat/sim/world.hpp"
@@ -48,28 +49,23 @@ SyntheticTrajectoryOptions drive_options(int frames, int laps, int circuit_block
   return drive;
 }
 
-/// Refuses, before any work, a drive whose scans would not fit the memory available (priced
-/// from its first scan, as `carat simulate` prices the disk): ValueError naming frames.
-/// `bytes_per_point` is what the call holds per raw scan point.
+/// Refuses, before any work, a drive that would not fit the memory available, priced from its
+/// first scan as `carat simulate` prices the disk: ValueError naming frames. `frame_bytes` gives
+/// what the call holds per frame from that scan.
+template <typename FrameBytes>
 void check_drive_memory(const SyntheticWorldOptions& world_options,
-                        const SyntheticTrajectoryOptions& drive, double bytes_per_point) {
+                        const SyntheticTrajectoryOptions& drive, const FrameBytes& frame_bytes) {
   const SyntheticWorld world(world_options);
-  const double frame_bytes = bytes_per_point * static_cast<double>(first_scan_points(world, drive));
-  const double bytes = static_cast<double>(drive.frames) * frame_bytes;
+  const double per_frame = frame_bytes(first_scan(world, drive));
+  const double bytes = static_cast<double>(drive.frames) * per_frame;
   const auto available = static_cast<double>(available_memory_bytes());
   if (bytes > 0.8 * available) {
     throw py::value_error("frames: " + std::to_string(drive.frames) + " frames would take about " +
-                          format_bytes(bytes) + " of memory (" + format_bytes(frame_bytes) +
+                          format_bytes(bytes) + " of memory (" + format_bytes(per_frame) +
                           " per frame); " + format_bytes(available) +
                           " are available; use fewer frames");
   }
 }
-
-/// Bytes a raw scan holds per point (float x, y, z; as a numpy array).
-constexpr double kScanBytesPerPoint = 12.0;
-/// Bytes carat.simulate holds per raw scan point: the scan while it is preprocessed, and the
-/// frame it leaves (downsampled points, covariances, k-d tree) for the whole drive.
-constexpr double kFrameBytesPerPoint = 64.0;
 
 Simulation simulate(int frames, int laps, std::uint64_t seed, int beams, int circuit_blocks,
                     double voxel_size, double drift_translation, double drift_rotation_deg,
@@ -77,7 +73,12 @@ Simulation simulate(int frames, int laps, std::uint64_t seed, int beams, int cir
   SyntheticPipelineOptions options;
   options.world = world_options(seed, beams, circuit_blocks);
   options.drive = drive_options(frames, laps, circuit_blocks);
-  check_drive_memory(options.world, options.drive, kFrameBytesPerPoint);
+  // Every frame is kept preprocessed (points, covariances, k-d tree) with its share of the graph.
+  check_drive_memory(options.world, options.drive, [&](PointCloud scan) {
+    return 1.5 *
+           static_cast<double>(
+               preprocess_frame(std::move(scan), options.preprocess, "frame 0")->memory_bytes());
+  });
   options.preprocess.voxel_size = voxel_size;
   options.preprocess.num_threads = threads_argument(threads);
   options.drift.translation_sigma = drift_translation;
@@ -111,7 +112,10 @@ Simulation simulate(int frames, int laps, std::uint64_t seed, int beams, int cir
 py::tuple simulate_scans(int frames, int laps, std::uint64_t seed, int beams, int circuit_blocks) {
   const SyntheticWorldOptions options = world_options(seed, beams, circuit_blocks);
   const SyntheticTrajectoryOptions drive = drive_options(frames, laps, circuit_blocks);
-  check_drive_memory(options, drive, kScanBytesPerPoint);
+  // Every raw scan is kept, as float x, y, z.
+  check_drive_memory(options, drive, [](const PointCloud& scan) {
+    return 12.0 * static_cast<double>(scan.size());
+  });
   // Frame by frame (each scan parallel inside), so that Ctrl-C is seen between frames.
   std::vector<PointCloud> scans_out;
   std::vector<Eigen::Isometry3d> truth;

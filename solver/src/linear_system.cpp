@@ -7,9 +7,9 @@
 #include "carat/base/error.hpp"
 #include "carat/base/machine_memory.hpp"
 #include "carat/base/stopwatch.hpp"
-#include "fill_estimate.hpp"
 #include "schur_system.hpp"
 #include "sparse_system.hpp"
+#include "system_memory.hpp"
 
 namespace carat::internal {
 namespace {
@@ -99,81 +99,6 @@ bool LinearSystem::linearize(const BlockEvaluator& evaluator, int which, Eigen::
 
 namespace {
 
-/// Bytes the whole system's factorization would hold (matrix values and row indices, factor).
-double whole_system_bytes(const FillEstimate& fill) {
-  return 16.0 * fill.matrix_entries + 8.0 * fill.factor_entries;
-}
-
-/// The block graph of the free variables (the whole system), or of the kept variables alone
-/// after eliminating `eliminate` (the Schur complement's reduced system: two kept variables share
-/// a block when a residual block or an eliminated variable joins them). *eliminated_bytes gets
-/// what the elimination itself holds: each (kept, eliminated) pair's block and each eliminated
-/// variable's diagonal block and its inverse factor.
-BlockGraph block_graph(const Problem& problem, const std::vector<char>* eliminate,
-                       double* eliminated_bytes) {
-  const auto n = static_cast<std::size_t>(problem.num_variables());
-  std::vector<int> node(n, -1), dim(n, 0);
-  BlockGraph graph;
-  for (std::size_t v = 0; v < n; ++v) {
-    const VariableId id{static_cast<std::int32_t>(v)};
-    dim[v] = problem.manifold(id).tangent_size();
-    if (problem.is_constant(id) || (eliminate && (*eliminate)[v])) continue;
-    node[v] = static_cast<int>(graph.dims.size());
-    graph.dims.push_back(dim[v]);
-  }
-  graph.neighbours.resize(graph.dims.size());
-  // Per eliminated variable, the kept variables its blocks touch.
-  std::vector<std::vector<int>> kept_of(eliminate ? n : 0);
-  double eliminated = 0.0;
-  for (const auto& entry : problem.blocks()) {
-    int point = -1;
-    for (const VariableId a : entry.variables) {
-      const auto i = static_cast<std::size_t>(a.index);
-      if (eliminate && (*eliminate)[i]) point = a.index;
-      if (node[i] < 0) continue;
-      for (const VariableId b : entry.variables) {
-        const int j = node[static_cast<std::size_t>(b.index)];
-        if (j >= 0 && j != node[i])
-          graph.neighbours[static_cast<std::size_t>(node[i])].push_back(j);
-      }
-    }
-    if (point < 0) continue;
-    for (const VariableId a : entry.variables) {
-      const int i = node[static_cast<std::size_t>(a.index)];
-      if (i >= 0) kept_of[static_cast<std::size_t>(point)].push_back(i);
-    }
-  }
-  for (std::size_t p = 0; p < kept_of.size(); ++p) {
-    std::vector<int>& kept = kept_of[p];
-    if (!(*eliminate)[p]) continue;
-    std::sort(kept.begin(), kept.end());
-    kept.erase(std::unique(kept.begin(), kept.end()), kept.end());
-    const double dp = dim[p];
-    eliminated += 16.0 * dp * dp;
-    for (const int i : kept) {
-      eliminated += 8.0 * dp * graph.dims[static_cast<std::size_t>(i)];
-      std::vector<int>& list = graph.neighbours[static_cast<std::size_t>(i)];
-      list.insert(list.end(), kept.begin(), kept.end());
-    }
-    // Deduplicate as the lists grow, so that a variable seen with many others stays one list.
-    for (const int i : kept) {
-      std::vector<int>& list = graph.neighbours[static_cast<std::size_t>(i)];
-      if (list.size() > 4 * graph.dims.size()) {
-        std::sort(list.begin(), list.end());
-        list.erase(std::unique(list.begin(), list.end()), list.end());
-      }
-    }
-  }
-  for (std::size_t i = 0; i < graph.neighbours.size(); ++i) {
-    std::vector<int>& list = graph.neighbours[i];
-    std::sort(list.begin(), list.end());
-    list.erase(std::unique(list.begin(), list.end()), list.end());
-    list.erase(std::remove(list.begin(), list.end(), static_cast<int>(i)), list.end());
-  }
-  if (eliminated_bytes) *eliminated_bytes = eliminated;
-  return graph;
-}
-
 /// The memory the linear system may take: the option, else 80 % of what the machine has.
 double memory_cap(const SolverOptions& options) {
   if (options.max_linear_system_bytes > 0.0) return options.max_linear_system_bytes;
@@ -186,17 +111,12 @@ std::unique_ptr<LinearSystem> make_linear_system(const Problem& problem,
                                                  const SolverOptions& options) {
   const double cap = memory_cap(options);
   const std::string limit = format_bytes(cap) +
-                            " may be used (SolverOptions::max_linear_system_bytes, "
-                            "or 80 % of the memory available)";
-  // Counting the factor stops once it alone exceeds the cap (the estimate then exceeds it too).
-  const double stop_after = cap / 8.0;
+                            " may be used (SolverOptions::max_linear_system_bytes, or 80 % of "
+                            "the memory available)";
+  // Whether the whole system fits: a dense factor's size when even that fits, else the estimate.
   const auto whole_bytes = [&] {
-    return whole_system_bytes(estimate_fill(block_graph(problem, nullptr, nullptr), stop_after));
-  };
-  const auto schur_bytes = [&](const std::vector<char>& eliminate) {
-    double eliminated = 0.0;
-    const BlockGraph reduced = block_graph(problem, &eliminate, &eliminated);
-    return whole_system_bytes(estimate_fill(reduced, stop_after)) + eliminated;
+    const double bound = whole_system_bound(problem);
+    return bound <= cap ? bound : whole_system_bytes(problem, cap);
   };
   const auto refuse = [&](const std::string& what, double bytes, const std::string& other) {
     throw Error("linear solver: " + what + " needs about " + format_bytes(bytes) +
@@ -219,37 +139,42 @@ std::unique_ptr<LinearSystem> make_linear_system(const Problem& problem,
     const VariableId id{v};
     if (!problem.is_constant(id)) total_dims += problem.manifold(id).tangent_size();
   }
-  if (options.linear_solver == LinearSolver::kSchur || problem.has_eliminable()) {
+  if (options.linear_solver == LinearSolver::kSchur) {
     if (!problem.has_eliminable() && group_dims == 0) {
       throw Error(
           "linear solver schur: no variables to eliminate (mark them with "
           "Problem::set_eliminable(); every group of free variables of one tangent size has a "
           "residual block connecting two of its members)");
     }
-    if (options.linear_solver == LinearSolver::kSchur) {
-      const double bytes = schur_bytes(eliminate);
-      if (bytes > cap) refuse("the Schur complement", bytes, "; try the whole system (cholesky)");
-      return std::make_unique<SchurSystem>(problem, eliminate, options.ordering);
-    }
+    const double bytes = schur_system_bytes(problem, eliminate, cap).bytes;
+    if (bytes > cap) refuse("the Schur complement", bytes, "; try the whole system (cholesky)");
+    return std::make_unique<SchurSystem>(problem, eliminate, options.ordering);
   }
   // Auto: the Schur complement when a group can be eliminated (marked, or most of the system)
-  // and its reduced system fits: dense reduced systems (cameras that share points with most
-  // others) can take far more than the whole system, which then is the one to factorize.
+  // and it fits in at most kSchurMemoryMargin times the whole system's memory. A reduced system
+  // made dense by points that most cameras share can take far more than the whole system, which
+  // then is the one to factorize.
   const bool schur_candidate =
       problem.has_eliminable() ||
       (group_dims > 0 && 2 * group_dims > total_dims && group_dims < total_dims);
-  const double whole = whole_bytes();
   if (schur_candidate) {
-    const double schur = schur_bytes(eliminate);
-    if (schur <= cap && (schur <= kSchurMemoryMargin * whole || whole > cap)) {
+    const SchurMemory schur = schur_system_bytes(problem, eliminate, cap);
+    // The whole system's own estimate is needed only when its lower bound does not settle it.
+    if (schur.bytes <= cap && schur.bytes <= kSchurMemoryMargin * schur.whole_lower_bound) {
+      return std::make_unique<SchurSystem>(problem, eliminate, options.ordering);
+    }
+    const double whole = whole_system_bytes(problem, cap);
+    if (schur.bytes <= cap && (schur.bytes <= kSchurMemoryMargin * whole || whole > cap)) {
       return std::make_unique<SchurSystem>(problem, eliminate, options.ordering);
     }
     if (whole > cap) {
       throw Error("linear solver auto: neither system fits: the Schur complement needs about " +
-                  format_bytes(schur) + " and sparse Cholesky of the whole system about " +
+                  format_bytes(schur.bytes) + " and sparse Cholesky of the whole system about " +
                   format_bytes(whole) + " (matrix and factor); " + limit);
     }
+    return std::make_unique<SparseSystem>(problem, options.ordering);
   }
+  const double whole = whole_bytes();
   if (whole > cap) refuse("sparse Cholesky of the whole system", whole, "");
   return std::make_unique<SparseSystem>(problem, options.ordering);
 }

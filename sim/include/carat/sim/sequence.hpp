@@ -22,10 +22,10 @@ struct SyntheticSequence {
 /// Noise seed of frame `frame` in make_synthetic_sequence (splitmix64 of seed and frame).
 std::uint64_t synthetic_frame_noise_seed(std::uint64_t seed, std::size_t frame);
 
-/// Points of the first scan of the drive along world.trajectory(options): every scan of a drive
-/// holds about as many, so this prices a drive (disk, memory) before it is simulated.
-std::size_t first_scan_points(const SyntheticWorld& world,
-                              const SyntheticTrajectoryOptions& options);
+/// The first scan of the drive along world.trajectory(options), as make_synthetic_sequence() makes
+/// it: every scan of a drive is about as large, so it prices a drive (disk, memory) before the
+/// drive is simulated.
+PointCloud first_scan(const SyntheticWorld& world, const SyntheticTrajectoryOptions& options);
 
 /// Simulates a whole drive along world.trajectory(options): frame k is scanned with noise seed
 /// synthetic_frame_noise_seed(world seed, k). Scans run in parallel with TBB; the result does
