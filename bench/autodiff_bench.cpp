@@ -4,6 +4,9 @@
 //   BM_GicpRows/analytic|autodiff     evaluate_rows() of every row with Jacobians
 //   BM_GicpAccumulate/analytic|...    accumulate() (H, b, c; GicpBlock has a fused fast path)
 //   BM_GicpCompress/analytic|...      compress() to 29 rows (evaluates every row once)
+//   BM_CurvePass/<pass>                the passes of a solve over a block of 10^6 rows (the curve
+//                                      fit): a linearization, a cost evaluation, the rows with
+//                                      Jacobians, a compression
 //
 //   ./build/bench/autodiff_bench
 // Compare the two arguments of one benchmark in the same run (items_per_second is rows / s).
@@ -15,9 +18,11 @@
 #include <random>
 #include <vector>
 
+#include "../tests/curve_fit_problem.hpp"
 #include "carat/coreset/compress.hpp"
 #include "carat/residuals/gicp_block.hpp"
 #include "carat/residuals/relative_pose_autodiff_block.hpp"
+#include "carat/solver/autodiff_block.hpp"
 #include "carat/solver/se3.hpp"
 
 namespace {
@@ -129,8 +134,50 @@ void BM_GicpCompress(benchmark::State& state) {
   state.SetLabel(state.range(0) == 0 ? "analytic" : "autodiff");
 }
 
+/// The passes of a solve over one block of 10^6 rows (the curve fit y = exp(m x + c)):
+/// 0 accumulate() (a linearization), 1 squared_norm() (a cost evaluation, doubles), 2
+/// evaluate_rows() with Jacobians into a buffer (what a compression reads), 3 compress() (that,
+/// then the coreset).
+void BM_CurvePass(benchmark::State& state) {
+  static const auto curve = carat::make_autodiff_block<1, carat::VariableSize<2>>(
+      carat::test::ExpResidual{}, carat::test::curve_data(1000000, 1));
+  const Eigen::Vector2d mc(0.25, 0.05);
+  const double* params[1] = {mc.data()};
+  const int n = curve->num_rows();
+  std::vector<int> rows(static_cast<std::size_t>(n));
+  std::iota(rows.begin(), rows.end(), 0);
+  std::vector<double> residuals(rows.size()), jacobian(rows.size() * 2);
+  Eigen::MatrixXd H(2, 2);
+  Eigen::VectorXd b(2);
+  carat::CompressionOptions options;
+  for (auto _ : state) {
+    switch (state.range(0)) {
+      case 0:
+        H.setZero();
+        b.setZero();
+        benchmark::DoNotOptimize(curve->accumulate(params, H, b));
+        break;
+      case 1:
+        benchmark::DoNotOptimize(curve->squared_norm(params));
+        break;
+      case 2:
+        curve->evaluate_rows(params, rows, residuals.data(), jacobian.data());
+        benchmark::DoNotOptimize(jacobian.data());
+        break;
+      default:
+        ++options.seed;
+        benchmark::DoNotOptimize(carat::compress(curve, params, options));
+    }
+    benchmark::ClobberMemory();
+  }
+  state.SetItemsProcessed(state.iterations() * n);
+  constexpr const char* kLabels[] = {"accumulate", "squared_norm", "evaluate_rows", "compress"};
+  state.SetLabel(kLabels[state.range(0)]);
+}
+
 }  // namespace
 
+BENCHMARK(BM_CurvePass)->DenseRange(0, 3)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_GicpRows)->Arg(0)->Arg(1)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_GicpAccumulate)->Arg(0)->Arg(1)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_GicpCompress)->Arg(0)->Arg(1)->Unit(benchmark::kMicrosecond);

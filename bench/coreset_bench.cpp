@@ -89,5 +89,8 @@ BENCHMARK(BM_Coreset)
     ->Unit(benchmark::kMicrosecond);
 // A block without a reduced Jacobian: D = 12, M = 92 (the minimum), default clusters.
 BENCHMARK(BM_Coreset)->Args({30000, 92, 1, 12})->Unit(benchmark::kMicrosecond);
+// A block of many rows over few unknowns (the curve fit at 10^6 rows: r = 2, M = 7).
+BENCHMARK(BM_Coreset)->Args({1000000, 7, 1, 2})->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_EigenHbc)->Args({1000000, 2})->Unit(benchmark::kMicrosecond);
 
 BENCHMARK_MAIN();

@@ -1,18 +1,24 @@
-// When solving with re-compressed blocks beats solving the full problem, and when it does not:
-// the same built problem solved to the same tight tolerances by
-//   BM_Solve/<problem>/0   the full problem, Levenberg-Marquardt;
-//   BM_Solve/<problem>/1   solve_recompressed(): compress, solve, judge on the full problem,
-//                          compress again, until the full problem's tests hold (its optimum);
-//   BM_Solve/<problem>/2   one compression at the start, then solved (not the full optimum:
-//                          the counter cost_vs_full says how far).
-// Problems: 0 the curve fit y = exp(m x + c) (10,000 rows, 2 unknowns, from (0, 0)); 1 camera
+// When a compressed solve beats solving the full problem, and when it does not: the same built
+// problem solved by solve_recompressed() in each CompressionMode, every mode with the solver's
+// default options (1 thread) and judged by its full-data cost against the optimum (a tight
+// full solve):
+//   BM_Solve/<problem>/0   kFull: the full problem, Levenberg-Marquardt (the reference);
+//   BM_Solve/<problem>/1   kSurrogate (the default): compressed solves while they beat a full
+//                          step, then full iterations (the full optimum);
+//   BM_Solve/<problem>/2   kRecompress: compress again at every result (the full optimum);
+//   BM_Solve/<problem>/3   kOnce: one compression, solved (not the full optimum);
+//   BM_Solve/<problem>/4   kAuto: the full solve, switching to kSurrogate in a long nonlinear
+//                          stretch.
+// Problems: 0 the curve fit y = exp(m x + c) (10^6 rows, 2 unknowns, from (0, 0)); 1 camera
 // localization (20 frames x 3,000 matches, start 0.1 m / 1 degree off); 2 the same from 0.5 m /
 // 5 degrees; 3 a dense LiDAR registration graph (synthetic world, 40 frames, full GICP factors,
-// drift start). Counters: iterations (inner for 1 and 2), compressions, cost_vs_full.
+// drift start). Counters: compressed and full iterations, compressions, cost_vs_optimum.
 //
 //   ./build/bench/recompression_bench
 #include <benchmark/benchmark.h>
 
+#include <cstdio>
+#include <cstdlib>
 #include <memory>
 #include <random>
 
@@ -33,7 +39,7 @@
 namespace {
 
 carat::Problem curve_problem() {
-  const std::vector<Eigen::Vector2d> data = carat::test::curve_data(10000, 1);
+  const std::vector<Eigen::Vector2d> data = carat::test::curve_data(1000000, 1);
   carat::Problem problem;
   const carat::VariableId mc = problem.add_euclidean(Eigen::Vector2d(0.0, 0.0));
   problem.add_residual_block(
@@ -127,44 +133,47 @@ double optimum(int which) {
 
 void BM_Solve(benchmark::State& state) {
   const int which = static_cast<int>(state.range(0));
-  const int mode = static_cast<int>(state.range(1));
+  constexpr carat::CompressionMode kModes[] = {
+      carat::CompressionMode::kFull, carat::CompressionMode::kSurrogate,
+      carat::CompressionMode::kRecompress, carat::CompressionMode::kOnce,
+      carat::CompressionMode::kAuto};
   const double best = optimum(which);
-  double cost = 0.0;
-  int iterations = 0, compressions = 0;
+  carat::RecompressedSolveSummary s;
   for (auto _ : state) {
     carat::Problem p = problem(which);  // shares the blocks: a cheap copy of values
-    if (mode == 0) {
-      iterations = carat::solve(tight(), p).num_iterations;
-      state.PauseTiming();
-      cost = carat::evaluate_problem(p).cost;
-      state.ResumeTiming();
-    } else if (mode == 1) {
-      carat::RecompressedSolveOptions options;
-      options.inner = tight();
-      const carat::RecompressedSolveSummary s = carat::solve_recompressed(p, options);
-      iterations = s.inner_iterations;
-      compressions = s.recompressions;
-      cost = s.final_cost;
-    } else {
-      carat::compress_problem(p);
-      iterations = carat::solve(tight(), p).num_iterations;
-      compressions = 1;
-      state.PauseTiming();
-      carat::Problem judged = problem(which);
-      judged.set_all_values(p.all_values());
-      cost = carat::evaluate_problem(judged).cost;
-      state.ResumeTiming();
+    carat::RecompressedSolveOptions options;
+    options.mode = kModes[state.range(1)];
+    s = carat::solve_recompressed(p, options);
+  }
+  if (std::getenv("CARAT_BENCH_VERBOSE") && state.range(1) == 0) {
+    carat::Problem p = problem(which);
+    const carat::SolverSummary full = carat::solve(carat::SolverOptions{}, p);
+    for (const auto& row : full.iterations) {
+      std::fprintf(stderr, "  full iteration %d: cost %.12g (%.3e over the optimum), ratio %.3f\n",
+                   row.iteration, row.cost, row.cost / best - 1.0, row.relative_decrease);
     }
   }
-  state.counters["iterations"] = iterations;
-  state.counters["compressions"] = compressions;
-  state.counters["cost_vs_full"] = cost / best - 1.0;
+  if (std::getenv("CARAT_BENCH_VERBOSE")) {
+    std::fprintf(
+        stderr, "%s\n  compress %.4f s, compressed solves %.4f s, full costs %.4f s, full %.4f s\n",
+        s.brief_report().c_str(), s.compression_s, s.inner_solve_s, s.full_evaluation_s,
+        s.full_solve_s);
+    for (const auto& r : s.records) {
+      std::fprintf(
+          stderr, "  at %.12g: compressed -> %.12g, full after surrogate %.12g, after step %.12g\n",
+          r.full_cost, r.compressed_final_cost, r.full_cost_after, r.full_cost_after_step);
+    }
+  }
+  state.counters["compressed_iterations"] = s.inner_iterations;
+  state.counters["full_iterations"] = s.full_iterations;
+  state.counters["compressions"] = s.recompressions;
+  state.counters["cost_vs_optimum"] = s.final_cost / best - 1.0;
 }
 
 }  // namespace
 
 BENCHMARK(BM_Solve)
-    ->ArgsProduct({{0, 1, 2, 3}, {0, 1, 2}})
+    ->ArgsProduct({{0, 1, 2, 3}, {0, 1, 2, 3, 4}})
     ->Unit(benchmark::kMillisecond)
     ->MeasureProcessCPUTime();
 

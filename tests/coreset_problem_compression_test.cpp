@@ -76,6 +76,7 @@ TEST(ProblemCompressionTest, RecompressionReachesTheFullOptimum) {
   Problem recompressed = curve_problem();
   RecompressedSolveOptions options;
   options.inner = tight();
+  options.mode = CompressionMode::kRecompress;
   const RecompressedSolveSummary summary = solve_recompressed(recompressed, options);
   EXPECT_EQ(summary.termination, TerminationType::kConvergence) << summary.brief_report();
   EXPECT_LE(std::abs(summary.final_cost - optimum), 1e-9 * optimum) << summary.brief_report();
@@ -91,6 +92,48 @@ TEST(ProblemCompressionTest, RecompressionReachesTheFullOptimum) {
   EXPECT_LT(summary.final_gradient_max_norm, 1e-3);  // from about 1e5 at the start
   // The problem's blocks are untouched: still the full one.
   EXPECT_EQ(recompressed.num_residual_rows(), 10000u);
+
+  // The default, compressed solves then full iterations: the same optimum, fewer compressions,
+  // and the compressed costs beside the full ones.
+  Problem surrogate = curve_problem();
+  RecompressedSolveOptions defaults;
+  defaults.inner = tight();
+  const RecompressedSolveSummary s = solve_recompressed(surrogate, defaults);
+  EXPECT_EQ(s.mode, CompressionMode::kSurrogate);
+  EXPECT_EQ(s.termination, TerminationType::kConvergence) << s.brief_report();
+  EXPECT_LE(std::abs(s.final_cost - optimum), 1e-9 * optimum) << s.brief_report();
+  EXPECT_GE(s.recompressions, 1);
+  EXPECT_GE(s.full_iterations, 1);
+  EXPECT_EQ(s.compressed_initial_cost, s.initial_cost);  // exact at the first compression
+  EXPECT_NE(s.compressed_final_cost, s.final_cost);      // the surrogate's own cost differs
+  EXPECT_NEAR(s.initial_cost, evaluate_problem(curve_problem()).cost, 1e-12 * s.initial_cost);
+  EXPECT_NE(s.brief_report().find("(compressed "), std::string::npos) << s.brief_report();
+}
+
+TEST(ProblemCompressionTest, CompressOnceReportsTheFullCostAndKeepsTheOriginals) {
+  Problem once = curve_problem();
+  RecompressedSolveOptions options;
+  options.mode = CompressionMode::kOnce;
+  const RecompressedSolveSummary s = solve_recompressed(once, options);
+  EXPECT_EQ(s.recompressions, 1);
+  // The full cost at the result, not the compressed problem's own.
+  EXPECT_NEAR(s.final_cost, evaluate_problem(once).cost, 1e-12 * s.final_cost);
+  EXPECT_GT(std::abs(s.compressed_final_cost - s.final_cost), 1e-9 * s.final_cost);
+  // compress_problem() hands back what it replaced; restore_blocks() puts it back.
+  Problem problem = curve_problem();
+  const double full_cost = evaluate_problem(problem).cost;
+  const ProblemCompressionReport report = compress_problem(problem);
+  ASSERT_EQ(report.replaced.size(), 1u);
+  EXPECT_EQ(report.replaced[0].id.index, 0);
+  EXPECT_EQ(report.replaced[0].original->num_rows(), 10000);
+  EXPECT_EQ(problem.num_residual_rows(), 7u);
+  restore_blocks(problem, report);
+  EXPECT_EQ(problem.num_residual_rows(), 10000u);
+  EXPECT_EQ(evaluate_problem(problem).cost, full_cost);
+  // Modes by name, as options files and the CLI name them.
+  EXPECT_EQ(parse_compression_mode("auto"), CompressionMode::kAuto);
+  EXPECT_STREQ(to_string(CompressionMode::kSurrogate), "surrogate");
+  EXPECT_THROW(parse_compression_mode("fast"), Error);
 }
 
 TEST(ProblemCompressionTest, BadOptionsAreErrors) {
@@ -108,8 +151,9 @@ TEST(ProblemCompressionTest, BadOptionsAreErrors) {
         try {
           compress_problem(problem, small);
         } catch (const Error& e) {
-          EXPECT_NE(std::string(e.what()).find("compress_problem: residual block 0: coreset: "
-                                               "target of 3 rows is below the minimum of 7"),
+          EXPECT_NE(std::string(e.what()).find(
+                        "compress_problem: residual block 0 ('AutoDiffBlock'): coreset: "
+                        "target of 3 rows is below the minimum of 7"),
                     std::string::npos)
               << e.what();
           throw;

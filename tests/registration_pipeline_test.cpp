@@ -305,10 +305,16 @@ TEST(GlobalRegistrationTest, RecompressedSolveReachesTheFullOptimum) {
   RecompressedSolveOptions options;
   options.inner = tight;
   options.compression.num_threads = 2;
+  options.mode = CompressionMode::kRecompress;
   const RecompressedSolveSummary summary = solve_recompressed(recompressed.problem, options);
   EXPECT_EQ(summary.termination, TerminationType::kConvergence) << summary.brief_report();
   EXPECT_LE(std::abs(summary.final_cost - optimum), 1e-9 * optimum) << summary.brief_report();
   EXPECT_EQ(summary.compressed_rows, 29u * small_pairs().size());
+  // The default mode, compressed solves then full iterations: the same optimum.
+  RegistrationProblem surrogate = small_problem(ResidualSampling::kFull);
+  options.mode = CompressionMode::kSurrogate;
+  const RecompressedSolveSummary s = solve_recompressed(surrogate.problem, options);
+  EXPECT_LE(std::abs(s.final_cost - optimum), 1e-9 * optimum) << s.brief_report();
 }
 
 // The per-iteration hook sees the iterate's poses: the start first, the result last, one call per

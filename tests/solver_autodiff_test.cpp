@@ -183,7 +183,8 @@ TEST(AutoDiffBlockTest, FunctorsThatRefuseAndSizesThatDoNotMatch) {
   problem.add_residual_block(block, {camera, focal});
   const SolverSummary summary = solve(SolverOptions{}, problem);
   EXPECT_EQ(summary.termination, TerminationType::kFailure);
-  EXPECT_NE(summary.message.find("residual block 0: row 0 is not finite"), std::string::npos)
+  EXPECT_NE(summary.message.find("residual block 0 ('reprojection block'): row 0 is not finite"),
+            std::string::npos)
       << summary.message;
   // A manifold that does not fit the declared sizes, no data, a variable without a default.
   const auto message_of = [](const std::function<void()>& f) {

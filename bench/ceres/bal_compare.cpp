@@ -4,7 +4,10 @@
 // block per camera and one 3-parameter block per point, the reprojection error with automatic
 // differentiation, LM, SPARSE_SCHUR (SuiteSparse; the elimination ordering Ceres picks), 1 thread,
 // default tolerances and iteration limit. Its time is Solve()'s own total. carat's time is the
-// whole `carat solve-bal FILE --json` process, reading the file included (defaults, 1 thread).
+// whole `carat solve-bal FILE --json` process, reading the file included (defaults, 1 thread);
+// beside it, solve() alone in a child process with a user's own templated Snavely functor (one
+// AutoDiffBlock per observation, Ceres's layout: carat_autodiff) and with carat's hand-written
+// block (carat_shipped), points eliminated, default options, 1 thread.
 // Each Ceres solve runs in a child process, once with the BLAS Debian's Ceres links and once
 // with the system's (carat's) BLAS.
 //
@@ -21,8 +24,12 @@
 #include <vector>
 
 #include "carat/base/stopwatch.hpp"
+#include "carat/residuals/bal_problem.hpp"
 #include "carat/residuals/io/bal_io.hpp"
 #include "carat/sim/bal_scene.hpp"
+#include "carat/solver/autodiff_block.hpp"
+#include "carat/solver/lie_functions.hpp"
+#include "carat/solver/solve.hpp"
 
 namespace {
 
@@ -74,6 +81,65 @@ nlohmann::json run_ceres(const std::string& file) {
           {"jacobian_time_s", summary.jacobian_evaluation_time_in_seconds}};
 }
 
+/// The same reprojection error as a carat user writes it: a functor templated on the scalar
+/// (carat's lie::angle_axis_rotate, the same Rodrigues formula as Ceres's), one observation per
+/// datum.
+struct UserSnavely {
+  template <typename T>
+  bool operator()(const Eigen::Vector2d& observed, const T* camera, const T* point,
+                  T* residual) const {
+    T P[3];
+    carat::lie::angle_axis_rotate(camera, point, P);
+    for (int k = 0; k < 3; ++k) P[k] += camera[3 + k];
+    const T x = -P[0] / P[2];
+    const T y = -P[1] / P[2];
+    const T r2 = x * x + y * y;
+    const T scale = camera[6] * (T(1.0) + r2 * (camera[7] + camera[8] * r2));
+    residual[0] = scale * x - observed.x();
+    residual[1] = scale * y - observed.y();
+    return true;
+  }
+};
+
+/// carat in this process: the user's functor (one AutoDiffBlock per observation, the layout of
+/// Ceres's bundle_adjuster) or carat's hand-written SnavelyReprojectionBlock (add_bal_problem()),
+/// points eliminated by the Schur complement, default options, 1 thread. Time: solve() alone,
+/// as Ceres's.
+nlohmann::json run_carat(const std::string& file, bool autodiff) {
+  const carat::BalProblem bal = carat::read_bal(file);
+  carat::Problem problem;
+  if (autodiff) {
+    std::vector<carat::VariableId> cameras, points;
+    for (const auto& c : bal.cameras) {
+      cameras.push_back(problem.add_euclidean(Eigen::Map<const Eigen::VectorXd>(c.data(), 9)));
+    }
+    for (const auto& p : bal.points) {
+      points.push_back(problem.add_euclidean(p));
+      problem.set_eliminable(points.back());
+    }
+    for (const auto& o : bal.observations) {
+      problem.add_residual_block(
+          carat::make_autodiff_block<2, carat::VariableSize<9>, carat::VariableSize<3>>(
+              UserSnavely{}, std::vector<Eigen::Vector2d>{Eigen::Vector2d(o.x, o.y)}),
+          {cameras[static_cast<std::size_t>(o.camera)], points[static_cast<std::size_t>(o.point)]});
+    }
+  } else {
+    carat::add_bal_problem(bal, &problem);
+  }
+  carat::SolverOptions options;
+  options.num_threads = 1;
+  const carat::Stopwatch wall;
+  const carat::SolverSummary summary = carat::solve(options, problem);
+  const double wall_s = wall.elapsed_s();
+  return {{"initial_cost", summary.initial_cost},
+          {"final_cost", summary.final_cost},
+          {"iterations", summary.num_iterations},
+          {"termination", carat::to_string(summary.termination)},
+          {"time_s", wall_s},
+          {"linearize_s", summary.time.linearize_s},
+          {"cost_s", summary.time.cost_s}};
+}
+
 /// Runs `command`, returns its standard output; *wall_s: its wall time.
 std::string run(const std::string& command, double* wall_s, int* status) {
   const carat::Stopwatch wall;
@@ -109,8 +175,11 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
-  if (!solver.empty()) {  // child: one Ceres solve, one JSON line
-    std::printf("%s\n", run_ceres(file).dump().c_str());
+  if (!solver.empty()) {  // child: one solve, one JSON line
+    const nlohmann::json out = solver == "ceres"            ? run_ceres(file)
+                               : solver == "carat-autodiff" ? run_carat(file, true)
+                                                            : run_carat(file, false);
+    std::printf("%s\n", out.dump().c_str());
     return 0;
   }
   struct Case {
@@ -152,9 +221,17 @@ int main(int argc, char** argv) {
     const std::string ceres_blas_out =
         run("LD_PRELOAD='" + system_blas + "' '" + self + "' --solver ceres '" + path + "'",
             &wall_s, &status);
+    int autodiff_status = 0, shipped_status = 0;
+    double child_s = 0.0;
+    const std::string autodiff_out =
+        run("'" + self + "' --solver carat-autodiff '" + path + "'", &child_s, &autodiff_status);
+    const std::string shipped_out =
+        run("'" + self + "' --solver carat-shipped '" + path + "'", &child_s, &shipped_status);
     const std::string carat_out =
         run("'" + std::string(CARAT_CLI) + "' solve-bal '" + path + "' --json", &wall_s, &status);
-    if (status != 0 || ceres_out.empty() || ceres_blas_out.empty() || carat_out.empty()) {
+    if (status != 0 || autodiff_status != 0 || shipped_status != 0 || ceres_out.empty() ||
+        ceres_blas_out.empty() || carat_out.empty() || autodiff_out.empty() ||
+        shipped_out.empty()) {
       j["error"] = "a solver failed";
       std::printf("%s\n", j.dump().c_str());
       exit_code = 1;
@@ -175,6 +252,15 @@ int main(int argc, char** argv) {
     const double ceres_cost = std::min(j["ceres"]["final_cost"].get<double>(),
                                        j["ceres_system_blas"]["final_cost"].get<double>());
     j["time_ratio_carat_process_over_ceres_solve"] = wall_s / ceres_time;
+    // In-process solves: a user's templated functor, and carat's hand-written block.
+    j["carat_autodiff"] = nlohmann::json::parse(autodiff_out);
+    j["carat_shipped"] = nlohmann::json::parse(shipped_out);
+    j["time_ratio_carat_autodiff_over_ceres_solve"] =
+        j["carat_autodiff"]["time_s"].get<double>() / ceres_time;
+    j["time_ratio_carat_shipped_over_ceres_solve"] =
+        j["carat_shipped"]["time_s"].get<double>() / ceres_time;
+    j["cost_ratio_carat_autodiff_over_ceres"] =
+        j["carat_autodiff"]["final_cost"].get<double>() / ceres_cost;
     j["cost_ratio_carat_over_ceres"] = carat["final_cost"].get<double>() / ceres_cost;
     std::printf("%s\n", j.dump().c_str());
     std::fflush(stdout);

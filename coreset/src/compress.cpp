@@ -13,6 +13,10 @@
 namespace carat {
 namespace {
 
+std::string label(const ResidualBlock& block) {
+  return block.name().empty() ? std::string("the block") : "block '" + block.name() + "'";
+}
+
 /// Keeps only the selected rows' data when the block can extract them, with the weights folded
 /// into the rows when the block can do that too.
 std::shared_ptr<CompressedBlock> make_compressed(std::shared_ptr<const ResidualBlock> block,
@@ -30,6 +34,40 @@ std::shared_ptr<CompressedBlock> make_compressed(std::shared_ptr<const ResidualB
         std::move(weights));
   }
   return std::make_shared<CompressedBlock>(std::move(block), std::move(rows), std::move(weights));
+}
+
+/// The coreset of a block with a group loss: its rows were weighted by sqrt(rho'(s_g)) at
+/// `values`; the compressed block holds the plain rows with those weights frozen into the coreset
+/// weights, and sum_g rho(s_g) - sum_g rho'(s_g) s_g as a constant, so that its H, b and c at
+/// `values` are the robust block's (and it is plain least squares elsewhere). `weighted_sum` is
+/// the sum of the weighted rows' squares.
+std::shared_ptr<CompressedBlock> freeze_group_loss(const ResidualBlock& block,
+                                                   ParameterPointers values, RowCoreset coreset,
+                                                   double weighted_sum) {
+  std::vector<double> loss_weights(coreset.rows.size());
+  std::unique_ptr<ResidualBlock> plain =
+      block.extract_rows_without_loss(values, coreset.rows, loss_weights.data());
+  if (!plain) {
+    throw Error("compress: " + label(block) +
+                " has a group loss but cannot extract its rows without it "
+                "(extract_rows_without_loss() returned null)");
+  }
+  std::vector<int> local;
+  std::vector<double> weights;
+  for (std::size_t k = 0; k < coreset.rows.size(); ++k) {
+    const double w = coreset.weights[k] * loss_weights[k];
+    if (w > 0.0) {  // a row the loss gives no weight adds nothing
+      local.push_back(static_cast<int>(k));
+      weights.push_back(w);
+    }
+  }
+  const double robust_sum = block.squared_norm(values);
+  if (local.empty()) {  // every selected row has weight 0: keep one row at weight 1 with no say
+    throw Error("compress: " + label(block) + ": the group loss gives every row weight 0");
+  }
+  return std::make_shared<CompressedBlock>(std::shared_ptr<const ResidualBlock>(std::move(plain)),
+                                           std::move(local), std::move(weights),
+                                           robust_sum - weighted_sum);
 }
 
 }  // namespace
@@ -85,6 +123,9 @@ std::shared_ptr<CompressedBlock> compress(std::shared_ptr<const ResidualBlock> b
   row_options.seed = options.seed;
   row_options.exact_size = options.exact_size;
   RowCoreset coreset = select_coreset_rows(J, e, row_options);
+  if (block->group_loss()) {
+    return freeze_group_loss(*block, values, std::move(coreset), e.squaredNorm());
+  }
   return make_compressed(std::move(block), std::move(coreset.rows), std::move(coreset.weights));
 }
 

@@ -8,9 +8,16 @@
 namespace carat {
 
 CompressedBlock::CompressedBlock(std::shared_ptr<const ResidualBlock> inner, std::vector<int> rows,
-                                 std::vector<double> weights)
-    : inner_(std::move(inner)), rows_(std::move(rows)), weights_(std::move(weights)) {
+                                 std::vector<double> weights, double constant_cost)
+    : inner_(std::move(inner)),
+      rows_(std::move(rows)),
+      weights_(std::move(weights)),
+      constant_cost_(constant_cost) {
   if (!inner_) throw Error("CompressedBlock: inner block is null");
+  if (!std::isfinite(constant_cost_)) {
+    throw Error("CompressedBlock: the constant cost " + std::to_string(constant_cost_) +
+                " is not finite");
+  }
   check_row_weights("CompressedBlock", rows_, weights_);
   if (rows_.empty()) throw Error("CompressedBlock: no rows selected");
   const int n = inner_->num_rows();
@@ -35,9 +42,14 @@ void CompressedBlock::evaluate_rows(ParameterPointers params, std::span<const in
     return;
   }
   std::vector<int> inner_rows(rows.size());
-  for (std::size_t k = 0; k < rows.size(); ++k)
+  for (std::size_t k = 0; k < rows.size(); ++k) {
+    if (rows[k] < 0 || static_cast<std::size_t>(rows[k]) >= rows_.size()) {
+      throw Error("CompressedBlock: row " + std::to_string(rows[k]) +
+                  " is out of range (the block has " + std::to_string(rows_.size()) + " rows)");
+    }
     inner_rows[k] = rows_[static_cast<std::size_t>(rows[k])];
-  inner_->evaluate_rows(params, inner_rows, residuals, jacobian);
+  }
+  evaluate_rows_checked(*inner_, params, inner_rows, residuals, jacobian);
   const auto r = static_cast<std::size_t>(inner_->reduced_dim());
   for (std::size_t k = 0; k < rows.size(); ++k) {
     const double s = std::sqrt(weights_[static_cast<std::size_t>(rows[k])]);
@@ -46,6 +58,19 @@ void CompressedBlock::evaluate_rows(ParameterPointers params, std::span<const in
       for (std::size_t c = 0; c < r; ++c) jacobian[k * r + c] *= s;
     }
   }
+}
+
+double CompressedBlock::accumulate(ParameterPointers params, Eigen::Ref<Eigen::MatrixXd> H_r,
+                                   Eigen::Ref<Eigen::VectorXd> b_r) const {
+  // Folded: the inner block's rows are the rows, and its own (possibly fused) accumulate() sums
+  // them.
+  if (folded()) return inner_->accumulate(params, H_r, b_r) + constant_cost_;
+  return ResidualBlock::accumulate(params, H_r, b_r);
+}
+
+double CompressedBlock::squared_norm(ParameterPointers params) const {
+  if (folded()) return inner_->squared_norm(params) + constant_cost_;
+  return ResidualBlock::squared_norm(params);
 }
 
 std::unique_ptr<ResidualBlock> CompressedBlock::extract_rows(std::span<const int> rows) const {

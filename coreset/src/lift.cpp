@@ -10,6 +10,18 @@
 namespace carat::internal {
 namespace {
 
+/// Integer vectors of V's shape (the condition of a lane blend).
+template <class V>
+struct LaneMask;
+template <>
+struct LaneMask<v4d> {
+  typedef long type __attribute__((vector_size(32)));
+};
+template <>
+struct LaneMask<v8d> {
+  typedef long type __attribute__((vector_size(64)));
+};
+
 /// Sum of the lifts of rows [begin, end), four rows per vector lane set (one partial sum per
 /// lane, added in a fixed order at the end), then the last rows one by one.
 template <int R>
@@ -87,6 +99,9 @@ void lift_sum_3(const double* J, const double* e, long begin, long end, double* 
 /// j < 3 and hi[j] += x_j [x3, x4, x5, e] for all j, which cover the 28 products x_j x_k
 /// (j <= k) with 10 multiply-adds. The matrix's last row (of `rows`) builds its vectors element
 /// by element: the 4-wide load from a + 3 would read one double past it.
+/// The condition that picks lane 3 of a v4d.
+constexpr LaneMask<v4d>::type kLastLane = {0, 0, 0, -1};
+
 __attribute__((always_inline)) inline void accumulate_6(const double* J, const double* e, long rows,
                                                         long begin, long end, v4d* lo, v4d* hi) {
   const long vector_end = std::min(end, rows - 1);
@@ -96,7 +111,7 @@ __attribute__((always_inline)) inline void accumulate_6(const double* J, const d
     v4d x_hi;
     __builtin_memcpy(&x_lo, a, sizeof(x_lo));
     __builtin_memcpy(&x_hi, a + 3, sizeof(x_hi));
-    x_hi[3] = e[i];
+    x_hi = kLastLane ? v4d{} + e[i] : x_hi;  // a blend in registers (see load_block)
     for (int j = 0; j < 3; ++j) lo[j] += a[j] * x_lo;
     for (int j = 0; j < 6; ++j) hi[j] += a[j] * x_hi;
     hi[6] += e[i] * x_hi;
@@ -229,7 +244,14 @@ template <int R, class V, int Q>
 __attribute__((always_inline)) inline void load_block(const double* a, double e, V& out) {
   constexpr int W = sizeof(V) / sizeof(double);
   __builtin_memcpy(&out, a + W * Q, sizeof(V));
-  if constexpr (R >= W * Q && R < W * (Q + 1)) out[R - W * Q] = e;
+  if constexpr (R >= W * Q && R < W * (Q + 1)) {
+    // A blend with the broadcast e, in registers: writing the lane through memory and reading the
+    // whole vector back stalls on store forwarding (most of a small row's time).
+    typename LaneMask<V>::type lane = {};
+    lane[R - W * Q] = -1;
+    const V broadcast = V{} + e;
+    out = lane ? broadcast : out;
+  }
 }
 
 /// Chunk sums of consecutive rows (as lift_chunk_sums) with the accumulators above.

@@ -18,6 +18,7 @@
 #include <carat/coreset/caratheodory.hpp>
 #include <carat/coreset/compress.hpp>
 #include <carat/coreset/compressed_block.hpp>
+#include <carat/coreset/compressed_solve.hpp>
 #include <carat/coreset/information_divergence.hpp>
 #include <carat/coreset/problem_compression.hpp>
 #include <carat/coreset/quadratic_model.hpp>
@@ -90,4 +91,5 @@
 #include <carat/solver/solve.hpp>
 #include <carat/solver/solver_options.hpp>
 #include <carat/solver/solver_summary.hpp>
+#include <carat/solver/subset_manifold.hpp>
 #include <carat/solver/variable_id.hpp>

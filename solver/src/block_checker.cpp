@@ -1,16 +1,22 @@
 #include "carat/solver/block_checker.hpp"
 
+#include <cxxabi.h>
+
 #include <Eigen/Core>
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <exception>
 #include <functional>
 #include <limits>
+#include <memory>
 #include <numeric>
 #include <random>
+#include <set>
+#include <typeinfo>
 
 #include "carat/base/error.hpp"
 
@@ -58,7 +64,55 @@ void evaluate(const ResidualBlock& block, ParameterPointers params, std::span<co
   block.evaluate_rows(params, rows, residuals->data(), jacobian->data());
 }
 
+/// A readable name of a block's dynamic type.
+std::string type_name(const ResidualBlock& block) {
+  const char* mangled = typeid(block).name();
+  int status = 0;
+  char* demangled = abi::__cxa_demangle(mangled, nullptr, nullptr, &status);
+  std::string out = status == 0 && demangled ? demangled : mangled;
+  std::free(demangled);
+  if (out.size() > 120) out = out.substr(0, 117) + "...";
+  return out;
+}
+
 }  // namespace
+
+std::string ProblemCheckReport::summary() const {
+  if (ok) return "ok (" + std::to_string(checked_blocks) + " block types checked)";
+  std::string out;
+  for (const std::string& f : failures) out += (out.empty() ? "" : "\n") + f;
+  return out;
+}
+
+ProblemCheckReport check_problem(const Problem& problem, const BlockCheckOptions& options) {
+  ProblemCheckReport report;
+  std::set<std::string> seen;
+  const auto blocks = problem.blocks();
+  for (std::size_t i = 0; i < blocks.size(); ++i) {
+    const ResidualBlock& block = *blocks[i].block;
+    if (!seen.insert(typeid(block).name()).second) continue;
+    ++report.checked_blocks;
+    std::vector<const Manifold*> manifolds;
+    std::vector<const double*> params;
+    for (VariableId v : blocks[i].variables) {
+      manifolds.push_back(&problem.manifold(v));
+      params.push_back(problem.value(v).data());
+    }
+    BlockCheckReport one;
+    try {
+      one = check_residual_block(block, manifolds, params, options);
+    } catch (const std::exception& e) {
+      one.failures.push_back(e.what());
+    }
+    if (one.failures.empty()) continue;
+    report.ok = false;
+    report.failures.push_back("residual block " + std::to_string(i) +
+                              (block.name().empty() ? std::string() : " ('" + block.name() + "')") +
+                              ", of type " + type_name(block) +
+                              ", breaks the block contract: " + one.summary());
+  }
+  return report;
+}
 
 std::string BlockCheckReport::summary() const {
   if (ok) return "ok";
@@ -132,9 +186,21 @@ BlockCheckReport check_residual_block(const ResidualBlock& block,
   // more would overflow them.
   if (!report.failures.empty()) return report;
 
-  // The Jacobian against central differences.
+  // The Jacobian against central differences: of the plain rows when the block weights each
+  // group by its loss (the weights depend on the point; the rows' Jacobians are taken at it).
   guarded("Jacobian", [&] {
-    report.jacobian = check_jacobians(block, manifolds, params, options.jacobian);
+    std::unique_ptr<ResidualBlock> plain;
+    if (block.group_loss()) {
+      std::vector<int> every(static_cast<std::size_t>(n));
+      std::iota(every.begin(), every.end(), 0);
+      std::vector<double> loss_weights(every.size());
+      plain = block.extract_rows_without_loss(params, every, loss_weights.data());
+      if (!plain) {
+        fail("the block has a group loss but extract_rows_without_loss() returned null");
+        return;
+      }
+    }
+    report.jacobian = check_jacobians(plain ? *plain : block, manifolds, params, options.jacobian);
     if (!report.jacobian.ok) fail("Jacobian: " + report.jacobian.message);
   });
 
@@ -186,7 +252,8 @@ BlockCheckReport check_residual_block(const ResidualBlock& block,
     const double c0 = block.ResidualBlock::accumulate(params, H0, b0);
     const double dH = relative_difference(H.data(), H0.data(), static_cast<std::size_t>(H.size()));
     const double db = relative_difference(b.data(), b0.data(), static_cast<std::size_t>(b.size()));
-    const double dc = relative_difference(&c, &c0, 1);
+    // With a group loss, c is sum_g rho(s_g), not the rows' squares (checked below).
+    const double dc = block.group_loss() ? 0.0 : relative_difference(&c, &c0, 1);
     if (dH > options.relative_tolerance || db > options.relative_tolerance ||
         dc > options.relative_tolerance) {
       fail("accumulate() differs from J_r^T J_r, J_r^T r, r^T r of evaluate_rows() (H " +
@@ -195,10 +262,17 @@ BlockCheckReport check_residual_block(const ResidualBlock& block,
   });
   guarded("squared_norm", [&] {
     const double c = block.squared_norm(params);
-    const double c0 = full_residuals.squaredNorm();
+    double c0 = full_residuals.squaredNorm() + block.constant_cost();
+    if (block.group_loss()) {
+      Eigen::MatrixXd H = Eigen::MatrixXd::Zero(r, r);
+      Eigen::VectorXd b = Eigen::VectorXd::Zero(r);
+      c0 = block.accumulate(params, H, b);
+    }
     const double dc = relative_difference(&c, &c0, 1);
     if (dc > options.relative_tolerance) {
-      fail("squared_norm() is " + number(c) + " but the rows' squares sum to " + number(c0));
+      fail("squared_norm() is " + number(c) + " but " +
+           (block.group_loss() ? "accumulate() gives c = " : "the rows' squares sum to ") +
+           number(c0));
     }
   });
 

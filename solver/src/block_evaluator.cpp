@@ -8,6 +8,7 @@
 #include <atomic>
 #include <cmath>
 #include <exception>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -37,7 +38,7 @@ std::string first_bad_row(const ResidualBlock& block, ParameterPointers params) 
       for (int k = 0; k < count; ++k) rows[static_cast<std::size_t>(k)] = begin + k;
       residuals.assign(static_cast<std::size_t>(count), 0.0);
       jacobian.assign(static_cast<std::size_t>(count) * static_cast<std::size_t>(r), 0.0);
-      block.evaluate_rows(params, rows, residuals.data(), jacobian.data());
+      evaluate_rows_checked(block, params, rows, residuals.data(), jacobian.data());
       for (int k = 0; k < count; ++k) {
         const double value = residuals[static_cast<std::size_t>(k)];
         if (!std::isfinite(value)) {
@@ -104,6 +105,18 @@ void BlockEvaluator::allocate(BlockLinearizations* out) const {
 
 bool BlockEvaluator::evaluate_block(std::size_t i, int which, BlockScratch& s, double* packed_h,
                                     double* b_out, double* cost) const {
+  // A block that throws (a user's functor, a prepare() hook, a loss) is a bad block: the caller
+  // names it, and describe_bad_block() repeats the evaluation to report what it threw.
+  try {
+    return evaluate_block_unguarded(i, which, s, packed_h, b_out, cost);
+  } catch (...) {
+    *cost = std::numeric_limits<double>::quiet_NaN();
+    return false;
+  }
+}
+
+bool BlockEvaluator::evaluate_block_unguarded(std::size_t i, int which, BlockScratch& s,
+                                              double* packed_h, double* b_out, double* cost) const {
   const auto& entry = problem_.blocks()[i];
   const ResidualBlock& block = *entry.block;
   const auto& ptrs = pointers_[which];
@@ -158,8 +171,13 @@ bool BlockEvaluator::evaluate_rows(std::size_t i, int which, int n, double* out,
                                  param_begin_[i + 1] - param_begin_[i]);
   const auto count = static_cast<std::size_t>(n) * static_cast<std::size_t>(dims_[i] + 1);
   double* residuals = out + static_cast<std::size_t>(n) * static_cast<std::size_t>(dims_[i]);
-  problem_.blocks()[i].block->evaluate_rows(
-      params, std::span<const int>(kRows, static_cast<std::size_t>(n)), residuals, out);
+  try {
+    problem_.blocks()[i].block->evaluate_rows(
+        params, std::span<const int>(kRows, static_cast<std::size_t>(n)), residuals, out);
+  } catch (...) {
+    *cost = std::numeric_limits<double>::quiet_NaN();
+    return false;
+  }
   double sum = 0.0;
   bool ok = true;
   for (std::size_t k = 0; k < count; ++k) ok = ok && std::isfinite(out[k]);
@@ -172,8 +190,10 @@ std::string BlockEvaluator::describe_bad_block(std::size_t i, int which) const {
   const auto& ptrs = pointers_[which];
   const ParameterPointers params(ptrs.data() + param_begin_[i],
                                  param_begin_[i + 1] - param_begin_[i]);
-  return "residual block " + std::to_string(i) + ": " +
-         first_bad_row(*problem_.blocks()[i].block, params);
+  const ResidualBlock& block = *problem_.blocks()[i].block;
+  return "residual block " + std::to_string(i) +
+         (block.name().empty() ? std::string() : " ('" + block.name() + "')") + ": " +
+         first_bad_row(block, params);
 }
 
 bool BlockEvaluator::linearize(int which, BlockLinearizations* out, std::string* error) const {
@@ -208,8 +228,14 @@ double BlockEvaluator::cost(int which) const {
                         const auto& entry = blocks[i];
                         const ParameterPointers params(ptrs.data() + param_begin_[i],
                                                        param_begin_[i + 1] - param_begin_[i]);
-                        const double sq = entry.block->squared_norm(params);
-                        block_cost_[i] = 0.5 * (entry.loss ? entry.loss->evaluate(sq).rho : sq);
+                        // A block that throws at a trial point makes its cost NaN: the
+                        // step is rejected, as for a functor that returns false.
+                        try {
+                          const double sq = entry.block->squared_norm(params);
+                          block_cost_[i] = 0.5 * (entry.loss ? entry.loss->evaluate(sq).rho : sq);
+                        } catch (...) {
+                          block_cost_[i] = std::numeric_limits<double>::quiet_NaN();
+                        }
                       }
                     });
   double total = 0.0;

@@ -48,7 +48,7 @@ class BlockEvaluator {
   /// something is not finite.
   bool evaluate_rows(std::size_t i, int which, int n, double* out, double* cost) const;
 
-  /// "residual block i: <which row is not finite>" at buffer `which`.
+  /// "residual block i ('name'): <which row is not finite, or what it threw>" at `which`.
   std::string describe_bad_block(std::size_t i, int which) const;
 
   /// Cost 1/2 sum rho at buffer `which` (per-block parallel, summed in block order).
@@ -58,6 +58,9 @@ class BlockEvaluator {
   void allocate(BlockLinearizations* out) const;
 
  private:
+  bool evaluate_block_unguarded(std::size_t i, int which, BlockScratch& scratch, double* packed_h,
+                                double* b, double* cost) const;
+
   const Problem& problem_;
   std::vector<int> dims_;                   // D per block
   std::vector<std::size_t> param_begin_;    // per block, into param_offsets_

@@ -66,4 +66,22 @@ ProblemEvaluation evaluate_problem(const Problem& problem, int num_threads) {
   return out;
 }
 
+double evaluate_cost(const Problem& problem, int num_threads) {
+  const auto blocks = problem.blocks();
+  std::vector<double> cost(blocks.size(), 0.0);
+  tbb::task_arena arena(std::clamp(num_threads, 1, tbb::info::default_concurrency()));
+  arena.execute([&] {
+    tbb::parallel_for(std::size_t{0}, blocks.size(), [&](std::size_t i) {
+      const auto& entry = blocks[i];
+      std::vector<const double*> params;
+      for (VariableId v : entry.variables) params.push_back(problem.value(v).data());
+      const double sq = entry.block->squared_norm(params);
+      cost[i] = 0.5 * (entry.loss ? entry.loss->evaluate(sq).rho : sq);
+    });
+  });
+  double total = 0.0;
+  for (double c : cost) total += c;  // fixed order: thread-count independent
+  return total;
+}
+
 }  // namespace carat

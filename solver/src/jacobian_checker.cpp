@@ -79,13 +79,55 @@ JacobianCheckResult check_jacobians(const ResidualBlock& block,
       result.analytic.allFinite() && result.numeric.allFinite() && residuals.allFinite();
   result.ok = finite && result.max_abs_error <=
                             options.absolute_tolerance + options.relative_tolerance * scale;
-  char buffer[256];
-  std::snprintf(buffer, sizeof(buffer),
-                "%s: max |J - J_numeric| = %.3e at row %d, column %d (analytic %.6e, numeric %.6e)",
-                result.ok ? "ok" : (finite ? "MISMATCH" : "NON-FINITE"), result.max_abs_error,
-                result.worst_row, result.worst_col, diff.size() ? result.analytic(wr, wc) : 0.0,
-                diff.size() ? result.numeric(wr, wc) : 0.0);
-  result.message = buffer;
+  // One paragraph, as Ceres's gradient checker reports a block: the verdict, how many entries
+  // are off and in which columns (variable and tangent coordinate), and the worst entry.
+  const double allowed = options.absolute_tolerance + options.relative_tolerance * scale;
+  std::vector<int> column_variable, column_tangent;
+  for (std::size_t v = 0; v < dims.size(); ++v) {
+    for (int k = 0; k < dims[v]; ++k) {
+      column_variable.push_back(static_cast<int>(v));
+      column_tangent.push_back(k);
+    }
+  }
+  const auto column_name = [&](Eigen::Index c) {
+    return "column " + std::to_string(c) + " (variable " +
+           std::to_string(column_variable[static_cast<std::size_t>(c)]) + ", tangent " +
+           std::to_string(column_tangent[static_cast<std::size_t>(c)]) + ")";
+  };
+  char buffer[512];
+  std::string text;
+  if (!finite) {
+    text = "NON-FINITE: the analytic or numeric Jacobian or the residuals are not finite";
+  } else {
+    long bad = 0;
+    std::vector<Eigen::Index> bad_columns;
+    for (Eigen::Index c = 0; c < diff.cols(); ++c) {
+      const long in_column = (diff.col(c).array() > allowed).count();
+      bad += in_column;
+      if (in_column > 0) bad_columns.push_back(c);
+    }
+    std::snprintf(buffer, sizeof(buffer),
+                  "%s: %ld of %ld Jacobian entries differ by more than %.3e",
+                  result.ok ? "ok" : "MISMATCH", bad, static_cast<long>(diff.size()), allowed);
+    text = buffer;
+    if (!bad_columns.empty()) {
+      text += ", in ";
+      for (std::size_t k = 0; k < bad_columns.size() && k < 6; ++k) {
+        text += (k ? ", " : "") + column_name(bad_columns[k]);
+      }
+      if (bad_columns.size() > 6)
+        text += " and " + std::to_string(bad_columns.size() - 6) + " more";
+    }
+  }
+  if (diff.size()) {
+    std::snprintf(buffer, sizeof(buffer),
+                  "; largest at row %d, %s: analytic %.6e, numeric %.6e (|difference| %.3e, "
+                  "relative to the largest numeric entry %.3e)",
+                  result.worst_row, column_name(wc).c_str(), result.analytic(wr, wc),
+                  result.numeric(wr, wc), result.max_abs_error, result.max_rel_error);
+    text += buffer;
+  }
+  result.message = text;
   return result;
 }
 

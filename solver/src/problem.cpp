@@ -1,11 +1,14 @@
 #include "carat/solver/problem.hpp"
 
 #include <algorithm>
+#include <cmath>
+#include <limits>
 #include <string>
 
 #include "carat/base/error.hpp"
 #include "carat/solver/se2.hpp"
 #include "carat/solver/se3.hpp"
+#include "carat/solver/subset_manifold.hpp"
 
 namespace carat {
 
@@ -24,6 +27,10 @@ VariableId Problem::add_variable(std::shared_ptr<const Manifold> manifold,
   const VariableId id{static_cast<std::int32_t>(manifolds_.size())};
   offsets_.push_back(values_.size());
   values_.insert(values_.end(), initial.begin(), initial.end());
+  if (!lower_.empty()) {
+    lower_.resize(values_.size(), -std::numeric_limits<double>::infinity());
+    upper_.resize(values_.size(), std::numeric_limits<double>::infinity());
+  }
   manifolds_.push_back(std::move(manifold));
   constant_.push_back(0);
   eliminable_.push_back(0);
@@ -245,6 +252,77 @@ std::size_t Problem::residual_memory_bytes() const {
   std::size_t bytes = 0;
   for (const auto& entry : blocks_) bytes += entry.block->memory_bytes();
   return bytes;
+}
+
+std::size_t Problem::bound_index(VariableId id, int coordinate, const char* who) const {
+  check(id);
+  const Manifold& m = manifold(id);
+  const auto* subset = dynamic_cast<const SubsetManifold*>(&m);
+  const Manifold& base = subset ? subset->base() : m;
+  const std::string where =
+      std::string(who) + ": variable " + std::to_string(id.index) + " (" + m.name() + ")";
+  if (!dynamic_cast<const EuclideanManifold*>(&base)) {
+    throw Error(where + ": bounds apply to Euclidean coordinates only");
+  }
+  if (coordinate < 0 || coordinate >= m.ambient_size()) {
+    throw Error(where + ": coordinate " + std::to_string(coordinate) + " is out of range (" +
+                std::to_string(m.ambient_size()) + " coordinates)");
+  }
+  return offsets_[static_cast<std::size_t>(id.index)] + static_cast<std::size_t>(coordinate);
+}
+
+void Problem::set_lower_bound(VariableId id, int coordinate, double lower) {
+  const std::size_t k = bound_index(id, coordinate, "Problem::set_lower_bound");
+  const std::string where = "Problem::set_lower_bound: variable " + std::to_string(id.index) +
+                            ", coordinate " + std::to_string(coordinate);
+  if (std::isnan(lower) || lower == std::numeric_limits<double>::infinity()) {
+    throw Error(where + ": the bound " + message_number(lower) + " is not a number below +inf");
+  }
+  if (!upper_.empty() && lower > upper_[k]) {
+    throw Error(where + ": the lower bound " + message_number(lower) +
+                " is above the upper bound " + message_number(upper_[k]));
+  }
+  if (values_[k] < lower) {
+    throw Error(where + ": the value " + message_number(values_[k]) + " is below the bound " +
+                message_number(lower));
+  }
+  if (lower_.empty()) {
+    lower_.assign(values_.size(), -std::numeric_limits<double>::infinity());
+    upper_.assign(values_.size(), std::numeric_limits<double>::infinity());
+  }
+  lower_[k] = lower;
+}
+
+void Problem::set_upper_bound(VariableId id, int coordinate, double upper) {
+  const std::size_t k = bound_index(id, coordinate, "Problem::set_upper_bound");
+  const std::string where = "Problem::set_upper_bound: variable " + std::to_string(id.index) +
+                            ", coordinate " + std::to_string(coordinate);
+  if (std::isnan(upper) || upper == -std::numeric_limits<double>::infinity()) {
+    throw Error(where + ": the bound " + message_number(upper) + " is not a number above -inf");
+  }
+  if (!lower_.empty() && upper < lower_[k]) {
+    throw Error(where + ": the upper bound " + message_number(upper) +
+                " is below the lower bound " + message_number(lower_[k]));
+  }
+  if (values_[k] > upper) {
+    throw Error(where + ": the value " + message_number(values_[k]) + " is above the bound " +
+                message_number(upper));
+  }
+  if (lower_.empty()) {
+    lower_.assign(values_.size(), -std::numeric_limits<double>::infinity());
+    upper_.assign(values_.size(), std::numeric_limits<double>::infinity());
+  }
+  upper_[k] = upper;
+}
+
+double Problem::lower_bound(VariableId id, int coordinate) const {
+  const std::size_t k = bound_index(id, coordinate, "Problem::lower_bound");
+  return lower_.empty() ? -std::numeric_limits<double>::infinity() : lower_[k];
+}
+
+double Problem::upper_bound(VariableId id, int coordinate) const {
+  const std::size_t k = bound_index(id, coordinate, "Problem::upper_bound");
+  return upper_.empty() ? std::numeric_limits<double>::infinity() : upper_[k];
 }
 
 }  // namespace carat

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <memory>
 #include <numeric>
 #include <string>
 #include <vector>
@@ -15,19 +16,8 @@ namespace {
 
 constexpr int kChunkRows = 128;
 
-/// Rows after a chunk that are watched for writes: a block's evaluate_rows() must write only
-/// the rows it was asked for. Debug builds watch every row a careless block could write (all N),
-/// so that the write lands in this buffer and is reported; release builds watch one row.
-int guard_rows(int n, int count) {
-#ifdef NDEBUG
-  (void)n;
-  (void)count;
-  return 1;
-#else
-  return std::max(1, n - count);
-#endif
-}
-
+/// A NaN with a payload no block computes by chance: what evaluate_rows_checked() puts in the
+/// slots a block must write (each must change) and in the row after them (which must not).
 constexpr std::uint64_t kGuardBits = 0x7ff8dead0000f00dULL;
 
 double guard_value() {
@@ -36,19 +26,15 @@ double guard_value() {
   return value;
 }
 
-bool untouched(const double* x, std::size_t n) {
-  for (std::size_t i = 0; i < n; ++i) {
-    std::uint64_t bits;
-    std::memcpy(&bits, x + i, sizeof(bits));
-    if (bits != kGuardBits) return false;
-  }
-  return true;
+bool is_guard(double x) {
+  std::uint64_t bits;
+  std::memcpy(&bits, &x, sizeof(bits));
+  return bits == kGuardBits;
 }
 
-[[noreturn]] void wrote_past(int count) {
-  throw Error("residual block: evaluate_rows() asked for " + std::to_string(count) +
-              " rows wrote past them; it must write only the rows in `rows` (check it with "
-              "check_residual_block())");
+std::string block_label(const ResidualBlock& block) {
+  return block.name().empty() ? std::string("residual block")
+                              : "residual block '" + block.name() + "'";
 }
 
 }  // namespace
@@ -70,23 +56,16 @@ double ResidualBlock::accumulate(ParameterPointers params, Eigen::Ref<Eigen::Mat
   const int n = num_rows();
   const int r = reduced_dim();
   const int chunk = std::min(n, kChunkRows);
-  const int guard = guard_rows(n, chunk);
   std::vector<int> rows(static_cast<std::size_t>(chunk));
-  Eigen::VectorXd residuals(chunk + guard);
-  Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> J(chunk + guard, r);
-  double c = 0.0;
+  Eigen::VectorXd residuals(chunk);
+  Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> J(chunk, r);
+  double c = constant_cost();
   for (int begin = 0; begin < n; begin += kChunkRows) {
     const int count = std::min(kChunkRows, n - begin);
     std::iota(rows.begin(), rows.begin() + count, begin);
-    residuals.tail(chunk + guard - count).setConstant(guard_value());
-    J.bottomRows(chunk + guard - count).setConstant(guard_value());
-    evaluate_rows(params, std::span<const int>(rows.data(), static_cast<std::size_t>(count)),
-                  residuals.data(), J.data());
-    if (!untouched(residuals.data() + count, static_cast<std::size_t>(chunk + guard - count)) ||
-        !untouched(J.data() + static_cast<std::size_t>(count) * r,
-                   static_cast<std::size_t>(chunk + guard - count) * r)) {
-      wrote_past(count);
-    }
+    evaluate_rows_checked(*this, params,
+                          std::span<const int>(rows.data(), static_cast<std::size_t>(count)),
+                          residuals.data(), J.data());
     const auto Jc = J.topRows(count);
     const auto ec = residuals.head(count);
     H_r.selfadjointView<Eigen::Lower>().rankUpdate(Jc.transpose());
@@ -100,23 +79,93 @@ double ResidualBlock::accumulate(ParameterPointers params, Eigen::Ref<Eigen::Mat
 double ResidualBlock::squared_norm(ParameterPointers params) const {
   const int n = num_rows();
   const int chunk = std::min(n, kChunkRows);
-  const int guard = guard_rows(n, chunk);
   std::vector<int> rows(static_cast<std::size_t>(chunk));
-  std::vector<double> residuals(static_cast<std::size_t>(chunk + guard));
-  double c = 0.0;
+  std::vector<double> residuals(static_cast<std::size_t>(chunk));
+  double c = constant_cost();
   for (int begin = 0; begin < n; begin += kChunkRows) {
     const int count = std::min(kChunkRows, n - begin);
     std::iota(rows.begin(), rows.begin() + count, begin);
-    std::fill(residuals.begin() + count, residuals.end(), guard_value());
-    evaluate_rows(params, std::span<const int>(rows.data(), static_cast<std::size_t>(count)),
-                  residuals.data(), nullptr);
-    if (!untouched(residuals.data() + count, residuals.size() - static_cast<std::size_t>(count))) {
-      wrote_past(count);
-    }
+    evaluate_rows_checked(*this, params,
+                          std::span<const int>(rows.data(), static_cast<std::size_t>(count)),
+                          residuals.data(), nullptr);
     for (int k = 0; k < count; ++k)
       c += residuals[static_cast<std::size_t>(k)] * residuals[static_cast<std::size_t>(k)];
   }
   return c;
+}
+
+void evaluate_rows_checked(const ResidualBlock& block, ParameterPointers params,
+                           std::span<const int> rows, double* residuals, double* jacobian) {
+  const auto count = rows.size();
+  const auto r = static_cast<std::size_t>(block.reduced_dim());
+  // Room for every row the block has (a careless block writes them all): per-thread scratch
+  // for small blocks, else allocated without being touched, so that only the pages a block
+  // writes cost memory. A block's evaluate_rows() may itself call this (compressed rows of
+  // compressed rows): the flag keeps a nested call off the scratch in use.
+  const std::size_t capacity = std::max(count + 1, static_cast<std::size_t>(block.num_rows()));
+  constexpr std::size_t kReusedDoubles = std::size_t{1} << 15;
+  thread_local std::vector<double> reused;
+  thread_local bool in_use = false;
+  const std::size_t needed = capacity * (jacobian ? r + 1 : 1);
+  const bool reuse = !in_use && needed <= kReusedDoubles;
+  std::unique_ptr<double[]> fresh;
+  double* scratch = nullptr;
+  if (reuse) {
+    if (reused.size() < needed) reused.resize(kReusedDoubles);
+    scratch = reused.data();
+  } else {
+    fresh.reset(new double[needed]);
+    scratch = fresh.get();
+  }
+  struct Claim {
+    bool* flag;
+    ~Claim() {
+      if (flag) *flag = false;
+    }
+  } claim{reuse ? &in_use : nullptr};
+  if (reuse) in_use = true;
+  double* const e = scratch;
+  double* const J = jacobian ? scratch + capacity : nullptr;
+  std::fill_n(e, count + 1, guard_value());
+  if (J) std::fill_n(J, (count + 1) * r, guard_value());
+  block.evaluate_rows(params, rows, e, J);
+  const auto wrote_past = [&] {
+    throw Error(block_label(block) + ": evaluate_rows() asked for " + std::to_string(count) +
+                " rows wrote past them; it must write exactly the rows in `rows`, residual k for "
+                "rows[k] (check_residual_block() shows how it fails)");
+  };
+  const auto left_unwritten = [&](std::size_t k) {
+    throw Error(block_label(block) + ": evaluate_rows() asked for " + std::to_string(count) +
+                " rows left " + (jacobian ? "the residual or Jacobian" : "the residual") +
+                " of row " + std::to_string(rows[k]) + " (slot " + std::to_string(k) +
+                ") unwritten; it must write every row in `rows`");
+  };
+  if (!is_guard(e[count])) wrote_past();
+  if (J) {
+    for (std::size_t c = 0; c < r; ++c) {
+      if (!is_guard(J[count * r + c])) wrote_past();
+    }
+  }
+  for (std::size_t k = 0; k < count; ++k) {
+    if (is_guard(e[k])) left_unwritten(k);
+    if (J) {
+      for (std::size_t c = 0; c < r; ++c) {
+        if (is_guard(J[k * r + c])) left_unwritten(k);
+      }
+    }
+  }
+  std::copy_n(e, count, residuals);
+  if (J) std::copy_n(J, count * r, jacobian);
+}
+
+const std::string& ResidualBlock::name() const {
+  static const std::string kNone;
+  return kNone;
+}
+
+std::unique_ptr<ResidualBlock> ResidualBlock::extract_rows_without_loss(
+    ParameterPointers /*params*/, std::span<const int> /*rows*/, double* /*loss_weights*/) const {
+  return nullptr;
 }
 
 std::unique_ptr<ResidualBlock> ResidualBlock::extract_rows(std::span<const int> /*rows*/) const {

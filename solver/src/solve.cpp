@@ -10,8 +10,10 @@
 #include <vector>
 
 #include "block_evaluator.hpp"
+#include "bound_constraints.hpp"
 #include "carat/base/error.hpp"
 #include "carat/base/stopwatch.hpp"
+#include "carat/solver/block_checker.hpp"
 #include "factorization_reuse.hpp"
 #include "hessian_damping.hpp"
 #include "linear_system.hpp"
@@ -77,6 +79,7 @@ class Solver {
   bool solve_for_step(IterationSummary& row, const Stopwatch& iteration_time);
   bool stop_on_small_step(IterationSummary& row, double radius, const Stopwatch& iteration_time);
   double trial_cost();
+  double predicted_decrease();
   bool reject_step(IterationSummary& row, internal::TrustRegionStrategy& region,
                    internal::RadiusShrinkCause cause, const Stopwatch& iteration_time);
   bool linearize();
@@ -98,6 +101,8 @@ class Solver {
   Stopwatch solve_time_;  ///< since the solver was made
   std::unique_ptr<internal::LinearSystem> system_;
   std::unique_ptr<internal::BlockEvaluator> evaluator_;
+  std::unique_ptr<internal::BoundConstraints> bounds_;  ///< none when the problem has no bounds
+  bool projected_ = false;  ///< the last trial point was moved onto the bounds
   std::vector<double> buffers_[2];
   int current_ = 0;
   bool abort_requested_ = false;  ///< the iteration callback returned kAbort
@@ -144,7 +149,12 @@ bool Solver::linearize() {
 /// iteration limit ends the solve first: then false.
 bool Solver::begin_iteration(int iteration, IterationSummary* row) {
   if (abort_if_requested()) return false;
-  const double gradient_max = gradient_.cwiseAbs().maxCoeff();
+  double gradient_max = gradient_.cwiseAbs().maxCoeff();
+  if (bounds_) {  // what can still move: the projected gradient
+    Eigen::VectorXd projected = gradient_;
+    bounds_->project_gradient(buffers_[current_].data(), &projected);
+    gradient_max = projected.cwiseAbs().maxCoeff();
+  }
   std::optional<internal::StopReason> stop =
       internal::check_gradient_tolerance(gradient_max, options_.gradient_tolerance);
   if (!stop) stop = internal::check_iteration_limit(iteration - 1, options_.max_iterations);
@@ -177,6 +187,7 @@ bool Solver::factorize_gauss_newton(IterationSummary* row) {
       internal::clamped_hessian_diagonal(system_->diagonal(), options_);
   for (const double lambda : internal::gauss_newton_damping_factors()) {
     damping_ = lambda * diagonal;
+    if (bounds_) bounds_->hold_active(buffers_[current_].data(), gradient_, &damping_);
     if (factorize()) return true;
     row->linear_solver_failed = true;
     ++summary_.num_linear_solver_failures;
@@ -223,10 +234,31 @@ double Solver::trial_cost() {
   const int trial = 1 - current_;
   apply_step(problem_, system_->variable_offset(), buffers_[current_].data(), delta_,
              buffers_[trial].data());
+  projected_ = bounds_ && bounds_->project(buffers_[trial].data());
+  if (projected_) {  // the step taken is the projected one: trial [-] current
+    const auto& offset = system_->variable_offset();
+    for (int v = 0; v < problem_.num_variables(); ++v) {
+      const int t = offset[static_cast<std::size_t>(v)];
+      if (t < 0) continue;
+      const VariableId id{v};
+      const std::size_t at = problem_.value_offset(id);
+      problem_.manifold(id).minus(buffers_[trial].data() + at, buffers_[current_].data() + at,
+                                  delta_.data() + t);
+    }
+  }
   const Stopwatch t0;
   const double cost = evaluator_->cost(trial);
   summary_.time.cost_s += t0.elapsed_s();
   return cost;
+}
+
+/// The decrease the model predicts for the step in delta_: the damped model's (exact for the
+/// solution of the damped system), or, for a step projected onto the bounds, the undamped
+/// quadratic model's at the projected step.
+double Solver::predicted_decrease() {
+  if (!projected_) return internal::damped_model_decrease(gradient_, delta_, damping_);
+  system_->multiply(delta_, &h_delta_);
+  return internal::model_decrease(gradient_, delta_, h_delta_);
 }
 
 /// Moves to the trial iterate (cost new_cost) and relinearizes there, unless the solve ends with
@@ -329,6 +361,7 @@ void Solver::run_levenberg_marquardt() {
     }
 
     region.damping(system_->diagonal(), &damping_);
+    if (bounds_) bounds_->hold_active(buffers_[current_].data(), gradient_, &damping_);
     if (!factorize()) {
       row.linear_solver_failed = true;
       ++summary_.num_linear_solver_failures;
@@ -342,8 +375,7 @@ void Solver::run_levenberg_marquardt() {
     if (stop_on_small_step(row, region.radius(), iteration_time)) return;
 
     const double new_cost = trial_cost();
-    const internal::StepQuality step = internal::judge_step(
-        cost_, new_cost, internal::damped_model_decrease(gradient_, delta_, damping_));
+    const internal::StepQuality step = internal::judge_step(cost_, new_cost, predicted_decrease());
     row.relative_decrease = step.measured_ratio;
     if (!region.accepts(step)) {
       if (reject_step(row, region, internal::RadiusShrinkCause::kStepRejected, iteration_time)) {
@@ -387,8 +419,7 @@ void Solver::run_gauss_newton() {
     if (stop_on_small_step(row, radius, iteration_time)) return;
 
     const double new_cost = trial_cost();
-    const internal::StepQuality step = internal::judge_step(
-        cost_, new_cost, internal::damped_model_decrease(gradient_, delta_, damping_));
+    const internal::StepQuality step = internal::judge_step(cost_, new_cost, predicted_decrease());
     row.relative_decrease = step.measured_ratio;
     if (auto stop = internal::check_gauss_newton_decrease(cost_, new_cost)) {
       ++summary_.num_unsuccessful_steps;
@@ -419,6 +450,13 @@ bool Solver::initialize() {
     if (!problem_.is_constant(VariableId{v})) ++summary_.num_free_variables;
   }
 
+  if (options_.check_blocks) {
+    const ProblemCheckReport check = check_problem(problem_);
+    if (!check.ok) {
+      finish(TerminationType::kFailure, "check_blocks: " + check.summary());
+      return false;
+    }
+  }
   Stopwatch t0;
   try {
     system_ = internal::make_linear_system(problem_, options_);
@@ -441,6 +479,16 @@ bool Solver::initialize() {
   const auto values = problem_.all_values();
   buffers_[0].assign(values.begin(), values.end());
   buffers_[1] = buffers_[0];
+  if (problem_.has_bounds()) {
+    bounds_ = std::make_unique<internal::BoundConstraints>(problem_, system_->variable_offset());
+    const std::string outside = bounds_->outside(buffers_[0].data());
+    if (!outside.empty()) {
+      finish(TerminationType::kFailure, "the initial value is outside the bounds: " + outside);
+      return false;
+    }
+    if (bounds_->empty()) bounds_.reset();
+    options_.reuse_factorization = false;  // a reused factor would ignore the active set
+  }
   evaluator_ = std::make_unique<internal::BlockEvaluator>(problem_);
   for (int k = 0; k < 2; ++k) evaluator_->bind(k, buffers_[k].data());
 

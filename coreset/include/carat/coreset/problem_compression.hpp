@@ -1,16 +1,12 @@
 #pragma once
 
-/// Compressing a whole problem, and solving it to the full problem's optimum with compressed
-/// blocks. An exact coreset reproduces a block's H, b and c at the point it was built for, not
-/// away from it: solving a compressed problem stops near, not at, the full optimum (the further
-/// the solve moves, the further off). solve_recompressed() alternates: compress every block at
-/// the current point, solve the compressed problem, judge the result on the full problem (its
-/// cost and gradient), and compress again there, until the full problem's own convergence tests
-/// hold. At that point the compressed gradient equals the full one, so the optimum is the full
-/// problem's.
+/// Compressing a whole problem: every selected block replaced by its exact coreset at the
+/// problem's current values, in parallel, with the replaced blocks kept in the report. Solving to
+/// the full problem's optimum with compressed blocks: compressed_solve.hpp (included here).
 
 #include <cstddef>
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -32,6 +28,12 @@ struct ProblemCompressionOptions {
   std::function<bool(ResidualBlockId, const ResidualBlock&)> select;
 };
 
+/// A block compress_problem() replaced, and the block it was.
+struct ReplacedBlock {
+  ResidualBlockId id;                             ///< the block's id in the problem
+  std::shared_ptr<const ResidualBlock> original;  ///< the block before compression
+};
+
 /// What compress_problem() did.
 struct ProblemCompressionReport {
   int compressed_blocks = 0;     ///< blocks replaced by their coreset
@@ -40,6 +42,10 @@ struct ProblemCompressionReport {
   std::size_t bytes_before = 0;  ///< memory_bytes() of all blocks before
   std::size_t bytes_after = 0;   ///< memory_bytes() of all blocks after
   double seconds = 0.0;          ///< wall time
+  /// The blocks replaced, so that the full problem stays at hand (restore_blocks(), or a copy of
+  /// the problem with them put back to evaluate its full cost). Holding this report keeps the
+  /// original blocks alive; drop it to release their memory.
+  std::vector<ReplacedBlock> replaced;
 };
 
 /// Replaces every selected block of `problem` by its exact coreset at the problem's current
@@ -47,55 +53,11 @@ struct ProblemCompressionReport {
 ProblemCompressionReport compress_problem(Problem& problem,
                                           const ProblemCompressionOptions& options = {});
 
-/// Settings of solve_recompressed().
-struct RecompressedSolveOptions {
-  ProblemCompressionOptions compression;  ///< what to compress (num_threads is also the solve's)
-  SolverOptions inner;                    ///< the solves of the compressed problems
-  int max_recompressions = 20;            ///< compressions (outer iterations) at most
-  /// Stop when the full cost changes by less than this, relatively, between compressions.
-  double function_tolerance = 1e-12;
-  double gradient_tolerance = 1e-10;  ///< stop when the full max |gradient| is below this
-};
-
-/// One outer iteration of solve_recompressed(): a solve of the compressed problem, judged at the
-/// compression of its result.
-struct RecompressionRecord {
-  double full_cost = 0.0;               ///< full cost at the solve's result (from its coreset)
-  double full_gradient_max_norm = 0.0;  ///< full max |gradient| there (from its coreset)
-  double compressed_final_cost = 0.0;   ///< the compressed problem's own final cost
-  int inner_iterations = 0;             ///< iterations of the compressed solve
-  std::size_t compressed_rows = 0;      ///< rows of the compressed problem
-};
-
-/// What solve_recompressed() did. Costs are the full problem's.
-struct RecompressedSolveSummary {
-  TerminationType termination = TerminationType::kFailure;  ///< why it stopped
-  std::string message;                                      ///< the reason in words
-  double initial_cost = 0.0;                                ///< full cost at the start
-  double final_cost = 0.0;                                  ///< full cost of the returned point
-  double final_gradient_max_norm = 0.0;                     ///< full max |gradient| there
-  int recompressions = 0;                    ///< compressions done (outer iterations)
-  int inner_iterations = 0;                  ///< iterations of all compressed solves
-  std::size_t full_rows = 0;                 ///< rows of the full problem
-  std::size_t compressed_rows = 0;           ///< rows of the (last) compressed problem
-  double compression_s = 0.0;                ///< time compressing
-  double inner_solve_s = 0.0;                ///< time solving compressed problems
-  double full_evaluation_s = 0.0;            ///< time evaluating the full problem
-  double total_s = 0.0;                      ///< whole call
-  std::vector<RecompressionRecord> records;  ///< one per outer iteration
-  /// One line: costs, compressions, inner iterations, termination, time.
-  std::string brief_report() const;
-};
-
-/// Minimizes the full problem's cost with compressed copies of it (see the file comment) and
-/// writes the result into `problem` (whose blocks are not changed). The compression at a solve's
-/// result also judges it: a coreset keeps each block's b and c exactly, so the compressed copy's
-/// cost and gradient are the full problem's there, without a pass over all rows; the final cost
-/// is the full problem's, evaluated once at the end. Each outer iteration is accepted only if it
-/// lowers the full cost; otherwise the solve retries with one inner iteration, then stops at the
-/// last accepted point. Does not throw for numerical trouble (reported as termination); throws
-/// carat::Error for invalid options or a block compress() refuses.
-RecompressedSolveSummary solve_recompressed(Problem& problem,
-                                            const RecompressedSolveOptions& options = {});
+/// Puts the blocks `report` replaced back into `problem` (the full problem again, at whatever
+/// values it holds now). Throws carat::Error if a block id no longer exists.
+void restore_blocks(Problem& problem, const ProblemCompressionReport& report);
 
 }  // namespace carat
+
+// solve_recompressed() and its settings, for code that includes this header for them.
+#include "carat/coreset/compressed_solve.hpp"

@@ -22,6 +22,7 @@
 
 #include <Eigen/Core>
 #include <memory>
+#include <span>
 #include <string>
 #include <unsupported/Eigen/AutoDiff>
 #include <utility>
@@ -56,9 +57,34 @@ class RelativePoseAutoDiffBlock final : public GroupedRowsBlock<Data, kGroupRows
   void reduced_map(ParameterPointers params, double* A) const override {
     relative_pose_reduced_map(params, A);
   }
+  void evaluate_rows(ParameterPointers params, std::span<const int> rows, double* residuals,
+                     double* jacobian) const override {
+    if (!jacobian) {  // residuals only: the functor on doubles
+      const lie::Pose<double> T_ij = pose_of(params);
+      this->template walk_rows<6>(
+          rows, residuals, nullptr, nullptr,
+          [&](const Data& datum, double* e, double* /*J*/) { return functor_(datum, T_ij, e); });
+      return;
+    }
+    const auto context = prepare(params);
+    this->template walk_rows<6>(rows, residuals, jacobian, nullptr,
+                                [&](const Data& datum, double* e, double* J) {
+                                  return evaluate_group(*context, datum, e, J);
+                                });
+  }
+
   double accumulate(ParameterPointers params, Eigen::Ref<Eigen::MatrixXd> H_r,
                     Eigen::Ref<Eigen::VectorXd> b_r) const override {
-    return this->template accumulate_groups<6>(params, H_r, b_r);
+    const auto context = prepare(params);
+    return this->template accumulate_rows<6>(H_r, b_r,
+                                             [&](const Data& datum, double* e, double* J) {
+                                               return evaluate_group(*context, datum, e, J);
+                                             });
+  }
+
+  double squared_norm(ParameterPointers params) const override {
+    const lie::Pose<double> T_ij = pose_of(params);
+    return this->sum_rows([&](const Data& datum, double* e) { return functor_(datum, T_ij, e); });
   }
 
  private:
@@ -67,15 +93,29 @@ class RelativePoseAutoDiffBlock final : public GroupedRowsBlock<Data, kGroupRows
       : Base(std::move(data), std::vector<int>{6, 6}, std::move(name), std::move(row_map)),
         functor_(std::move(functor)) {}
 
+  /// T_ij in doubles; throws for a wrong variable count.
+  lie::Pose<double> pose_of(ParameterPointers params) const {
+    check_count(params);
+    const Eigen::Isometry3d T = relative_pose(params);
+    lie::Pose<double> out;
+    out.R = T.linear();
+    out.t = T.translation();
+    return out;
+  }
+
+  void check_count(ParameterPointers params) const {
+    if (params.size() != 2) {
+      throw Error(this->name_ + ": " + std::to_string(params.size()) +
+                  " variables given, 2 expected (T_world_i, T_world_j)");
+    }
+  }
+
   struct DualPose final : Base::Context {
     lie::Pose<Dual> T_ij;
   };
 
   std::unique_ptr<typename Base::Context> prepare(ParameterPointers params) const override {
-    if (params.size() != 2) {
-      throw Error(this->name_ + ": " + std::to_string(params.size()) +
-                  " variables given, 2 expected (T_world_i, T_world_j)");
-    }
+    check_count(params);
     const Eigen::Isometry3d T = relative_pose(params);
     const Eigen::Matrix3d R = T.linear();
     auto out = std::make_unique<DualPose>();

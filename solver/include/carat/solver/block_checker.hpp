@@ -19,6 +19,7 @@
 
 #include "carat/solver/jacobian_checker.hpp"
 #include "carat/solver/manifold.hpp"
+#include "carat/solver/problem.hpp"
 #include "carat/solver/residual_block.hpp"
 
 namespace carat {
@@ -40,6 +41,15 @@ struct BlockCheckReport {
   std::string summary() const;
 };
 
+/// What check_problem() found.
+struct ProblemCheckReport {
+  bool ok = true;                     ///< every block checked passed
+  int checked_blocks = 0;             ///< blocks checked: the first of each distinct type
+  std::vector<std::string> failures;  ///< one paragraph per failing block, naming it
+  /// "ok (N block types checked)", or the failures joined by newlines.
+  std::string summary() const;
+};
+
 /// Checks `block` at `params` (one pointer per variable) with `manifolds` (one per variable, in
 /// the block's order). Never throws for a misbehaving block: what it throws becomes a failure.
 /// Throws carat::Error only when the counts of manifolds and parameters differ from the block's.
@@ -47,5 +57,11 @@ BlockCheckReport check_residual_block(const ResidualBlock& block,
                                       std::span<const Manifold* const> manifolds,
                                       ParameterPointers params,
                                       const BlockCheckOptions& options = {});
+
+/// Runs check_residual_block() on the first block of every distinct type (C++ dynamic type) in
+/// `problem`, at the problem's current values and with its manifolds: the conformance check of
+/// every kind of block a solve will evaluate, in one call (SolverOptions::check_blocks runs it
+/// before the first iteration). Never throws for a misbehaving block.
+ProblemCheckReport check_problem(const Problem& problem, const BlockCheckOptions& options = {});
 
 }  // namespace carat

@@ -60,6 +60,25 @@ class Problem {
   /// Whether any variable is marked for elimination.
   bool has_eliminable() const;
 
+  /// Keeps ambient coordinate `coordinate` of a Euclidean variable (or of a SubsetManifold over
+  /// one) at or above `lower` during solve(), which projects every trial point onto the bounds
+  /// (as Ceres's bounds constraints do); -infinity removes the bound. Throws carat::Error naming
+  /// the variable and coordinate for another manifold, a coordinate out of range, a NaN bound, a
+  /// bound above the upper bound, or a current value below it.
+  void set_lower_bound(VariableId id, int coordinate, double lower);
+  /// The upper bound, as set_lower_bound() (+infinity removes it).
+  void set_upper_bound(VariableId id, int coordinate, double upper);
+  /// The lower bound of a coordinate (-infinity when none).
+  double lower_bound(VariableId id, int coordinate) const;
+  /// The upper bound of a coordinate (+infinity when none).
+  double upper_bound(VariableId id, int coordinate) const;
+  /// Whether any bound is set.
+  bool has_bounds() const { return !lower_.empty(); }
+  /// Lower bounds of all stored values (the layout of all_values(); empty when no bound is set).
+  std::span<const double> all_lower_bounds() const { return lower_; }
+  /// Upper bounds of all stored values (the layout of all_values(); empty when no bound is set).
+  std::span<const double> all_upper_bounds() const { return upper_; }
+
   /// Adds a residual block over `variables` (distinct, tangent sizes matching the block's
   /// tangent_dims()); `loss` may be null. Throws carat::Error on any mismatch.
   ResidualBlockId add_residual_block(std::shared_ptr<const ResidualBlock> block,
@@ -119,12 +138,15 @@ class Problem {
 
  private:
   void check(VariableId id) const;
+  /// Index into values_ of a bounded coordinate; throws for a variable bounds cannot apply to.
+  std::size_t bound_index(VariableId id, int coordinate, const char* who) const;
 
   std::vector<std::shared_ptr<const Manifold>> manifolds_;
   std::vector<std::size_t> offsets_;
   std::vector<char> constant_;
   std::vector<char> eliminable_;
   std::vector<double> values_;
+  std::vector<double> lower_, upper_;  // per stored value; empty until a bound is set
   std::vector<BlockEntry> blocks_;
 };
 

@@ -14,8 +14,11 @@
 #include <cstddef>
 #include <memory>
 #include <span>
+#include <string>
 
 namespace carat {
+
+class LossFunction;
 
 /// Pointers to the ambient storage of a block's variables, in the block's variable order.
 using ParameterPointers = std::span<const double* const>;
@@ -67,11 +70,40 @@ class ResidualBlock {
   /// Bytes of per-row data this block holds (what compression is meant to shrink).
   virtual std::size_t memory_bytes() const = 0;
 
+  /// The block's name for messages ("" when it has none; blocks built from functors take one).
+  virtual const std::string& name() const;
+
+  /// The robust loss this block applies to each group of its rows, or null (the default). Such
+  /// a block returns its rows weighted by sqrt(rho'(s_g)) at the evaluation point, and its
+  /// accumulate() and squared_norm() return c = sum_g rho(s_g) (grouped_rows_block.hpp).
+  virtual const LossFunction* group_loss() const { return nullptr; }
+
+  /// For a block with a group loss: the rows `rows` without the loss (row k of the result is the
+  /// plain row rows[k]), and in loss_weights[k] (one per row) the weight rho'(s_g) that row's
+  /// group has at `params`; compression freezes those weights into the compressed rows. Null
+  /// for blocks without a group loss (the default).
+  virtual std::unique_ptr<ResidualBlock> extract_rows_without_loss(ParameterPointers params,
+                                                                   std::span<const int> rows,
+                                                                   double* loss_weights) const;
+
+  /// A constant added to the block's cost beyond its rows (0 by default): accumulate() and
+  /// squared_norm() include it. Compressed rows of a robust block carry sum_g rho(s_g) -
+  /// sum_g rho'(s_g) s_g here, so that their c is the robust block's.
+  virtual double constant_cost() const { return 0.0; }
+
  protected:
   /// Throws carat::Error ("<who>: ...") unless there is one weight per row and every weight is
   /// finite and > 0 (for extract_weighted_rows() and blocks of weighted rows).
   static void check_row_weights(const char* who, std::span<const int> rows,
                                 std::span<const double> weights);
 };
+
+/// block.evaluate_rows() through scratch with room for every row of the block, checked: a block
+/// that writes past the rows it was asked for, or leaves one of them unwritten, throws
+/// carat::Error naming the block instead of corrupting its caller's memory. carat calls
+/// user blocks' rows this way wherever it asks for a subset (the default accumulate() and
+/// squared_norm(), compressed rows of a block that cannot extract them, error reports).
+void evaluate_rows_checked(const ResidualBlock& block, ParameterPointers params,
+                           std::span<const int> rows, double* residuals, double* jacobian);
 
 }  // namespace carat

@@ -100,6 +100,16 @@ struct SolverOptions {
   /// During each iteration_callback call the problem's variables hold the current iterate (the
   /// last accepted one), as Ceres's update_state_every_iteration; else only after the solve.
   bool update_state_every_iteration = false;
+  /// Before the first iteration, run check_problem() (block_checker.hpp: the row contract and
+  /// the Jacobian against numeric differences, on the first block of every distinct type); a
+  /// block that fails ends the solve with TerminationType::kFailure and the report as message.
+  /// On by default in builds without NDEBUG (debug builds of the code that includes this), off
+  /// otherwise: it costs 2 D + 2 evaluations of each checked block.
+#ifdef NDEBUG
+  bool check_blocks = false;
+#else
+  bool check_blocks = true;
+#endif
 
   /// True if every setting is in range; otherwise false with a message in *error.
   bool validate(std::string* error) const;

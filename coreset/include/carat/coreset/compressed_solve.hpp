@@ -1,0 +1,133 @@
+#pragma once
+
+/// Solving a problem to the full problem's optimum with compressed blocks. An exact coreset
+/// reproduces a block's H, b and c at the point it was built for, not away from it, and its few
+/// rows carry weights of N / M: away from that point the compressed problem is a subsample whose
+/// curvature errors are amplified, so solving it stops near, not at, the full optimum. What it
+/// does well is the nonlinear part of a solve: its rows are real rows, so one compressed solve
+/// can cover what takes a Gauss-Newton model several steps.
+///
+/// solve_recompressed() uses that in one of these modes (CompressionMode):
+/// - kSurrogate (the default): compress at the current point and solve the compressed problem
+///   (the surrogate); also take one Levenberg-Marquardt step from the same compression (exact
+///   H and b there, so the full problem's step); judge both on the full cost (residual passes
+///   only) and keep the better. While the surrogate beats the step clearly, compress again at its
+///   result; once it does not (the solve has reached the region where the Gauss-Newton model is
+///   good), finish with full iterations, which converge there fast. Ends at the full optimum.
+/// - kRecompress: compress again at every result until the full problem's tests hold; between
+///   compressions only compressed blocks are evaluated (for memory rather than time). Ends at the
+///   full optimum.
+/// - kOnce: compress once and solve (the paper's trade: fast, not the full optimum).
+/// - kAuto: a full solve that switches to kSurrogate when its Gauss-Newton model fails (a step
+///   rejected, or a poor gain ratio while far from converged: a nonlinear region, where
+///   compression pays); otherwise the full solve, at no cost over it.
+/// - kFull: no compression (the reference).
+///
+/// When it pays, measured (docs/benchmarks.md, "Compressed solves"): solves that take many
+/// iterations from a poor start (the curve fit from (0, 0)) gain most; from a good start, a full
+/// solve converges in a few Gauss-Newton steps and each compression costs one pass over the rows
+/// plus the coreset, so kSurrogate gains less or loses (kAuto keeps the full solve there).
+
+#include <cstddef>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "carat/coreset/problem_compression.hpp"
+#include "carat/solver/problem.hpp"
+#include "carat/solver/solver_options.hpp"
+#include "carat/solver/solver_summary.hpp"
+
+namespace carat {
+
+/// How solve_recompressed() uses compression (see the file comment).
+enum class CompressionMode {
+  kSurrogate,   ///< compressed solves while they beat a full step, full iterations to finish
+  kRecompress,  ///< compress again at every result until the full tests hold
+  kOnce,        ///< one compression, solved: fast, not the full optimum
+  kAuto,        ///< the full solve, switching to kSurrogate in a long nonlinear stretch
+  kFull,        ///< no compression
+};
+
+/// Name of a mode: "surrogate", "recompress", "once", "auto" or "full".
+const char* to_string(CompressionMode mode);
+/// Parses a mode's name; throws carat::Error listing them otherwise.
+CompressionMode parse_compression_mode(std::string_view name);
+
+/// Settings of solve_recompressed().
+struct RecompressedSolveOptions {
+  ProblemCompressionOptions compression;  ///< what to compress (num_threads is also the solves')
+  /// Every solve inside: of compressed problems, and the full iterations that finish kSurrogate
+  /// and make kAuto and kFull (their stop tests are the full solve's).
+  SolverOptions inner;
+  CompressionMode mode = CompressionMode::kSurrogate;  ///< how compression is used
+  int max_recompressions = 20;                         ///< compressions at most
+  /// kRecompress: stop when the full cost changes by less than this, relatively, between
+  /// compressions.
+  double function_tolerance = 1e-12;
+  /// kSurrogate and kRecompress: stop when the full max |gradient| at a compression is below this.
+  double gradient_tolerance = 1e-10;
+  /// kSurrogate: compress again only while the surrogate's result lowers the full cost beyond one
+  /// full step's by at least this share of that step's decrease; else finish with full
+  /// iterations.
+  double surrogate_gain = 0.5;
+  /// kAuto: from this iteration on, the full solve switches to kSurrogate when the
+  /// Gauss-Newton model fails where it stands: a step rejected, or one accepted with a gain
+  /// ratio below switch_gain_ratio while it lowered the cost by more than switch_decrease
+  /// (relatively). Where the model holds, the full solve converges in a few steps and
+  /// compression would not pay.
+  int switch_iteration = 1;
+  double switch_decrease = 1e-3;    ///< kAuto: see switch_iteration
+  double switch_gain_ratio = 0.25;  ///< kAuto: see switch_iteration
+
+  /// True if every setting is in range; otherwise false with a message in *error.
+  bool validate(std::string* error) const;
+};
+
+/// One compression of solve_recompressed() and what became of it.
+struct RecompressionRecord {
+  double full_cost = 0.0;               ///< full cost at the compression point (from its coreset)
+  double full_gradient_max_norm = 0.0;  ///< full max |gradient| there (from its coreset)
+  double compressed_final_cost = 0.0;   ///< the compressed problem's own cost after its solve
+  double full_cost_after = 0.0;         ///< the full cost at that solve's result (kSurrogate)
+  double full_cost_after_step = 0.0;    ///< kSurrogate: the full cost after one full step instead
+  int inner_iterations = 0;             ///< iterations of the compressed solve
+  std::size_t compressed_rows = 0;      ///< rows of the compressed problem
+};
+
+/// What solve_recompressed() did. initial_cost and final_cost are the full problem's (every
+/// mode); the compressed problem's own costs are beside them.
+struct RecompressedSolveSummary {
+  TerminationType termination = TerminationType::kFailure;  ///< why it stopped
+  std::string message;                                      ///< the reason in words
+  CompressionMode mode = CompressionMode::kSurrogate;       ///< the mode asked for
+  /// kAuto: whether the full solve switched to compressed solves.
+  bool switched_to_compression = false;
+  double initial_cost = 0.0;              ///< full cost at the start
+  double final_cost = 0.0;                ///< full cost of the returned point
+  double final_gradient_max_norm = -1.0;  ///< full max |gradient| there; -1 when not evaluated
+  double compressed_initial_cost = 0.0;   ///< the first compressed problem's cost at its start
+  double compressed_final_cost = 0.0;     ///< the last compressed problem's cost after its solve
+  int recompressions = 0;                 ///< compressions done
+  int inner_iterations = 0;               ///< iterations of all compressed solves
+  int full_iterations = 0;          ///< iterations of full solves (kSurrogate's finish, kAuto)
+  std::size_t full_rows = 0;        ///< rows of the full problem
+  std::size_t compressed_rows = 0;  ///< rows of the (last) compressed problem
+  double compression_s = 0.0;       ///< time compressing
+  double inner_solve_s = 0.0;       ///< time solving compressed problems
+  double full_evaluation_s = 0.0;   ///< time evaluating full costs
+  double full_solve_s = 0.0;        ///< time in full iterations
+  double total_s = 0.0;             ///< whole call
+  std::vector<RecompressionRecord> records;  ///< one per compression
+  /// One line: mode, full and compressed costs, compressions, iterations, termination, time.
+  std::string brief_report() const;
+};
+
+/// Minimizes the full problem's cost as `options.mode` says (see the file comment) and writes the
+/// result into `problem`, whose blocks are not changed. Does not throw for numerical trouble
+/// (reported as termination); throws carat::Error for invalid options or a block compress()
+/// refuses, naming the block.
+RecompressedSolveSummary solve_recompressed(Problem& problem,
+                                            const RecompressedSolveOptions& options = {});
+
+}  // namespace carat
