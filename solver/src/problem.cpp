@@ -38,12 +38,20 @@ VariableId Problem::add_variable(std::shared_ptr<const Manifold> manifold,
 }
 
 VariableId Problem::add_se3(const Eigen::Isometry3d& T_world_body) {
+  if (const char* problem = se3::rigid_transform_problem(T_world_body)) {
+    throw Error("Problem::add_se3 (variable " + std::to_string(num_variables()) +
+                "): T_world_body " + problem);
+  }
   double storage[7];
   se3::to_storage(T_world_body, storage);
   return add_variable(se3_manifold(), storage);
 }
 
 VariableId Problem::add_se2(const Eigen::Isometry2d& T_world_body) {
+  if (const char* problem = se2::rigid_transform_problem(T_world_body)) {
+    throw Error("Problem::add_se2 (variable " + std::to_string(num_variables()) +
+                "): T_world_body " + problem);
+  }
   double storage[3];
   se2::to_storage(T_world_body, storage);
   return add_variable(se2_manifold(), storage);
