@@ -6,6 +6,7 @@
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
 #include <Eigen/Eigenvalues>
+#include <Eigen/QR>
 #include <numeric>
 #include <vector>
 
@@ -77,6 +78,33 @@ inline Eigen::MatrixXd dense_pseudo_inverse(const Eigen::MatrixXd& H, int nullit
   const MatrixL U = eigen.eigenvectors().rightCols(n - nullity);
   const auto inverse = eigen.eigenvalues().tail(n - nullity).cwiseInverse();
   return (U * inverse.asDiagonal() * U.transpose()).cast<double>();
+}
+
+/// The covariance under the gauge that makes the perturbation of the `kept` coordinates
+/// orthogonal to H's free directions (the `nullity` smallest eigenvalues' eigenvectors N):
+/// P H^+ P^T with P = I - N' M^T E^T, M an orthonormal basis of N's kept rows, N' = N T the
+/// null vectors whose kept rows are M, E selecting the kept coordinates (long double).
+inline Eigen::MatrixXd dense_kept_gauge(const Eigen::MatrixXd& H, int nullity,
+                                        const std::vector<char>& kept) {
+  using MatrixL = Eigen::Matrix<long double, Eigen::Dynamic, Eigen::Dynamic>;
+  const Eigen::Index n = H.rows();
+  const Eigen::SelfAdjointEigenSolver<MatrixL> eigen(H.cast<long double>());
+  const MatrixL N = eigen.eigenvectors().leftCols(nullity);
+  const MatrixL U = eigen.eigenvectors().rightCols(n - nullity);
+  const MatrixL pinv =
+      U * eigen.eigenvalues().tail(n - nullity).cwiseInverse().asDiagonal() * U.transpose();
+  Eigen::Index m = 0;
+  for (const char k : kept) m += k ? 1 : 0;
+  MatrixL E = MatrixL::Zero(n, m);  // n x m selection of the kept coordinates
+  for (Eigen::Index j = 0, c = 0; j < n; ++j) {
+    if (kept[static_cast<std::size_t>(j)]) E(j, c++) = 1.0L;
+  }
+  const MatrixL N_kept = E.transpose() * N;
+  const Eigen::HouseholderQR<MatrixL> qr(N_kept);
+  const MatrixL M = qr.householderQ() * MatrixL::Identity(N_kept.rows(), nullity);
+  const MatrixL T = (N_kept.transpose() * N_kept).ldlt().solve(N_kept.transpose() * M);
+  const MatrixL P = MatrixL::Identity(n, n) - N * T * M.transpose() * E.transpose();
+  return (P * pinv * P.transpose()).cast<double>();
 }
 
 /// H^-1 of a symmetric positive definite H (in long double, as above).

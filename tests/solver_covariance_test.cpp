@@ -204,29 +204,68 @@ TEST(CovarianceTest, SchurComplementKeptAndEliminatedVariables) {
   expect_blocks_match(landmarks.problem, whole, reference, offsets, 1e-10);
 }
 
-TEST(CovarianceTest, BundleAdjustmentGaugeUnderThePseudoInverse) {
+TEST(CovarianceTest, BundleAdjustmentGaugeIsNamed) {
   BalSimulationOptions scene_options;
   scene_options.cameras = 5;
   scene_options.points = 40;
   scene_options.observations_per_point = 3;
-  const BalScene scene = simulate_bal(scene_options);
   Problem problem;
-  add_bal_problem(scene.truth, &problem);  // at the truth: a well-conditioned H
-  std::vector<int> offsets;
-  const Eigen::MatrixXd H = dense_hessian(problem, &offsets);
-  // Similarity: rotation, translation and scale of the whole scene.
-  EXPECT_EQ(test::error_of([&] {
-              const Covariance covariance(problem);
-            }).find("covariance: H is singular: 7 free directions"),
-            0u);
+  add_bal_problem(simulate_bal(scene_options).truth, &problem);
+  // Similarity: rotation, translation and scale of the whole scene, through every variable.
+  EXPECT_EQ(test::error_of([&] { const Covariance covariance(problem); }),
+            "covariance: H is singular: 7 free directions (a gauge freedom or an unobservable "
+            "direction) move variables 0, 1, 2, 3, 4, 5, 6, 7, ... (45 in all); hold a variable "
+            "constant, add a prior, or ask for the pseudo-inverse gauge");
   Covariance::Options options;
   options.gauge = CovarianceGauge::kPseudoInverse;
-  const Covariance covariance(problem, options);
-  EXPECT_EQ(covariance.gauge_dimension(), 7);
-  // H^+ = P G P cancels: G (the inverse with 7 coordinates held) exceeds H^+ by about 1e3 here,
-  // and H's condition number is 1e8, so a few blocks agree to 1.5e-10, not 1e-13 as without a
-  // gauge.
-  expect_blocks_match(problem, covariance, dense_pseudo_inverse(H, 7), offsets, 1e-9);
+  EXPECT_EQ(Covariance(problem, options).gauge_dimension(), 7);
+}
+
+TEST(CovarianceTest, EliminatedVariableUndeterminedByItsOwnBlocksIsAnError) {
+  BalSimulationOptions scene_options;
+  scene_options.cameras = 4;
+  scene_options.points = 20;
+  BalProblem bal = simulate_bal(scene_options).truth;
+  // One more point, seen by camera 0 alone: two rows for three coordinates.
+  bal.points.push_back(bal.points[0]);
+  BalObservation seen = bal.observations[0];
+  seen.point = static_cast<int>(bal.points.size()) - 1;
+  bal.observations.push_back(seen);
+  Problem problem;
+  const BalVariables variables = add_bal_problem(bal, &problem);
+  problem.set_constant(variables.cameras[0]);
+  problem.set_constant(variables.cameras[1]);
+  Covariance::Options options;
+  options.gauge = CovarianceGauge::kPseudoInverse;
+  EXPECT_EQ(test::error_of([&] { const Covariance covariance(problem, options); }),
+            "covariance: variable 24 is eliminated but not determined by its own blocks alone (a "
+            "singular V, e.g. a point seen along one ray): no covariance (remove, or solve the "
+            "whole system: LinearSolver::kCholesky)");
+}
+
+TEST(CovarianceTest, EliminatedVariablesGaugeUnderThePseudoInverse) {
+  Landmarks landmarks = make_landmarks(6, 30);  // nothing constant: a rigid motion is free
+  std::vector<int> offsets;
+  const Eigen::MatrixXd H = dense_hessian(landmarks.problem, &offsets);
+  Covariance::Options options;
+  options.gauge = CovarianceGauge::kPseudoInverse;
+  // The Schur complement: the cameras' perturbation orthogonal to the free directions, so their
+  // covariance is S^+ (the free directions found and removed on S alone), the points following
+  // by back-substitution.
+  const Covariance schur(landmarks.problem, options);
+  EXPECT_EQ(schur.gauge_dimension(), 6);
+  std::vector<char> kept(static_cast<std::size_t>(H.rows()), 0);
+  for (VariableId camera : landmarks.cameras) {
+    for (int k = 0; k < 6; ++k) {
+      kept[static_cast<std::size_t>(offsets[static_cast<std::size_t>(camera.index)] + k)] = 1;
+    }
+  }
+  expect_blocks_match(landmarks.problem, schur, test::dense_kept_gauge(H, 6, kept), offsets, 1e-10);
+  // The whole system: every variable's perturbation orthogonal to them, H^+.
+  options.linear_solver = LinearSolver::kCholesky;
+  const Covariance whole(landmarks.problem, options);
+  EXPECT_EQ(whole.gauge_dimension(), 6);
+  expect_blocks_match(landmarks.problem, whole, dense_pseudo_inverse(H, 6), offsets, 1e-10);
 }
 
 TEST(CovarianceTest, UntouchedVariableIsAnError) {

@@ -3,6 +3,7 @@
 #include <tbb/info.h>
 #include <tbb/task_arena.h>
 
+#include <Eigen/Cholesky>
 #include <Eigen/QR>
 #include <algorithm>
 #include <cmath>
@@ -15,6 +16,10 @@
 #include "carat/base/stopwatch.hpp"
 #include "free_directions.hpp"
 #include "linear_system.hpp"
+#include "schur_system.hpp"
+#include "serial_openmp.hpp"
+#include "sparse_system.hpp"
+#include "symmetric_matrix_system.hpp"
 #include "system_inverse.hpp"
 
 namespace carat {
@@ -62,23 +67,37 @@ const char* to_string(CovarianceGauge gauge) {
   return gauge == CovarianceGauge::kError ? "error" : "pseudo-inverse";
 }
 
+CovarianceGauge parse_covariance_gauge(std::string_view name) {
+  if (name == "error") return CovarianceGauge::kError;
+  if (name == "pseudo-inverse") return CovarianceGauge::kPseudoInverse;
+  throw Error("unknown covariance gauge " + quote_bytes(name) + " (valid: error, pseudo-inverse)");
+}
+
 struct Covariance::Impl {
   std::unique_ptr<internal::LinearSystem> system;
+  internal::SchurSystem* schur = nullptr;  // the system, when it is the Schur complement
+  /// The Schur complement S as a matrix of its own (formed once by the Schur system), where the
+  /// free directions of a singular S are searched and removed.
+  std::unique_ptr<internal::SymmetricMatrixSystem> reduced;
   std::optional<internal::SystemInverse> inverse;
   std::vector<int> offset;  // per variable: system offset, -1 when constant
   std::vector<int> dim;     // per variable: tangent size
-  Eigen::MatrixXd N;        // free directions (orthonormal), system size x k
-  Eigen::MatrixXd Q;        // G N
-  Eigen::MatrixXd K;        // N^T G N
+  // Free directions (orthonormal), over the kept coordinates (all of them without a Schur
+  // complement; an eliminated variable's rows are lifted from these): kept size x k.
+  Eigen::MatrixXd N;
   CovarianceTimes time;
 
   void compute(const Problem& problem, const Options& options);
-  /// The largest H(j, j) G(j, j) and the variable of its coordinate.
-  std::pair<double, int> largest_inflation(const Eigen::VectorXd& diagonal) const;
+  void check_eliminated(double max_variance_inflation) const;
+  /// The largest H(j, j) G(j, j).
+  double largest_inflation(const Eigen::VectorXd& diagonal) const;
   int variable_at(int system_offset) const;
+  /// Rows a0 .. a0 + da of X (kept rows; an eliminated variable's lifted).
+  Eigen::MatrixXd rows(const Eigen::MatrixXd& X, int a0, int da) const;
   [[noreturn]] void throw_singular(const Eigen::VectorXd& scale) const;
-  void remove_free_directions(const Eigen::VectorXd& diagonal, const Eigen::VectorXd& scale,
-                              double max_variance_inflation);
+  void remove_free_directions(internal::LinearSystem& target, const Eigen::VectorXd& diagonal,
+                              const Eigen::VectorXd& scale, double max_variance_inflation);
+  void make_inverse(internal::LinearSystem& target);
   int check(VariableId id) const;
 };
 
@@ -91,27 +110,67 @@ int Covariance::Impl::variable_at(int system_offset) const {
   return -1;
 }
 
-std::pair<double, int> Covariance::Impl::largest_inflation(const Eigen::VectorXd& diagonal) const {
+void Covariance::Impl::make_inverse(internal::LinearSystem& target) {
+  if (schur) {
+    inverse.emplace(*schur, &target == schur ? schur->reduced_cholmod() : reduced->cholmod());
+  } else {
+    inverse.emplace(static_cast<internal::SparseSystem&>(target));
+  }
+}
+
+Eigen::MatrixXd Covariance::Impl::rows(const Eigen::MatrixXd& X, int a0, int da) const {
+  if (a0 < X.rows()) return X.middleRows(a0, da);
+  return internal::lift_eliminated(*schur, schur->eliminated_at(a0), X);
+}
+
+void Covariance::Impl::check_eliminated(double max_variance_inflation) const {
+  // Each eliminated variable's own V must be nonsingular: S is formed through V^-1.
+  std::vector<int> singular;
+  for (int p = 0; p < schur->num_eliminated(); ++p) {
+    const auto pp = at(p);
+    const int dp = schur->eliminated_dim(pp);
+    const Eigen::Map<const Eigen::MatrixXd> V(schur->eliminated_v(pp), dp, dp);
+    const Eigen::LLT<Eigen::MatrixXd> llt(V);
+    bool ok = llt.info() == Eigen::Success;
+    if (ok) {
+      const Eigen::MatrixXd V_inverse = llt.solve(Eigen::MatrixXd::Identity(dp, dp));
+      for (int j = 0; j < dp && ok; ++j) ok = V(j, j) * V_inverse(j, j) <= max_variance_inflation;
+    }
+    if (!ok) singular.push_back(variable_at(schur->eliminated_offset(pp)));
+  }
+  if (!singular.empty()) {
+    throw Error("covariance: " + list_variables(singular) +
+                (singular.size() == 1 ? " is" : " are") + " eliminated but not determined by " +
+                (singular.size() == 1 ? "its" : "their") +
+                " own blocks alone (a singular V, e.g. a point seen along one ray): no "
+                "covariance (remove, or solve the whole system: LinearSolver::kCholesky)");
+  }
+}
+
+double Covariance::Impl::largest_inflation(const Eigen::VectorXd& diagonal) const {
   const Eigen::VectorXd g = inverse->diagonal_bound();
   double worst = 0.0;
-  int where = 0;
   for (int j = 0; j < g.size(); ++j) {
     const double inflation = diagonal[j] * g[j];
     // NaN (a factor that overflowed) counts as infinitely inflated.
-    if (!(inflation <= worst)) {
-      worst = std::isnan(inflation) ? HUGE_VAL : inflation;
-      where = j;
-    }
+    if (!(inflation <= worst)) worst = std::isnan(inflation) ? HUGE_VAL : inflation;
   }
-  return {worst, where};
+  return worst;
 }
 
 void Covariance::Impl::throw_singular(const Eigen::VectorXd& scale) const {
   // The variables the free directions move: those with a coordinate whose (diag(H)-scaled)
   // share of the free directions is above 1e-6 of the largest.
-  const Eigen::MatrixXd scaled = scale.cwiseSqrt().asDiagonal() * N;
-  const Eigen::VectorXd share = scaled.rowwise().norm();
-  const double largest = share.size() > 0 ? share.maxCoeff() : 0.0;
+  const int n = system->size();
+  Eigen::VectorXd share(n);
+  for (std::size_t v = 0; v < offset.size(); ++v) {
+    if (offset[v] < 0) continue;
+    share.segment(offset[v], dim[v]) =
+        (scale.segment(offset[v], dim[v]).cwiseSqrt().asDiagonal() * rows(N, offset[v], dim[v]))
+            .rowwise()
+            .norm();
+  }
+  const double largest = n > 0 ? share.maxCoeff() : 0.0;
   std::vector<int> moved;
   for (std::size_t v = 0; v < offset.size(); ++v) {
     if (offset[v] < 0) continue;
@@ -125,26 +184,29 @@ void Covariance::Impl::throw_singular(const Eigen::VectorXd& scale) const {
               "; hold a variable constant, add a prior, or ask for the pseudo-inverse gauge");
 }
 
-void Covariance::Impl::remove_free_directions(const Eigen::VectorXd& diagonal,
+void Covariance::Impl::remove_free_directions(internal::LinearSystem& target,
+                                              const Eigen::VectorXd& diagonal,
                                               const Eigen::VectorXd& scale,
                                               double max_variance_inflation) {
-  // G: the inverse with k coordinates held fixed, chosen (column-pivoted QR of the scaled free
-  // directions) so that the rest of H is nonsingular; then H^+ = P G P with P = I - N N^T.
+  // G: the inverse with k of target's coordinates held fixed, chosen (column-pivoted QR of the
+  // scaled free directions) so that the rest of it is nonsingular; then P G P^T with
+  // P = I - N N^T over the kept coordinates (see SystemInverse::remove_free_directions()).
   const Eigen::Index k = N.cols();
-  const Eigen::MatrixXd scaled = (scale.cwiseSqrt().asDiagonal() * N).transpose();
+  const int m = target.size();
+  const Eigen::MatrixXd scaled = (scale.head(m).cwiseSqrt().asDiagonal() * N).transpose();
   const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(scaled);
-  Eigen::VectorXd damping = Eigen::VectorXd::Zero(system->size());
+  Eigen::VectorXd damping = Eigen::VectorXd::Zero(m);
   std::vector<char> held(at(system->size()), 0);
   for (Eigen::Index c = 0; c < k; ++c) {
     const Eigen::Index j = qr.colsPermutation().indices()[c];
     damping[j] = kHoldFixed * scale[j];
     held[static_cast<std::size_t>(j)] = 1;
   }
-  if (!system->factorize(damping)) {
+  if (!target.factorize(damping)) {
     throw Error("covariance: H is singular and holding " + std::to_string(k) +
                 " coordinates fixed did not make the rest of it positive definite");
   }
-  inverse.emplace(*system);
+  make_inverse(target);
   const Eigen::VectorXd g = inverse->diagonal_bound();
   for (int j = 0; j < g.size(); ++j) {
     if (held[at(j)]) continue;
@@ -154,14 +216,15 @@ void Covariance::Impl::remove_free_directions(const Eigen::VectorXd& diagonal,
                   std::to_string(variable_at(j)) + " is still free)");
     }
   }
-  Q.resize(N.rows(), k);
+  Eigen::MatrixXd Q(m, k);
   Eigen::VectorXd x;
   for (Eigen::Index c = 0; c < k; ++c) {
-    system->solve(N.col(c), &x);
+    target.solve(N.col(c), &x);
     Q.col(c) = x;
   }
-  K = N.transpose() * Q;
+  Eigen::MatrixXd K = N.transpose() * Q;
   K = 0.5 * (K + K.transpose()).eval();
+  inverse->remove_free_directions(N, std::move(Q), std::move(K));
 }
 
 void Covariance::Impl::compute(const Problem& problem, const Options& options) {
@@ -178,6 +241,7 @@ void Covariance::Impl::compute(const Problem& problem, const Options& options) {
   solver_options.ordering = options.ordering;
   solver_options.num_threads = options.num_threads;
   system = internal::make_linear_system(problem, solver_options);
+  schur = dynamic_cast<internal::SchurSystem*>(system.get());
   time.factorize_s += stage.elapsed_s();
   offset = system->variable_offset();
   for (int v = 0; v < problem.num_variables(); ++v) {
@@ -203,24 +267,35 @@ void Covariance::Impl::compute(const Problem& problem, const Options& options) {
 
   const Eigen::VectorXd diagonal = system->diagonal();
   const Eigen::VectorXd scale = diagonal.unaryExpr([](double d) { return d > 0.0 ? d : 1.0; });
+  if (schur) check_eliminated(options.max_variance_inflation);
   stage.restart();
   const bool factorized = system->factorize(Eigen::VectorXd::Zero(n));
   time.factorize_s += stage.restart();
   bool singular = !factorized;
   if (factorized) {
-    inverse.emplace(*system);
-    singular = largest_inflation(diagonal).first > options.max_variance_inflation;
+    make_inverse(*system);
+    singular = largest_inflation(diagonal) > options.max_variance_inflation;
   }
   if (singular) {
     inverse.reset();
-    N = internal::free_directions(*system, scale, options.max_variance_inflation);
+    // With the Schur complement (every V nonsingular, checked above) the free directions are
+    // S's: searched and removed on S alone, then lifted to the eliminated variables.
+    internal::LinearSystem* target = system.get();
+    if (schur) {
+      reduced = std::make_unique<internal::SymmetricMatrixSystem>(
+          schur->reduced_size(), schur->reduced_colptr(), schur->reduced_rows(),
+          schur->reduced_values());
+      target = reduced.get();
+    }
+    N = internal::free_directions(*target, scale.head(target->size()),
+                                  options.max_variance_inflation);
     if (N.cols() == 0) {
       throw Error(
           "covariance: H is singular (its factorization failed or a variance was inflated "
           "beyond max_variance_inflation), but no free direction was found");
     }
     if (options.gauge == CovarianceGauge::kError) throw_singular(scale);
-    remove_free_directions(diagonal, scale, options.max_variance_inflation);
+    remove_free_directions(*target, diagonal, scale, options.max_variance_inflation);
   }
   time.inverse_s += stage.elapsed_s();
   time.total_s = total.elapsed_s();
@@ -243,6 +318,7 @@ Covariance::Covariance(const Problem& problem) : Covariance(problem, Options{}) 
 Covariance::Covariance(const Problem& problem, const Options& options)
     : impl_(std::make_unique<Impl>()) {
   tbb::task_arena arena(std::clamp(options.num_threads, 1, tbb::info::default_concurrency()));
+  const internal::SerialOpenMp serial;  // Eigen's large products (null space) on this thread
   arena.execute([&] { impl_->compute(problem, options); });
 }
 
@@ -259,13 +335,20 @@ Eigen::MatrixXd Covariance::block(VariableId a, VariableId b) const {
   const int da = m.dim[at(a.index)];
   const int db = m.dim[at(b.index)];
   Eigen::MatrixXd out = m.inverse->block(a0, da, b0, db);
-  if (m.N.cols() > 0) {
-    const auto Na = m.N.middleRows(a0, da);
-    const auto Nb = m.N.middleRows(b0, db);
-    out -= Na * m.Q.middleRows(b0, db).transpose() + m.Q.middleRows(a0, da) * Nb.transpose();
-    out += Na * m.K * Nb.transpose();
-  }
   if (a == b) out = 0.5 * (out + out.transpose()).eval();
+  return out;
+}
+
+std::vector<Eigen::MatrixXd> Covariance::blocks(std::span<const VariableId> ids) const {
+  std::vector<Eigen::MatrixXd> out;
+  out.reserve(ids.size());
+  for (const VariableId id : ids) {
+    if (id.index >= 0 && at(id.index) < impl_->offset.size() && impl_->offset[at(id.index)] < 0) {
+      out.emplace_back();
+    } else {
+      out.push_back(block(id));
+    }
+  }
   return out;
 }
 

@@ -83,6 +83,15 @@ class SchurSystem final : public LinearSystem {
   int edge_dim(std::size_t e) const { return cam_dim_[static_cast<std::size_t>(edge_cam_[e])]; }
   /// W = H(kept, eliminated) of edge e: edge_dim(e) x eliminated_dim(p), column-major.
   const double* edge_w(std::size_t e) const { return w_.data() + edge_w_offset_[e]; }
+  /// V_p = H(p, p) of the last assembly (undamped; column-major).
+  const double* eliminated_v(std::size_t p) const { return v_.data() + pt_v_offset_[p]; }
+  /// S's lower triangle in compressed columns (kept variables in system order) as the last
+  /// factorize() formed it, damping included: column pointers, rows, values.
+  const std::vector<std::int64_t>& reduced_colptr() const { return colptr_; }
+  /// See reduced_colptr().
+  const std::vector<std::int64_t>& reduced_rows() const { return rows_; }
+  /// See reduced_colptr().
+  const std::vector<double>& reduced_values() const { return values_; }
 
  private:
   template <int DC, int DP>

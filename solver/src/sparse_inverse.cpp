@@ -7,6 +7,7 @@
 #include <string>
 
 #include "carat/base/error.hpp"
+#include "serial_openmp.hpp"
 
 namespace carat::internal {
 namespace {
@@ -50,6 +51,7 @@ SparseInverse::SparseInverse(const cholmod_factor& L) : n_(L.n) {
     }
   }
 
+  const SerialOpenMp serial;  // Eigen's products below stay on this thread
   const auto* Lx = static_cast<const double*>(L.x);
   z_.assign(at(px_[nsuper]), 0.0);
   Matrix zrr, y, zrs, linv;

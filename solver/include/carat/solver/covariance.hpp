@@ -30,7 +30,10 @@
 
 #include <Eigen/Core>
 #include <memory>
+#include <span>
 #include <string>
+#include <string_view>
+#include <vector>
 
 #include "carat/solver/problem.hpp"
 #include "carat/solver/solver_options.hpp"
@@ -46,6 +49,8 @@ enum class CovarianceGauge {
 
 /// Name of a gauge setting: "error" or "pseudo-inverse".
 const char* to_string(CovarianceGauge gauge);
+/// Parses "error" or "pseudo-inverse"; throws carat::Error listing them otherwise.
+CovarianceGauge parse_covariance_gauge(std::string_view name);
 
 /// Seconds spent by one Covariance.
 struct CovarianceTimes {
@@ -92,6 +97,10 @@ class Covariance {
   /// The cross-covariance E[xi_a xi_b^T] of two free variables (a's tangent size rows, b's
   /// columns); block(a, a) == block(a). Throws carat::Error as block(id).
   Eigen::MatrixXd block(VariableId a, VariableId b) const;
+
+  /// block(id) for each id, in order; a 0 x 0 matrix for a constant variable. Throws
+  /// carat::Error for an invalid id.
+  std::vector<Eigen::MatrixXd> blocks(std::span<const VariableId> ids) const;
 
   /// Whether block(a, b) is read from the sparse inverse (no solve): a == b, or the pair is on
   /// the factor's pattern. False for a constant variable.
