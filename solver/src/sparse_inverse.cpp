@@ -7,7 +7,6 @@
 #include <string>
 
 #include "carat/base/error.hpp"
-#include "serial_openmp.hpp"
 
 namespace carat::internal {
 namespace {
@@ -17,6 +16,28 @@ using MapMatrix = Eigen::Map<Matrix>;
 using ConstMapMatrix = Eigen::Map<const Matrix>;
 
 std::size_t at(std::int64_t k) { return static_cast<std::size_t>(k); }
+
+int blas_int(Eigen::Index k) { return static_cast<int>(k); }
+
+}  // namespace
+}  // namespace carat::internal
+
+// The reference BLAS and LAPACK interfaces of the libraries CHOLMOD links (32-bit integers).
+extern "C" {
+void dtrsm_(const char* side, const char* uplo, const char* transa, const char* diag, const int* m,
+            const int* n, const double* alpha, const double* a, const int* lda, double* b,
+            const int* ldb);
+void dsymm_(const char* side, const char* uplo, const int* m, const int* n, const double* alpha,
+            const double* a, const int* lda, const double* b, const int* ldb, const double* beta,
+            double* c, const int* ldc);
+void dpotri_(const char* uplo, const int* n, double* a, const int* lda, int* info);
+void dgemm_(const char* transa, const char* transb, const int* m, const int* n, const int* k,
+            const double* alpha, const double* a, const int* lda, const double* b, const int* ldb,
+            const double* beta, double* c, const int* ldc);
+}
+
+namespace carat::internal {
+namespace {
 
 template <typename T>
 std::vector<std::int64_t> copy_indices(const void* data, std::size_t count) {
@@ -51,10 +72,9 @@ SparseInverse::SparseInverse(const cholmod_factor& L) : n_(L.n) {
     }
   }
 
-  const SerialOpenMp serial;  // Eigen's products below stay on this thread
   const auto* Lx = static_cast<const double*>(L.x);
   z_.assign(at(px_[nsuper]), 0.0);
-  Matrix zrr, y, zrs, linv;
+  Matrix zrr, y;
   std::vector<std::int64_t> pos;  // position of each row of R in the supernode holding a column
   for (std::size_t s = nsuper; s-- > 0;) {
     const std::int64_t k1 = super_[s];
@@ -90,19 +110,25 @@ SparseInverse::SparseInverse(const cholmod_factor& L) : n_(L.n) {
         for (Eigen::Index b = a; b < nr; ++b) zrr(b, a) = column[pos[at(b)]];
       }
     }
-    zrr.triangularView<Eigen::StrictlyUpper>() = zrr.transpose();
 
-    // Y = L_B L_D^-1, Z(R, S) = -Z(R, R) Y, Z(S, S) = L_D^-T L_D^-1 - Y^T Z(R, S).
-    const auto L_D = Ls.topRows(nc).triangularView<Eigen::Lower>();
-    y = Ls.bottomRows(nr);
-    L_D.solveInPlace<Eigen::OnTheRight>(y);
-    zrs.noalias() = -zrr * y;
-    linv.setIdentity(nc, nc);
-    L_D.solveInPlace(linv);
+    // Z(S, S) = (L_D L_D^T)^-1 (LAPACK's dpotri on L_D), then with Y = L_B L_D^-1:
+    // Z(R, S) = -Z(R, R) Y and Z(S, S) -= Y^T Z(R, S). Only lower triangles are read later (and
+    // computed here), and the products run through the BLAS CHOLMOD factorizes with.
     MapMatrix Zs(z_.data() + px_[s], m, nc);
-    Zs.topRows(nc).noalias() = linv.transpose() * linv;
-    Zs.topRows(nc).noalias() -= y.transpose() * zrs;
-    Zs.bottomRows(nr) = zrs;
+    Zs.topRows(nc) = Ls.topRows(nc);
+    const int bm = blas_int(m), bnr = blas_int(nr), bnc = blas_int(nc);
+    int info = 0;
+    dpotri_("L", &bnc, Zs.data(), &bm, &info);
+    if (info != 0) throw Error("sparse inverse: the factor has a zero pivot (LAPACK dpotri)");
+    if (nr > 0) {
+      y = Ls.bottomRows(nr);
+      const double one = 1.0, minus_one = -1.0, zero = 0.0;
+      dtrsm_("R", "L", "N", "N", &bnr, &bnc, &one, Ls.data(), &bm, y.data(), &bnr);
+      dsymm_("L", "L", &bnr, &bnc, &minus_one, zrr.data(), &bnr, y.data(), &bnr, &zero,
+             Zs.data() + nc, &bm);
+      dgemm_("T", "N", &bnc, &bnc, &bnr, &minus_one, y.data(), &bnr, Zs.data() + nc, &bm, &one,
+             Zs.data(), &bm);
+    }
   }
 }
 
