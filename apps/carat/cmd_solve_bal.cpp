@@ -77,6 +77,7 @@ int run_solve_bal(const CLI::App& command, const SolveBalArgs& args) {
   std::unique_ptr<OutputFile> covariance_out;
   double covariance_s = 0.0;
   int gauge_dimension = 0;
+  CovarianceTimes covariance_times;
   if (!args.covariance.path.empty()) {
     stage.restart();
     Covariance::Options covariance_settings = covariance_options(args.covariance, args.threads);
@@ -89,6 +90,7 @@ int run_solve_bal(const CLI::App& command, const SolveBalArgs& args) {
       }
     }();
     gauge_dimension = covariance.gauge_dimension();
+    covariance_times = covariance.time();
     covariance_out = std::make_unique<OutputFile>(args.covariance.path);
     for (std::size_t c = 0; c < variables.cameras.size(); ++c) {
       write_covariance_line(covariance_out->stream(), static_cast<std::int64_t>(c),
@@ -114,6 +116,9 @@ int run_solve_bal(const CLI::App& command, const SolveBalArgs& args) {
       j["covariance"] = args.covariance.path;
       j["covariance_s"] = covariance_s;
       j["covariance_gauge_dimension"] = gauge_dimension;
+      j["covariance_breakdown"] = {{"linearize_s", covariance_times.linearize_s},
+                                   {"factorize_s", covariance_times.factorize_s},
+                                   {"inverse_s", covariance_times.inverse_s}};
     }
     std::printf("%s\n", j.dump(2).c_str());
   } else {
