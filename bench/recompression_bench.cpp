@@ -143,6 +143,9 @@ void BM_Solve(benchmark::State& state) {
     carat::Problem p = problem(which);  // shares the blocks: a cheap copy of values
     carat::RecompressedSolveOptions options;
     options.mode = kModes[state.range(1)];
+    if (const char* m = std::getenv("CARAT_BENCH_M")) {
+      options.compression.compression.target_rows = std::atoi(m);
+    }
     s = carat::solve_recompressed(p, options);
   }
   if (std::getenv("CARAT_BENCH_VERBOSE") && state.range(1) == 0) {

@@ -2,7 +2,7 @@
 // parse or throw carat::Error, never crash, hang or leak. Accepted input must be well formed
 // (finite poses with orthonormal rotations, one stamp per pose) and survive a round trip:
 // format_trajectory() must not throw on it, and parsing its text again must give the same stamps
-// and the same poses within 1e-6 (relative for large translations).
+// (and graph ids) and the same poses within 1e-6 (relative for large translations).
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
@@ -32,7 +32,7 @@ void check_well_formed(const carat::Trajectory& t) {
 }
 
 void check_same(const carat::Trajectory& a, const carat::Trajectory& b) {
-  if (a.poses.size() != b.poses.size() || a.stamps != b.stamps) __builtin_trap();
+  if (a.poses.size() != b.poses.size() || a.stamps != b.stamps || a.ids != b.ids) __builtin_trap();
   for (std::size_t k = 0; k < a.poses.size(); ++k) {
     for (int r = 0; r < 3; ++r) {
       for (int c = 0; c < 4; ++c) {

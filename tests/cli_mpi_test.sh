@@ -2,7 +2,8 @@
 # carat map under mpirun: 2 and 3 ranks give the poses of one process bit for bit (the --out
 # files and the JSON ATE), and a rank that fails (a frame it cannot read), rank 0 failing before
 # the ranks build, and sampling the ranks cannot share end the whole run cleanly: one line naming
-# the rank and the frame, exit non-zero, no --out, no hang. Skips (exit 77) when carat was built
+# the rank and the frame, exit non-zero, no --out, no hang. Other subcommands run on rank 0 alone,
+# usage errors print once, and a signal to mpirun leaves no temporary. Skips (exit 77) when carat was built
 # without MPI or mpirun is missing. Needs CARAT (the binary) and CARAT_WITH_MPI (ON or OFF).
 source "$(dirname "$0")/cli_common.sh"
 
@@ -71,6 +72,27 @@ check mpi_full 2 "--sampling full runs in one process; under mpirun use --sampli
   mpi 2 "${args[@]}" --sampling full
 check mpi_random 2 "--sampling random runs in one process" -- mpi 2 "${args[@]}" --sampling random
 check mpi_pgo 2 "--method pgo runs in one process" -- mpi 2 "${args[@]}" --method pgo
+
+# Every other subcommand runs on rank 0 alone (one report, one writer), and only rank 0 prints a
+# usage error (one line, whichever subcommand).
+check mpi_solve_g2o 0 "" -- mpi 2 solve-g2o tiny.g2o --out tiny_solved.g2o
+expect mpi_solve_g2o_once "$([[ $(grep -c '^wrote tiny_solved.g2o' out) -eq 1 && $(grep -c '^VERTEX_SE3:QUAT' tiny_solved.g2o) -eq 3 ]] && echo True)"
+check mpi_usage_error_once 2 "carat: usage error: The following argument was not expected: --bogus" -- mpi 3 solve-g2o tiny.g2o --bogus
+check mpi_map_usage_error_once 2 "--bogus" -- mpi 2 "${args[@]}" --bogus
+# SIGTERM or SIGINT to mpirun at any moment: rank 0's hidden temporary beside --out never stays
+# (mpirun kills every rank with SIGKILL as soon as one has ended by a signal).
+mkdir -p signalled
+left=""
+for k in $(seq 1 12); do
+  sig=TERM; (( k % 2 )) || sig=INT
+  mpirun -q --oversubscribe -np 2 "$CARAT" "${args[@]}" --out signalled/out.txt >/dev/null 2>&1 &
+  launcher=$!
+  sleep "0.$(( (k * 7) % 10 ))"
+  kill -"$sig" "$launcher"
+  wait "$launcher"
+  left+=$(ls -A signalled | grep '\.tmp-')
+done
+expect mpi_signal_no_temporary "$([[ -z "$left" ]] && echo True)"
 
 echo "cli_mpi: $pass passed, $fail failed"
 [[ $fail -eq 0 ]]

@@ -339,5 +339,63 @@ cp "$seqdir/000000.bin" "$scratch/outlier.bin"
 python3 -c "import struct,sys; open(sys.argv[1],'ab').write(struct.pack('<4f', 10000, 0, 0, 0))" "$scratch/outlier.bin"
 check align_far_outlier 0 "" -- "$CARAT" align --target "$seqdir/000000.bin" --source "$scratch/outlier.bin" --json
 
+# Entries of a frames folder that look like frames are refused by name, never skipped.
+mkdir -p "$scratch/odd_frames" && cp "$seqdir"/*.bin "$scratch/odd_frames/"
+cp "$seqdir/000003.bin" "$scratch/odd_frames/000020.BIN"
+check frames_upper_case 1 "odd_frames/000020.BIN: is named like a frame, but frames are read only from *.bin, *.pcd and *.ply (lower case)" -- "$CARAT" map --frames "$scratch/odd_frames" --poses "$seqdir/poses.txt"
+rm "$scratch/odd_frames/000020.BIN" && mkdir "$scratch/odd_frames/000020.pcd"
+check frames_directory_named_like_a_frame 1 "odd_frames/000020.pcd: is a directory named like a frame file" -- "$CARAT" odometry --frames "$scratch/odd_frames" --out "$scratch/never.txt"
+mkdir -p "$scratch/dump/000000" "$scratch/dump/000001" "$scratch/dump/000002"
+python3 -c "import struct,sys; [open(sys.argv[1] + '/%06d/points.bin' % k, 'wb').write(struct.pack('<3f', 1, 2, 3) * 40) for k in (0, 2)]" "$scratch/dump"
+check frames_dump_without_points 1 "dump/000001: a folder without points.bin among <frame>/points.bin frames" -- "$CARAT" odometry --frames "$scratch/dump" --out "$scratch/never.txt"
+# Outputs inside an input folder of frames: one check for every command.
+check odometry_out_in_frames 2 "--out $seqdir/odometry.txt lies inside --frames $seqdir, a folder carat reads as input" -- "$CARAT" odometry --frames "$seqdir" --out "$seqdir/odometry.txt"
+check map_out_in_frames_subfolder 2 "lies inside --frames" -- "$CARAT" map --frames "$seqdir" --poses "$seqdir/poses.txt" --out "$seqdir/../seq/x.txt"
+# Odometry that cannot be trusted (a plane: 3 of 6 directions) fails by name unless allowed.
+check odometry_degenerate 1 "odometry of --frames $scratch/plane_frames: 3 of 3 steps cannot be trusted" -- "$CARAT" odometry --frames "$scratch/plane_frames" --out "$scratch/plane_odometry.txt"
+expect odometry_degenerate_no_out "$([[ ! -e "$scratch/plane_odometry.txt" ]] && grep -q "plane_frames/000000.bin -> $scratch/plane_frames/000001.bin " "$scratch/err" && echo True)"
+check odometry_allow_unconverged 0 "" -- "$CARAT" odometry --frames "$scratch/plane_frames" --out "$scratch/plane_odometry.txt" --allow-unconverged --json
+expect odometry_allow_unconverged_listed "$(json_field "$scratch/out" "len(j['unreliable_steps']) == 3 and j['unreliable_steps'][0]['constrained_dof'] == 3")"
+# Graph ids: frames named by nanosecond stamps keep them exactly, in what odometry writes and in
+# how map pairs a graph file with the frames (and writes it back).
+mkdir -p "$scratch/stamped"
+for k in $(seq 0 19); do cp "$seqdir/$(printf %06d "$k").bin" "$scratch/stamped/$((1569415453000000000 + 100000000 * k + (k % 2))).bin"; done
+check odometry_stamp_ids 0 "" -- "$CARAT" odometry --frames "$scratch/stamped" --out "$scratch/stamped_odometry.txt" --format graph --allow-unconverged
+python3 - "$scratch" <<'PY2'
+import os, random, sys
+d = sys.argv[1]
+names = sorted(int(n[:-4]) for n in os.listdir(d + "/stamped"))
+rows = dict(zip(range(20), (l.split()[1:] for l in open(d + "/graph_sorted.txt"))))
+lines = ["v%d %s\n" % (names[k], " ".join(rows[k])) for k in range(20)]
+random.seed(5)
+random.shuffle(lines)
+open(d + "/stamped_poses.txt", "w").writelines(lines)
+PY2
+check map_stamp_ids 0 "" -- "$CARAT" map --frames "$scratch/stamped" --poses "$scratch/stamped_poses.txt" --poses-format graph --perturb-m 0.1 --perturb-deg 1 --rounds 1 --json --out "$scratch/stamped_map.txt"
+expect map_stamp_ids_paired "$(json_field "$scratch/out" "j['ate_rmse'] < 0.25 * j['initial_ate_rmse']")"
+expect stamp_ids_kept "$(python3 -c "
+import os, sys
+names = sorted(int(n[:-4]) for n in os.listdir(sys.argv[1]))
+print([int(l.split()[0][1:]) for l in open(sys.argv[2])] == names == [int(l.split()[0][1:]) for l in open(sys.argv[3])])" "$scratch/stamped" "$scratch/stamped_odometry.txt" "$scratch/stamped_map.txt")"
+# simulate-bal: a combination the layout cannot place is a usage error before any work.
+check simulate_bal_street_observers 2 "--observations-per-point 58 cannot be placed with --layout street: at most 57" -- "$CARAT" simulate-bal --layout street --cameras 300 --points 300 --observations-per-point 58 --out "$scratch/never.bal"
+# Memory estimates count what the coreset holds: 4 GB of rows lift to about 68 GB.
+check coreset_lifted_rows 2 "--rows 4000000 --dim 64 needs about" -- "$CARAT" coreset-check --rows 4000000 --dim 64 --target 2000000
+expect coreset_lifted_rows_named "$(grep -q "coreset's scratch: 4000000 rows lifted to 2145 numbers each" "$scratch/err" && echo True)"
+# `ulimit -v` lowers what is available (not under the sanitizers, whose shadow memory it would
+# refuse): 30,000 rows at D = 64 take about 0.8 GB with their lifted rows.
+sanitized=$(ldd "$CARAT" 2>/dev/null | grep -c 'libasan\|libubsan')
+if [[ $sanitized -eq 0 ]]; then
+  check coreset_ulimit 2 "--rows 30000 --dim 64 needs about" -- bash -c "ulimit -v 600000 && exec '$CARAT' coreset-check --rows 30000 --dim 64 --trials 1"
+fi
+# The linear solver: cameras that share most points make the reduced camera system dense; auto
+# factorizes the whole system, and a Schur complement that does not fit is refused with its size.
+check simulate_bal_dense 0 "" -- "$CARAT" simulate-bal --layout random --cameras 600 --points 600 --observations-per-point 150 --out "$scratch/dense.bal"
+check solve_bal_dense_auto 0 "" -- "$CARAT" solve-bal "$scratch/dense.bal" --max-iterations 0 --json
+expect solve_bal_dense_whole_system "$(json_field "$scratch/out" "j['linear_solver'].startswith('cholmod supernodal')")"
+if [[ $sanitized -eq 0 ]]; then
+  check solve_bal_dense_schur_refused 1 "the solve failed: linear solver: the Schur complement needs about" -- bash -c "ulimit -v 400000 && exec '$CARAT' solve-bal '$scratch/dense.bal' --linear-solver schur --max-iterations 1"
+fi
+
 echo "$pass passed, $fail failed"
 [[ $fail -eq 0 ]]

@@ -216,11 +216,14 @@ TEST(CoresetTest, BadInputIsAClearError) {
   const Eigen::VectorXd short_e = Eigen::VectorXd::Zero(10);
   expect_error([&] { select_coreset_rows(rows.J, short_e); },
                "coreset: 500 Jacobian rows but 10 residuals");
-  // A dimension whose elimination would not fit: refused before any allocation.
-  Rows wide = random_rows(400, 160, 1.0, 7);
+  // A dimension whose coreset would not fit (20,000 rows lifted to 13,041 numbers each, and
+  // eliminations of 20,000 points): refused before any allocation.
+  Rows wide = random_rows(20000, 160, 1.0, 7);
   expect_error([&] { select_coreset_rows(wide.J, wide.e); },
                "coreset: reduced dimension 160 (lifted dimension 13041) with 26084 clusters needs "
                "about");
+  // Fewer rows than the minimum target are returned whole, whatever the dimension.
+  EXPECT_EQ(select_coreset_rows(wide.J.topRows(400), wide.e.head(400)).rows.size(), 400u);
   // The default clusters follow the dimension: D = 12 works without setting them.
   Rows twelve = random_rows(3000, 12, 1.0, 8);
   const RowCoreset coreset = select_coreset_rows(twelve.J, twelve.e);

@@ -83,6 +83,51 @@ TEST(ScanFolderTest, NestedLayoutAndItsErrors) {
             "unknown .bin layout 'xyzw' (valid: auto, xyz, xyzi)");
 }
 
+TEST(ScanFolderTest, EntriesThatLookLikeFramesAreRefusedNotSkipped) {
+  const std::string hide =
+      "; move it out of the folder or hide it (a name starting with '.') to run without it";
+  for (const char* odd : {"3.BIN", "3.Pcd", "3.bin~", "3.bin ", "3.bin.gz", "3.PLY.bak"}) {
+    const fs::path dir = test::scratch_dir("scan_folder_odd");
+    for (int k : {0, 1, 2}) {
+      write_kitti_bin(dir / (std::to_string(k) + ".bin"), small_cloud(k), KittiFormat::kXyzi);
+    }
+    std::ofstream(dir / odd) << "x";
+    EXPECT_EQ(error_of([&] { list_scan_folder(dir); }),
+              (dir / odd).string() +
+                  ": is named like a frame, but frames are read only from *.bin, *.pcd and *.ply "
+                  "(lower case)" +
+                  hide)
+        << odd;
+  }
+  const fs::path dir = test::scratch_dir("scan_folder_dir_named_bin");
+  for (int k : {0, 1}) {
+    write_kitti_bin(dir / (std::to_string(k) + ".bin"), small_cloud(k), KittiFormat::kXyzi);
+  }
+  std::ofstream(dir / "poses.txt") << "not a scan\n";
+  std::ofstream(dir / "notes.binary") << "not a scan either\n";
+  fs::create_directory(dir / "extra");  // an unrelated folder beside flat frames: skipped
+  EXPECT_EQ(list_scan_folder(dir).size(), 2u);
+  fs::create_directory(dir / "1.5.bin");
+  EXPECT_EQ(error_of([&] { list_scan_folder(dir); }),
+            (dir / "1.5.bin").string() + ": is a directory named like a frame file" + hide);
+  // gtsam_points dumps: every <frame>/ folder needs its points.bin.
+  const fs::path nested = test::scratch_dir("scan_folder_nested_missing");
+  for (const char* name : {"000000", "000001", "000002"}) {
+    fs::create_directory(nested / name);
+    if (std::string(name) != "000001") {
+      write_kitti_bin(nested / name / "points.bin", small_cloud(1), KittiFormat::kXyz);
+    }
+  }
+  std::ofstream(nested / "000001" / "points_compact.bin") << "x";
+  std::ofstream(nested / "graph.txt") << "v0 0 0 0 0 0 0 1\n";
+  EXPECT_EQ(error_of([&] { list_scan_folder(nested); }),
+            (nested / "000001").string() +
+                ": a folder without points.bin among <frame>/points.bin frames" + hide);
+  EXPECT_TRUE(looks_like_frame_name("x.Ply"));
+  EXPECT_FALSE(looks_like_frame_name("graph.txt"));
+  EXPECT_FALSE(is_frame_file_name("x.BIN"));
+}
+
 TEST(ScanFolderTest, BinLayoutNamesRoundTrip) {
   for (BinLayout layout : {BinLayout::kAuto, BinLayout::kXyz, BinLayout::kXyzi}) {
     EXPECT_EQ(parse_bin_layout(to_string(layout)), layout) << to_string(layout);
@@ -123,6 +168,38 @@ TEST(ScanFolderTest, GraphPosesPairWithScansByVertexId) {
   graph.stamps = {9, 3, 5};
   const Trajectory sorted = poses_in_scan_order(graph, TrajectoryFormat::kGraph, named, "g.txt");
   EXPECT_EQ(sorted.stamps, (std::vector<double>{3, 5, 9}));
+}
+
+TEST(ScanFolderTest, OneGraphIdRuleForWritersAndReaders) {
+  // Nanosecond stamps as names: each frame's own id, exact (doubles would merge these two).
+  const std::vector<ScanFile> stamped{
+      {"a", "1569415453000000002"}, {"b", "1569415453000000001"}, {"c", "1569415453100000000"}};
+  const std::vector<std::uint64_t> ids = scan_graph_ids(stamped);
+  EXPECT_EQ(ids, (std::vector<std::uint64_t>{1569415453000000002u, 1569415453000000001u,
+                                             1569415453100000000u}));
+  // What a writer writes with those ids, a reader pairs back with the same frames.
+  Trajectory written;
+  for (std::size_t k = 0; k < stamped.size(); ++k) {
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.translation().x() = static_cast<double>(k);
+    written.poses.push_back(T);
+    written.stamps.push_back(static_cast<double>(k));
+  }
+  written.ids = ids;
+  const Trajectory read = parse_trajectory(format_trajectory(written, TrajectoryFormat::kGraph),
+                                           TrajectoryFormat::kGraph, "odometry.txt");
+  const Trajectory paired =
+      poses_in_scan_order(read, TrajectoryFormat::kGraph, stamped, "odometry.txt");
+  for (std::size_t k = 0; k < stamped.size(); ++k) {
+    EXPECT_EQ(paired.poses[k].translation().x(), static_cast<double>(k)) << k;
+    EXPECT_EQ(paired.ids[k], ids[k]);
+  }
+  // Names that are not all distinct numbers take their indices: "7" and "007" are one number.
+  EXPECT_EQ(scan_graph_ids({{"a", "7"}, {"b", "007"}}), (std::vector<std::uint64_t>{0, 1}));
+  EXPECT_EQ(scan_graph_ids({{"a", "scan"}, {"b", "2"}}), (std::vector<std::uint64_t>{0, 1}));
+  EXPECT_EQ(scan_graph_ids({{"a", "99999999999999999999"}}), (std::vector<std::uint64_t>{0}));
+  EXPECT_EQ(scan_graph_ids({{"a", "000010"}, {"b", "000002"}}),
+            (std::vector<std::uint64_t>{10, 2}));
 }
 
 }  // namespace

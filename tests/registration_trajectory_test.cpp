@@ -204,6 +204,29 @@ TEST(TrajectoryIoTest, GraphErrorsNameFileAndLine) {
   EXPECT_PARSE_ERROR("# comment\n", kGraph, "t.txt:1: ");
 }
 
+TEST(TrajectoryIoTest, GraphIdsKeepEveryDigit) {
+  // Nanosecond stamps (19 digits) one apart: the same double, different ids.
+  const std::string text =
+      "v1569415453000000001 1 0 0 0 0 0 1\nv1569415453000000002 2 0 0 0 0 0 1\n"
+      "v18446744073709551615 3 0 0 0 0 0 1\n";
+  const Trajectory t = parse_trajectory(text, kGraph, "t.txt");
+  EXPECT_EQ(t.ids, (std::vector<std::uint64_t>{1569415453000000001u, 1569415453000000002u,
+                                               18446744073709551615u}));
+  EXPECT_EQ(format_trajectory(t, kGraph), text);
+  EXPECT_PARSE_ERROR("v18446744073709551616 0 0 0 0 0 0 1\n", kGraph,
+                     "t.txt:1: cannot read a vertex id (v0 ... v18446744073709551615)");
+  // Ids, when given, are what the writer writes; they must be unique and one per pose.
+  Trajectory written;
+  written.poses = {Eigen::Isometry3d::Identity(), Eigen::Isometry3d::Identity()};
+  written.stamps = {0.0, 1.0};
+  written.ids = {7, 7};
+  EXPECT_EQ(test::error_of([&] { (void)format_trajectory(written, kGraph); }),
+            "cannot format trajectory: graph id v7 is repeated");
+  written.ids = {7};
+  EXPECT_EQ(test::error_of([&] { (void)format_trajectory(written, kGraph); }),
+            "cannot format trajectory: 1 graph ids for 2 poses");
+}
+
 TEST(TrajectoryIoTest, EmptyAndPathologicalInput) {
   for (TrajectoryFormat format : {kKitti, kTum, kGraph}) {
     EXPECT_PARSE_ERROR("", format, "t.txt: no ");

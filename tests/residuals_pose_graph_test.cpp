@@ -261,6 +261,26 @@ TEST(PoseGraphTest, FirstVertexIsTheGaugeAndEdgesMustNameVertices) {
   EXPECT_FALSE(built.problem.is_constant(built.vertex_variables[1]));
 }
 
+TEST(PoseGraphTest, NonRigidVerticesAndMeasurementsAreRefusedByName) {
+  PoseGraph graph;
+  graph.vertices.push_back({0, Eigen::Isometry3d::Identity()});
+  Eigen::Isometry3d scaled = Eigen::Isometry3d::Identity();
+  scaled.linear() *= 1.5;
+  graph.vertices.push_back({4, scaled});
+  PoseGraph::Edge edge;
+  edge.from = 0;
+  edge.to = 4;
+  graph.edges.push_back(edge);
+  EXPECT_EQ(test::error_of([&] { build_pose_graph_problem(graph); }),
+            "pose graph: vertex 4: the pose has a rotation block that is not orthonormal (scaled "
+            "or sheared: |R^T R - I| > 1e-6)");
+  graph.vertices[1].T_world_vertex = Eigen::Isometry3d::Identity();
+  graph.edges[0].T_from_to.linear()(0, 0) = -1.0;
+  EXPECT_EQ(test::error_of([&] { build_pose_graph_problem(graph); }),
+            "pose graph: edge 0 (0 -> 4): the measurement has a reflection, not a rotation (det "
+            "R < 0)");
+}
+
 TEST(PoseGraphTest, SmallGrid3DConverges) {
   CARAT_REQUIRE_DATA("posegraph/smallGrid3D.g2o");
   PoseGraph graph = read_g2o(test::data_dir() / "posegraph/smallGrid3D.g2o");

@@ -8,6 +8,7 @@
 #include "carat/residuals/bal_problem.hpp"
 #include "carat/sim/bal_scene.hpp"
 #include "carat/solver/solve.hpp"
+#include "carat/solver/solver_options.hpp"
 #include "test_support.hpp"
 
 namespace carat {
@@ -186,6 +187,64 @@ TEST(BalSceneTest, LayoutNamesAndOptionErrors) {
   options.pixel_noise_sigma = -1.0;
   EXPECT_EQ(test::error_of([&] { (void)simulate_bal(options); }),
             "simulate_bal: pixel_noise_sigma must be finite and >= 0, got -1");
+}
+
+TEST(BalSceneTest, ObserverCountsTheLayoutCannotPlaceAreRefusedUpFront) {
+  EXPECT_EQ(max_observations_per_point(BalLayout::kStreet, 500), 57);
+  EXPECT_EQ(max_observations_per_point(BalLayout::kStreet, 20), 20);
+  EXPECT_EQ(max_observations_per_point(BalLayout::kRing, 500), 500);
+  BalSimulationOptions options;
+  options.layout = BalLayout::kStreet;
+  options.cameras = 300;
+  options.points = 300;
+  options.observations_per_point = 58;
+  EXPECT_EQ(test::error_of([&] { (void)simulate_bal(options); }),
+            "simulate_bal: observations_per_point must be at most 57 for the street layout (no "
+            "facade point is in front of more consecutive cameras), got 58");
+  // The bound is the geometry's: at it, every point is placed.
+  options.observations_per_point = 57;
+  const BalScene scene = simulate_bal(options);
+  EXPECT_EQ(scene.problem.observations.size(), 300u * 57u);
+  EXPECT_EQ(count_points_behind_cameras(scene.truth), 0u);
+}
+
+/// The linear solver kAuto picks for `scene` (its summary's description), solving no step.
+std::string auto_linear_solver(const BalProblem& bal, double max_bytes = 0.0) {
+  Problem problem;
+  add_bal_problem(bal, &problem);
+  SolverOptions options;
+  options.max_iterations = 0;
+  options.max_linear_system_bytes = max_bytes;
+  const SolverSummary summary = solve(options, problem);
+  return summary.termination == TerminationType::kFailure ? "FAILURE: " + summary.message
+                                                          : summary.linear_solver;
+}
+
+TEST(BalSceneTest, AutoLinearSolverPicksTheSystemThatFits) {
+  // Few cameras per point: the Schur complement, as always.
+  BalSimulationOptions sparse;
+  sparse.cameras = 16;
+  sparse.points = 1000;
+  EXPECT_EQ(auto_linear_solver(simulate_bal(sparse).problem).rfind("schur complement", 0), 0u);
+  // Every point seen by a third of 150 cameras: the reduced camera system is dense (1350 x 1350,
+  // about 22 MB with its factor) while the whole system, cameras eliminated first, keeps the
+  // points' 450 x 450 block: the whole system is factorized.
+  BalSimulationOptions dense;
+  dense.layout = BalLayout::kRandom;
+  dense.cameras = 150;
+  dense.points = 150;
+  dense.observations_per_point = 50;
+  const BalProblem bal = simulate_bal(dense).problem;
+  EXPECT_EQ(auto_linear_solver(bal).rfind("cholmod supernodal", 0), 0u);
+  // Neither fits 1 MB: refused with both estimates.
+  const std::string refused = auto_linear_solver(bal, 1e6);
+  EXPECT_EQ(refused.rfind("FAILURE: linear solver auto: neither system fits: the Schur complement "
+                          "needs about ",
+                          0),
+            0u)
+      << refused;
+  EXPECT_NE(refused.find(" and sparse Cholesky of the whole system about "), std::string::npos);
+  EXPECT_NE(refused.find("976.6 KiB may be used"), std::string::npos) << refused;
 }
 
 }  // namespace

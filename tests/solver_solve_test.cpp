@@ -681,6 +681,36 @@ TEST(ProblemTest, RejectsMismatchedBlocksWithClearMessages) {
   EXPECT_THROW(problem.set_all_values(std::vector<double>(3, 0.0)), Error);
 }
 
+TEST(ProblemTest, NonRigidPosesAreRefusedNamingTheVariable) {
+  Problem problem;
+  problem.add_euclidean(Eigen::Vector2d::Zero());
+  Eigen::Isometry3d scaled = Eigen::Isometry3d::Identity();
+  scaled.linear() *= 2.0;
+  EXPECT_EQ(test::error_of([&] { problem.add_se3(scaled); }),
+            "Problem::add_se3 (variable 1): T_world_body has a rotation block that is not "
+            "orthonormal (scaled or sheared: |R^T R - I| > 1e-6)");
+  Eigen::Isometry3d reflected = Eigen::Isometry3d::Identity();
+  reflected.linear()(2, 2) = -1.0;
+  EXPECT_EQ(test::error_of([&] { problem.add_se3(reflected); }),
+            "Problem::add_se3 (variable 1): T_world_body has a reflection, not a rotation "
+            "(det R < 0)");
+  Eigen::Isometry3d not_finite = Eigen::Isometry3d::Identity();
+  not_finite.translation().x() = std::nan("");
+  EXPECT_EQ(test::error_of([&] { problem.add_se3(not_finite); }),
+            "Problem::add_se3 (variable 1): T_world_body is not finite");
+  Eigen::Isometry2d sheared = Eigen::Isometry2d::Identity();
+  sheared.linear()(0, 1) = 0.5;
+  EXPECT_EQ(test::error_of([&] { problem.add_se2(sheared); }),
+            "Problem::add_se2 (variable 1): T_world_body has a rotation block that is not "
+            "orthonormal (scaled or sheared: |R^T R - I| > 1e-6)");
+  EXPECT_EQ(problem.num_variables(), 1);  // nothing was stored
+  // Rounding of a product of rotations is no reason to refuse.
+  Eigen::Isometry3d chained = Eigen::Isometry3d::Identity();
+  for (int k = 0; k < 1000; ++k)
+    chained = chained * Eigen::AngleAxisd(0.1, Eigen::Vector3d(1, 2, 3).normalized());
+  EXPECT_EQ(problem.add_se3(chained).index, 1);
+}
+
 TEST(SummaryTest, ReportsContainTheTableAndTheBreakdown) {
   RandomLinear lin = make_random_linear(10, 5);
   const SolverSummary summary = solve(SolverOptions{}, lin.problem);

@@ -9,6 +9,7 @@
 
 #include <cerrno>
 #include <charconv>
+#include <chrono>
 #include <cmath>
 #include <csignal>
 #include <cstdio>
@@ -20,6 +21,7 @@
 #include "carat/base/atomic_file.hpp"
 #include "carat/base/output_folder.hpp"
 #include "carat/base/temporary_paths.hpp"
+#include "carat/registration/io/scan_folder.hpp"
 
 namespace carat::cli {
 namespace fs = std::filesystem;
@@ -185,38 +187,33 @@ void check_output_folder(const std::string& option, const std::string& path,
   }
 }
 
+void check_output_outside_folder(const std::string& option, const std::string& path,
+                                 const NamedInput& folder) {
+  std::error_code ec;
+  const fs::path inside = fs::canonical(folder.path, ec);
+  if (ec || !fs::is_directory(inside, ec)) return;  // the reader names a missing folder
+  fs::path target;
+  try {
+    target = fs::weakly_canonical(fs::absolute(resolve_output_path(path)), ec);
+  } catch (const Error&) {
+    return;  // check_output_file() / check_output_folder() name an unusable path
+  }
+  if (ec) return;
+  const auto mismatch = std::mismatch(inside.begin(), inside.end(), target.begin(), target.end());
+  if (mismatch.first != inside.end()) return;
+  const std::string name = target.filename().string();
+  if (looks_like_frame_name(name) || name == "points.bin") {
+    throw UsageError(option + " " + path + " would become a frame of " + folder.option + " " +
+                     folder.path + "; write the result elsewhere");
+  }
+  throw UsageError(option + " " + path + " lies inside " + folder.option + " " + folder.path +
+                   ", a folder carat reads as input; write the result elsewhere");
+}
+
 std::uint64_t peak_rss_bytes() {
   rusage usage{};
   if (getrusage(RUSAGE_SELF, &usage) != 0) return 0;
   return static_cast<std::uint64_t>(usage.ru_maxrss) * 1024;  // kilobytes on Linux
-}
-
-std::uint64_t available_memory_bytes() {
-  std::uint64_t available = 0;
-  {
-    std::ifstream meminfo("/proc/meminfo");
-    std::string key;
-    std::uint64_t kilobytes = 0;
-    std::string unit;
-    while (meminfo >> key >> kilobytes >> unit) {
-      if (key == "MemAvailable:") {
-        available = kilobytes * 1024;
-        break;
-      }
-    }
-  }
-  if (available == 0) {
-    const long pages = sysconf(_SC_AVPHYS_PAGES), page = sysconf(_SC_PAGESIZE);
-    if (pages > 0 && page > 0) available = static_cast<std::uint64_t>(pages) * page;
-  }
-  // A cgroup v2 limit, when one is set and lower.
-  std::ifstream limit_file("/sys/fs/cgroup/memory.max");
-  std::ifstream current_file("/sys/fs/cgroup/memory.current");
-  std::uint64_t limit = 0, current = 0;
-  if ((limit_file >> limit) && (current_file >> current) && limit > current) {
-    available = std::min(available, limit - current);
-  }
-  return available;
 }
 
 std::uint64_t available_disk_bytes(const fs::path& path) {
@@ -226,19 +223,6 @@ std::uint64_t available_disk_bytes(const fs::path& path) {
   const fs::space_info space = fs::space(existing.empty() ? fs::path("/") : existing, ec);
   if (ec) return std::numeric_limits<std::uint64_t>::max();
   return space.available;
-}
-
-std::string format_bytes(double bytes) {
-  char text[32];
-  if (bytes >= 1024.0 * 1024.0 * 1024.0)
-    std::snprintf(text, sizeof(text), "%.2f GiB", bytes / (1024.0 * 1024.0 * 1024.0));
-  else if (bytes >= 1024.0 * 1024.0)
-    std::snprintf(text, sizeof(text), "%.1f MiB", bytes / (1024.0 * 1024.0));
-  else if (bytes >= 1024.0)
-    std::snprintf(text, sizeof(text), "%.1f KiB", bytes / 1024.0);
-  else
-    std::snprintf(text, sizeof(text), "%.0f B", bytes);
-  return text;
 }
 
 namespace {
@@ -257,7 +241,7 @@ namespace {
 
 }  // namespace
 
-void install_interrupt_cleanup() {
+void install_interrupt_cleanup(int delay_ms) {
   sigset_t set;
   sigemptyset(&set);
   for (int sig :
@@ -265,10 +249,11 @@ void install_interrupt_cleanup() {
     sigaddset(&set, sig);
   }
   pthread_sigmask(SIG_BLOCK, &set, nullptr);
-  std::thread([set] {
+  std::thread([set, delay_ms] {
     int sig = 0;
     while (sigwait(&set, &sig) != 0) {
     }
+    if (delay_ms > 0) std::this_thread::sleep_for(std::chrono::milliseconds(delay_ms));
     end_by_signal(sig);
   }).detach();
 }

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "carat/base/error.hpp"
+#include "carat/base/machine_memory.hpp"
 
 namespace carat::cli {
 
@@ -59,21 +60,26 @@ void check_output_file(const std::string& option, const std::string& path,
 void check_output_folder(const std::string& option, const std::string& path,
                          const std::vector<NamedInput>& inputs);
 
-/// Bytes of memory this process may still use: MemAvailable, and the cgroup's limit if lower.
-std::uint64_t available_memory_bytes();
+/// Checks an output file or folder option against an input folder of frames (or of data sets)
+/// before any work: the output must not lie inside it, at any depth and through links, where a
+/// later run would read it as a frame or find it among the frames. Throws UsageError naming both.
+void check_output_outside_folder(const std::string& option, const std::string& path,
+                                 const NamedInput& folder);
+
 /// Bytes free for an unprivileged writer on the file system that holds `path` (or its nearest
 /// existing parent).
 std::uint64_t available_disk_bytes(const std::filesystem::path& path);
 /// The largest resident set this process has had so far, bytes (getrusage's ru_maxrss).
 std::uint64_t peak_rss_bytes();
-/// Bytes as "12.3 MiB" (binary units).
-std::string format_bytes(double bytes);
 
 /// Blocks the signals that end a process by default and can be caught (SIGINT, SIGTERM, SIGHUP,
 /// SIGQUIT, SIGUSR1, SIGUSR2, SIGALRM, SIGPIPE, SIGXCPU, SIGXFSZ) in the calling thread (so in
 /// every thread started after) and starts a thread that, when one arrives, removes carat's
 /// temporary files and folders and ends the process by that signal. Call first thing in main().
-void install_interrupt_cleanup();
+/// `delay_ms` postpones the cleanup and the end: a rank other than 0 of an mpirun job, which
+/// holds no output, passes one so that rank 0 has removed its temporaries before mpirun, seeing
+/// a rank end by a signal, kills every rank with SIGKILL (as it does at once).
+void install_interrupt_cleanup(int delay_ms = 0);
 
 /// Flushes standard output before outputs are committed: throws carat::Error if a write to it
 /// failed (a full disk), so that the run ends without replacing its outputs; a closed pipe

@@ -5,6 +5,7 @@
 // rmse / mean / median / std / min / max in metres, rotation error statistics in degrees.
 // Two TUM files are paired by stamp, two graph.txt files by vertex id; any other combination
 // pairs pose k with pose k.
+#include <cstdint>
 #include <cstdio>
 #include <map>
 #include <memory>
@@ -50,12 +51,12 @@ int run_ate(const CLI::App& command, const AteArgs& args) {
   std::vector<Eigen::Isometry3d> estimate_poses;
   std::vector<Eigen::Isometry3d> reference_poses;
   if (by_id) {  // graph.txt against graph.txt: vertex vN with vertex vN
-    std::map<double, std::size_t> reference_of_id;
-    for (std::size_t k = 0; k < reference.stamps.size(); ++k) {
-      reference_of_id.emplace(reference.stamps[k], k);
+    std::map<std::uint64_t, std::size_t> reference_of_id;
+    for (std::size_t k = 0; k < reference.ids.size(); ++k) {
+      reference_of_id.emplace(reference.ids[k], k);
     }
-    for (std::size_t k = 0; k < estimate.stamps.size(); ++k) {
-      const auto match = reference_of_id.find(estimate.stamps[k]);
+    for (std::size_t k = 0; k < estimate.ids.size(); ++k) {
+      const auto match = reference_of_id.find(estimate.ids[k]);
       if (match == reference_of_id.end()) continue;
       estimate_poses.push_back(estimate.poses[k]);
       reference_poses.push_back(reference.poses[match->second]);

@@ -15,6 +15,7 @@
 #include "carat/base/statistics.hpp"
 #include "carat/coreset/quadratic_model.hpp"
 #include "carat/coreset/row_coreset.hpp"
+#include "carat/coreset/row_coreset_cost.hpp"
 #include "cli_support.hpp"
 #include "commands.hpp"
 #include "coreset_timing.hpp"
@@ -34,6 +35,9 @@ struct CoresetCheckArgs {
   bool json = false;
 };
 
+/// Floating-point operations per second assumed for the work estimate (a conservative core).
+constexpr double kOperationsPerSecond = 2e9;
+
 /// Refuses, before any work, option combinations the coreset cannot take and sizes this machine
 /// cannot hold.
 void check_options(const CoresetCheckArgs& args) {
@@ -50,35 +54,32 @@ void check_options(const CoresetCheckArgs& args) {
                      " clusters are needed (D(D+1)/2 + D + 3; 0 selects the default " +
                      std::to_string(default_coreset_clusters(args.dim)) + ")");
   }
-  // J twice (row-major, and the column-major copy of the reference), e, and the coreset's own
-  // index and weight arrays.
-  const double bytes = static_cast<double>(args.rows) * (16.0 * args.dim + 32.0);
+  // J twice (row-major, and the column-major copy of the reference), e, and what the coreset
+  // holds: its chunk sums, the rows it lifts (L numbers each) and its eliminations' tableaus.
+  RowCoresetOptions options;
+  options.target_rows = args.target;
+  options.clusters = args.clusters;
+  const RowCoresetCost cost = estimate_row_coreset(args.rows, args.dim, options);
+  const double bytes = static_cast<double>(args.rows) * (16.0 * args.dim + 32.0) + cost.bytes;
   const double available = static_cast<double>(available_memory_bytes());
   if (bytes > 0.8 * available) {
     throw UsageError("--rows " + std::to_string(args.rows) + " --dim " + std::to_string(args.dim) +
-                     " needs about " + format_bytes(bytes) + " of memory (J twice and e); " +
+                     " needs about " + format_bytes(bytes) + " of memory (J twice and e, and the " +
+                     "coreset's scratch: " + std::to_string(cost.lifted_rows) + " rows lifted to " +
+                     std::to_string(cost.lifted_dim) + " numbers each); " +
                      format_bytes(available) + " are available");
   }
-  // The work: each level eliminates in a K-point set of dimension L (about K L^2 operations)
-  // and keeps L + 1 of K clusters, so ln(N / M) / ln(K / (L + 1)) levels per trial.
-  const double K = args.clusters == 0 ? default_coreset_clusters(args.dim) : args.clusters;
-  const double L = lifted;
-  const double M = args.target == 0 ? L + 1 : args.target;
-  const auto rows = static_cast<double>(args.rows);
-  const double levels =
-      rows > M ? std::max(1.0, std::log(rows / M) / std::log(K / (L + 1.0))) : 0.0;
-  const double operations =
-      static_cast<double>(args.trials) * (levels * K * L * L + 4.0 * rows * L);
-  constexpr double kOperationsPerSecond = 2e9;  // a conservative single core
-  if (operations / kOperationsPerSecond > 600.0) {
+  // The work: each level eliminates in a K-point set of dimension L (about K L^2 operations).
+  const double seconds = static_cast<double>(args.trials) * cost.operations / kOperationsPerSecond;
+  if (seconds > 600.0) {
     char minutes[32];
-    std::snprintf(minutes, sizeof(minutes), "%.0f", operations / kOperationsPerSecond / 60.0);
+    std::snprintf(minutes, sizeof(minutes), "%.0f", seconds / 60.0);
     throw UsageError("--rows " + std::to_string(args.rows) + " --dim " + std::to_string(args.dim) +
-                     " --clusters " + std::to_string(static_cast<long>(K)) + " --trials " +
+                     " --clusters " + std::to_string(cost.clusters) + " --trials " +
                      std::to_string(args.trials) + " would take about " + minutes + " minutes (" +
-                     std::to_string(static_cast<long>(levels)) +
-                     " levels per trial, each an elimination of " +
-                     std::to_string(static_cast<long>(K)) + " points in " + std::to_string(lifted) +
+                     std::to_string(static_cast<long>(cost.levels)) +
+                     " levels per trial, each an elimination of " + std::to_string(cost.clusters) +
+                     " points in " + std::to_string(lifted) +
                      " dimensions); use more --clusters (e.g. " + std::to_string(2 * (lifted + 1)) +
                      "), fewer rows or a smaller --dim");
   }

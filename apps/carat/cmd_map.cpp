@@ -150,13 +150,7 @@ int run_map(const CLI::App& command, const MapArgs& args) {
     if (has_initial) inputs.push_back({"--initial", args.initial});
     for (const ScanFile& file : files) inputs.push_back({"--frames", file.path.string()});
     check_output_file("--out", args.out, inputs);
-    const fs::path out_path = fs::absolute(args.out).lexically_normal();
-    const std::string ext = out_path.extension().string();
-    if (same_file(out_path.parent_path(), args.frames) &&
-        (ext == ".bin" || ext == ".pcd" || ext == ".ply")) {
-      throw UsageError("--out " + args.out + " would become a frame of --frames " + args.frames +
-                       "; write the result elsewhere");
-    }
+    check_output_outside_folder("--out", args.out, {"--frames", args.frames});
   }
   if (files.size() < 2) throw Error(args.frames + ": at least 2 frames are needed");
   // A trajectory file with one pose per frame, in scan order.
@@ -338,6 +332,7 @@ int run_map(const CLI::App& command, const MapArgs& args) {
   if (out_file) {
     Trajectory optimized;
     optimized.stamps = start.stamps;
+    optimized.ids = start.ids;
     for (const Eigen::Isometry3d& T : result.T_world_frame)
       optimized.poses.push_back(T_world_anchor * T);
     try {

@@ -1,7 +1,10 @@
 // carat odometry --frames DIR --out FILE [--format kitti|tum|graph] [--voxel 0.25]
-//                [--max-distance 1.0] [--bin-format auto|xyz|xyzi] [--threads T] [--json]
+//                [--max-distance 1.0] [--bin-format auto|xyz|xyzi] [--threads T]
+//                [--allow-unconverged] [--json]
 // GICP odometry from raw scans: each frame aligned to the one before from the previous motion,
-// chained from the identity, written as a trajectory (the --initial of `carat map`).
+// chained from the identity, written as a trajectory (the --initial of `carat map`). A step that
+// did not converge or whose scans fix fewer than 6 directions ends the run with an error naming
+// its frames, unless --allow-unconverged.
 #include <algorithm>
 #include <cstdio>
 #include <memory>
@@ -31,6 +34,7 @@ struct OdometryArgs {
   double voxel = 0.25;
   double max_distance = 1.0;
   int threads = 0;
+  bool allow_unconverged = false;
   bool json = false;
 };
 
@@ -42,6 +46,7 @@ int run_odometry_command(const OdometryArgs& args) {
   std::vector<NamedInput> inputs;
   for (const ScanFile& file : files) inputs.push_back({"--frames", file.path.string()});
   check_output_file("--out", args.out, inputs);
+  check_output_outside_folder("--out", args.out, {"--frames", args.frames});
   OutputFile out(args.out);
   const int threads = thread_count(args.threads);
   Stopwatch stage;
@@ -64,28 +69,22 @@ int run_odometry_command(const OdometryArgs& args) {
     odometry = run_scan_odometry(frames, settings, bar.callback());
   }
   const double odometry_s = stage.elapsed_s();
+  // A step that did not converge (or whose scans fix too few directions) makes every later pose
+  // wrong: an error unless asked for, never a trajectory written in silence.
+  const std::size_t unreliable = odometry.unreliable_steps();
+  const std::string unreliable_text = odometry.describe_unreliable_steps(frames);
+  if (unreliable > 0 && !args.allow_unconverged) {
+    throw Error("odometry of --frames " + args.frames + ": " + std::to_string(unreliable) + " of " +
+                std::to_string(odometry.steps.size()) +
+                " steps cannot be trusted, so every pose after the first of them would be wrong: " +
+                unreliable_text + "; nothing was written (--allow-unconverged writes it anyway)");
+  }
   Trajectory trajectory;
   trajectory.poses = odometry.T_world_frame;
-  for (std::size_t k = 0; k < files.size(); ++k) {
-    // Graph ids follow numeric frame names (as `carat map` pairs them); otherwise the index.
-    double stamp = static_cast<double>(k);
-    if (format == TrajectoryFormat::kGraph) {
-      const std::string& name = files[k].name;
-      if (!name.empty() && name.find_first_not_of("0123456789") == std::string::npos &&
-          name.size() < 16) {
-        stamp = std::stod(name);
-      }
-    }
-    trajectory.stamps.push_back(stamp);
-  }
-  if (format == TrajectoryFormat::kGraph) {
-    // Ids must be unique: fall back to indices when names repeat a number.
-    std::vector<double> sorted = trajectory.stamps;
-    std::sort(sorted.begin(), sorted.end());
-    if (std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end()) {
-      for (std::size_t k = 0; k < files.size(); ++k) trajectory.stamps[k] = static_cast<double>(k);
-    }
-  }
+  for (std::size_t k = 0; k < files.size(); ++k)
+    trajectory.stamps.push_back(static_cast<double>(k));
+  // Graph ids by the rule `carat map` pairs them with (numbered frames: their number).
+  if (format == TrajectoryFormat::kGraph) trajectory.ids = scan_graph_ids(files);
   out.stream() << format_trajectory(trajectory, format);
   int not_converged = 0;
   for (const PairRegistration& step : odometry.steps) not_converged += !step.converged;
@@ -95,6 +94,14 @@ int run_odometry_command(const OdometryArgs& args) {
     j["out"] = args.out;
     j["format"] = args.format;
     j["steps_not_converged"] = not_converged;
+    j["unreliable_steps"] = nlohmann::json::array();
+    for (const PairRegistration& step : odometry.steps) {
+      if (step.reliable()) continue;
+      j["unreliable_steps"].push_back({{"target", step.pair.target},
+                                       {"source", step.pair.source},
+                                       {"converged", step.converged},
+                                       {"constrained_dof", step.constrained_dof}});
+    }
     j["preprocess_s"] = preprocess_s;
     j["odometry_s"] = odometry_s;
     j["time_per_frame_ms"] = 1e3 * (preprocess_s + odometry_s) / static_cast<double>(files.size());
@@ -102,6 +109,10 @@ int run_odometry_command(const OdometryArgs& args) {
   } else {
     std::printf("carat odometry: %zu frames from %s, %d steps not converged\n", files.size(),
                 args.frames.c_str(), not_converged);
+    if (unreliable > 0) {
+      std::printf("  %zu steps cannot be trusted (written as asked): %s\n", unreliable,
+                  unreliable_text.c_str());
+    }
     std::printf("  time: preprocess %.3f s, odometry %.3f s\n  wrote %s\n", preprocess_s,
                 odometry_s, args.out.c_str());
   }
@@ -140,6 +151,9 @@ void register_odometry(CLI::App& app, CommandRegistry& registry) {
   cmd->add_option("--threads", args->threads, "threads (0: all cores)")
       ->check(integer_in(0, 1024))
       ->capture_default_str();
+  cmd->add_flag("--allow-unconverged", args->allow_unconverged,
+                "write the trajectory even when steps did not converge or fix fewer than 6 "
+                "directions (they are listed in the report); without it such a run is an error");
   cmd->add_flag("--json", args->json, "print one JSON object instead of the report");
   registry.add(cmd, [args] { return run_odometry_command(*args); });
 }

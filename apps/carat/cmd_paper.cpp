@@ -35,6 +35,7 @@ int run_paper(const CLI::App& command, const PaperArgs& args) {
                      "real-data sections when ../shared/data is absent)");
   }
   check_output_folder("--out", args.out, {{"--data", args.data}});
+  if (!args.data.empty()) check_output_outside_folder("--out", args.out, {"--data", args.data});
   OutputFolder folder(args.out, "carat paper");
   const int threads = thread_count(args.threads);
   const fs::path dir = folder.path();  // becomes --out when everything is written

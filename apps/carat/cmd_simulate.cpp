@@ -54,10 +54,7 @@ int run_simulate(const SimulateArgs& args) {
   drive.circuit_blocks_x = args.circuit_blocks;
 
   // The disk the drive needs, from its first frame, against what is free where it goes.
-  const auto first_pose = world.trajectory(drive).front();
-  const double frame_bytes =
-      16.0 *
-      static_cast<double>(world.scan(first_pose, synthetic_frame_noise_seed(args.seed, 0)).size());
+  const double frame_bytes = 16.0 * static_cast<double>(first_scan(world, drive).size());
   const double drive_bytes = static_cast<double>(args.frames) * (1.2 * frame_bytes + 200.0);
   const double free_bytes = static_cast<double>(available_disk_bytes(args.out));
   if (drive_bytes > free_bytes) {

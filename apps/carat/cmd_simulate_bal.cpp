@@ -36,7 +36,8 @@ struct SimulateBalArgs {
 };
 
 /// Refuses combinations the option ranges let through: too few points for the cameras, more
-/// observations per point than cameras, a scene larger than the format or the memory.
+/// observations per point than cameras or than the layout can place, a scene larger than the
+/// format or the memory.
 void check_sizes(const SimulateBalArgs& args) {
   if (args.points < args.cameras) {
     throw UsageError("--points " + std::to_string(args.points) + " must be at least --cameras " +
@@ -45,6 +46,14 @@ void check_sizes(const SimulateBalArgs& args) {
   if (args.observations_per_point > args.cameras) {
     throw UsageError("--observations-per-point " + std::to_string(args.observations_per_point) +
                      " must be at most --cameras " + std::to_string(args.cameras));
+  }
+  const int most = max_observations_per_point(parse_bal_layout(args.layout), args.cameras);
+  if (args.observations_per_point > most) {
+    throw UsageError("--observations-per-point " + std::to_string(args.observations_per_point) +
+                     " cannot be placed with --layout " + args.layout + ": at most " +
+                     std::to_string(most) +
+                     " consecutive cameras have one facade point in front of them (use "
+                     "--layout ring or random for more observers per point)");
   }
   const auto observations = static_cast<std::uint64_t>(args.points) *
                             static_cast<std::uint64_t>(args.observations_per_point);

@@ -10,6 +10,7 @@
 #include "carat/base/version.hpp"
 #include "cli_support.hpp"
 #include "commands.hpp"
+#include "mpi_launch.hpp"
 
 namespace {
 
@@ -25,8 +26,13 @@ std::string one_line(const std::string& message) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  // Before any thread starts: interruptions remove carat's temporary files and folders.
-  carat::cli::install_interrupt_cleanup();
+  // Under mpirun only rank 0 prints (help, usage errors, errors: one message, not one per rank),
+  // and only `carat map` runs on the other ranks; every other subcommand runs on rank 0 alone.
+  const bool quiet = carat::cli::mpi_launch().secondary();
+  // Before any thread starts: interruptions remove carat's temporary files and folders. The other
+  // ranks end half a second after a signal, once rank 0 has removed its temporaries: mpirun
+  // kills every rank with SIGKILL as soon as one ends by a signal.
+  carat::cli::install_interrupt_cleanup(quiet ? 500 : 0);
   CLI::App app{"carat: sparse nonlinear least squares with exact residual-block compression"};
   app.require_subcommand(1);
   app.set_version_flag("--version", std::string("carat ") + carat::version());
@@ -51,6 +57,7 @@ int main(int argc, char** argv) {
       names += (names.empty() ? "" : ", ") + sub->get_name();
     }
     if (!known) {
+      if (quiet) return 2;
       std::fprintf(stderr, "carat: usage error: unknown subcommand %s (valid: %s)\n",
                    carat::quote_bytes(argv[1]).c_str(), names.c_str());
       return 2;
@@ -59,38 +66,47 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
-    return carat::cli::finish_standard_output(app.exit(e));
+    return quiet ? 0 : carat::cli::finish_standard_output(app.exit(e));
   } catch (const CLI::CallForAllHelp& e) {
-    return carat::cli::finish_standard_output(app.exit(e));
+    return quiet ? 0 : carat::cli::finish_standard_output(app.exit(e));
   } catch (const CLI::CallForVersion& e) {
-    return carat::cli::finish_standard_output(app.exit(e));
+    return quiet ? 0 : carat::cli::finish_standard_output(app.exit(e));
   } catch (const CLI::ParseError& e) {
-    std::fprintf(stderr, "carat: usage error: %s (see --help)\n", one_line(e.what()).c_str());
+    if (!quiet) {
+      std::fprintf(stderr, "carat: usage error: %s (see --help)\n", one_line(e.what()).c_str());
+    }
     return 2;
   }
+  if (quiet) {
+    const CLI::App& root = app;
+    for (const CLI::App* sub : root.get_subcommands()) {
+      if (sub->get_name() != "map") return 0;  // rank 0 runs it, alone
+    }
+  }
   int status = 0;
+  // One line on stderr; every rank of an mpirun job but 0 stays silent (rank 0 reports theirs).
+  const auto report = [quiet](const std::string& line) {
+    if (!quiet) std::fprintf(stderr, "carat: %s\n", one_line(line).c_str());
+  };
   try {
     status = registry.run_selected();
   } catch (const carat::cli::UsageError& e) {
-    std::fprintf(stderr, "carat: usage error: %s\n", one_line(e.what()).c_str());
+    report(std::string("usage error: ") + e.what());
     status = 2;
   } catch (const std::bad_alloc&) {
-    std::fprintf(stderr,
-                 "carat: error: out of memory (the inputs or options need more memory than this "
-                 "machine has)\n");
+    report("error: out of memory (the inputs or options need more memory than this machine has)");
     status = 1;
   } catch (const std::filesystem::filesystem_error& e) {
     // "PATH: reason", not the library's "filesystem error: operation: reason [PATH]".
     const std::string path = e.path1().empty() ? std::string("a path") : e.path1().string();
-    std::fprintf(stderr, "carat: error: %s: %s\n", one_line(path).c_str(),
-                 one_line(e.code().message()).c_str());
+    report("error: " + path + ": " + e.code().message());
     status = 1;
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "carat: error: %s\n", one_line(e.what()).c_str());
+    report(std::string("error: ") + e.what());
     status = 1;
   } catch (...) {
-    std::fprintf(stderr, "carat: error: an unknown error ended the run\n");
+    report("error: an unknown error ended the run");
     status = 1;
   }
-  return carat::cli::finish_standard_output(status);
+  return quiet ? status : carat::cli::finish_standard_output(status);
 }

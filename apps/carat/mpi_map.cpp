@@ -16,6 +16,7 @@
 #include "carat/registration/factor_serialization.hpp"
 #include "carat/registration/frame_store.hpp"
 #include "cli_support.hpp"
+#include "mpi_launch.hpp"
 
 #if CARAT_WITH_MPI
 #include <mpi.h>
@@ -23,14 +24,6 @@
 
 namespace carat::cli {
 namespace {
-
-/// The number of ranks mpirun announced to this process (1 when it did not start it).
-int launched_ranks() {
-  for (const char* name : {"OMPI_COMM_WORLD_SIZE", "PMI_SIZE"}) {
-    if (const char* value = std::getenv(name)) return std::max(1, std::atoi(value));
-  }
-  return 1;
-}
 
 #if CARAT_WITH_MPI
 
@@ -267,7 +260,8 @@ std::vector<std::byte> receive_answer(int from) {
 }  // namespace
 
 std::unique_ptr<MpiMapJob> MpiMapJob::start() {
-  if (launched_ranks() < 2) return nullptr;
+  const int ranks = mpi_launch().size;
+  if (ranks < 2) return nullptr;
 #if CARAT_WITH_MPI
   int provided = 0;
   MPI_Init_thread(nullptr, nullptr, MPI_THREAD_FUNNELED, &provided);
@@ -276,7 +270,7 @@ std::unique_ptr<MpiMapJob> MpiMapJob::start() {
   MPI_Comm_size(MPI_COMM_WORLD, &size);
   return std::unique_ptr<MpiMapJob>(new MpiMapJob(rank, size));
 #else
-  throw Error("started by mpirun with " + std::to_string(launched_ranks()) +
+  throw Error("started by mpirun with " + std::to_string(ranks) +
               " ranks, but this carat was built without MPI (configure with -DCARAT_MPI=ON and "
               "OpenMPI's development files installed)");
 #endif

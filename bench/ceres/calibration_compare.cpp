@@ -298,7 +298,7 @@ int main(int argc, char** argv) {
       if (!method.is_object() || !method.contains("full_cost")) continue;
       method["cost_vs_optimum"] = method["full_cost"].get<double>() / optimum - 1.0;
       for (const char* reference :
-         {"ceres_per_view", "ceres_per_obs", "carat_full", "carat_prepared"}) {
+           {"ceres_per_view", "ceres_per_obs", "carat_full", "carat_prepared"}) {
         if (out.contains(reference)) {
           method[std::string("time_vs_") + reference] =
               method["time_s"].get<double>() / out[reference]["time_s"].get<double>();

@@ -5,6 +5,7 @@
 #include <limits>
 #include <type_traits>
 
+#include "carat/base/interruption.hpp"
 #include "simd.hpp"
 
 namespace carat::internal {
@@ -188,6 +189,7 @@ Eigen::Index gauss_jordan(PaddedMatrix& T, double tolerance, std::vector<Eigen::
   double scale[kPanel];
   Eigen::Index rank = 0;
   for (Eigen::Index panel = 0; panel < n; panel += kPanel) {
+    interruption_point();  // a panel of a large tableau takes milliseconds
     if (rank == m) {
       for (Eigen::Index c = panel; c < n; ++c) free_col.push_back(c);
       break;
@@ -736,6 +738,7 @@ const std::vector<char>& eliminate(const double* points, Eigen::Index L, Eigen::
     if (pending.count == kPanel) {
       apply_exchanges(F, k + 1, m, pending);
       pending.count = 0;
+      interruption_point();
     }
   }
   for (Eigen::Index r = 0; r < rank; ++r)

@@ -27,14 +27,16 @@ ProblemCompressionReport compress_problem(Problem& problem,
       const ResidualBlockId id{static_cast<std::int32_t>(k)};
       if (options.select && !options.select(id, *entry.block)) return;
       const int r = entry.block->reduced_dim();
-      const int target = options.compression.target_rows > 0 ? options.compression.target_rows
-                                                             : r * (r + 1) / 2 + r + 2;
+      const int target = options.compression.target_rows > 0
+                             ? options.compression.target_rows
+                             : std::max(r * (r + 1) / 2 + r + 2, options.min_target_rows);
       const int floor = options.min_rows > 0 ? options.min_rows : target;
       if (entry.block->num_rows() <= floor) return;
       std::vector<const double*> params;
       for (VariableId v : entry.variables) params.push_back(problem.value(v).data());
       CompressionOptions compression = options.compression;
       compression.seed = options.compression.seed + k;
+      compression.target_rows = target;
       try {
         compressed[k] = compress(entry.block, params, compression);
       } catch (const std::exception& e) {

@@ -9,6 +9,8 @@
 #include <string>
 
 #include "carat/base/error.hpp"
+#include "carat/base/interruption.hpp"
+#include "carat/coreset/row_coreset_cost.hpp"
 #include "elimination.hpp"
 #include "lift.hpp"
 #include "reduction.hpp"
@@ -105,6 +107,7 @@ void reduce_rows(internal::Items& items, long target, bool exact, int clusters, 
       items.append(excess);
       return;
     }
+    interruption_point();
     internal::reduce_level(items, clusters, exact ? target : 0);
     if (items.size() == n) return;  // nothing left to eliminate
   }
@@ -118,6 +121,40 @@ int minimum_coreset_rows(int reduced_dim) {
 
 int default_coreset_clusters(int reduced_dim) {
   return std::max(64, 2 * (internal::lifted_dim(reduced_dim) + 1));
+}
+
+RowCoresetCost estimate_row_coreset(long rows, int reduced_dim, const RowCoresetOptions& options) {
+  if (rows < 0 || reduced_dim < 1 || options.target_rows < 0 || options.clusters < 0) {
+    throw Error("estimate_row_coreset: negative size, target or clusters");
+  }
+  RowCoresetCost cost;
+  const int L = internal::lifted_dim(reduced_dim);
+  cost.lifted_dim = L;
+  cost.clusters = options.clusters == 0 ? default_coreset_clusters(reduced_dim) : options.clusters;
+  const auto N = static_cast<double>(rows);
+  const double K = cost.clusters;
+  const double M = options.target_rows == 0 ? L + 1.0 : options.target_rows;
+  if (N <= M) {
+    cost.bytes = 16.0 * N;  // the indices and weights returned
+    return cost;
+  }
+  // Phase 1 sums chunks of kChunkRows rows and reduces them until at most max(8 M, K chunks)
+  // rows remain; those are lifted one by one (packed when narrow) for the row phase.
+  const double row_phase = std::max(8.0 * M, K * static_cast<double>(kChunkRows));
+  cost.lifted_rows = static_cast<long>(std::min(N, row_phase));
+  const int packed = internal::packed_stride(reduced_dim);
+  const double row_doubles = packed > 0 && internal::wide_kernels() ? packed : L;
+  const double chunks = std::ceil(N / static_cast<double>(kChunkRows));
+  // An elimination of n points holds their means, the centred copy and the free-column tableau:
+  // about three L x n arrays, n at most K (a level) or the rows left (the last one).
+  const double eliminated = std::min(K, static_cast<double>(cost.lifted_rows));
+  cost.bytes =
+      8.0 * (chunks * (L + 3.0) + static_cast<double>(cost.lifted_rows) * (row_doubles + 3.0) +
+             3.0 * (L + 1.0) * eliminated + (L + 1.0) * (L + 1.0 + M));
+  // (K < L + 2 makes no progress; select_coreset_rows() refuses it.)
+  cost.levels = K > L + 1.0 ? std::max(1.0, std::log(N / M) / std::log(K / (L + 1.0))) : 1.0;
+  cost.operations = cost.levels * K * static_cast<double>(L) * L + 4.0 * N * L;
+  return cost;
 }
 
 RowCoreset select_coreset_rows(const Eigen::Ref<const RowMatrix>& J_r,
@@ -153,11 +190,10 @@ RowCoreset select_coreset_rows(const Eigen::Ref<const RowMatrix>& J_r,
                 std::to_string(L + 2) + ", or 0 for the default " +
                 std::to_string(default_coreset_clusters(r)));
   }
-  // The scratch a level needs grows as L x K (the elimination's tableau) and L x N / 32 (the
-  // chunk sums): refuse what cannot be held instead of failing inside an allocation.
+  // The scratch grows as L x K (the eliminations' tableaus), L x N / 32 (the chunk sums) and L
+  // per lifted row: refuse what cannot be held instead of failing inside an allocation.
   constexpr double kMaxScratchBytes = 4e9;
-  const double scratch = 8.0 * static_cast<double>(L + 1) *
-                         (2.0 * static_cast<double>(K) + static_cast<double>(N) / 32.0 + 8.0);
+  const double scratch = estimate_row_coreset(N, r, options).bytes;
   if (scratch > kMaxScratchBytes) {
     throw Error("coreset: reduced dimension " + std::to_string(r) + " (lifted dimension " +
                 std::to_string(L) + ") with " + std::to_string(K) + " clusters needs about " +
@@ -236,6 +272,7 @@ RowCoreset select_coreset_rows(const Eigen::Ref<const RowMatrix>& J_r,
   const long row_phase = std::max<long>(8 * M, static_cast<long>(K) * kChunkRows);
   while (items.size() > K && items.rows() > row_phase) {
     const int before = items.size();
+    interruption_point();
     internal::reduce_level(items, K, M);
     if (items.size() == before) break;
   }
@@ -278,6 +315,7 @@ RowCoreset select_coreset_rows(const Eigen::Ref<const RowMatrix>& J_r,
   }
 
   // Phase 3: rows down to M.
+  interruption_point();
   reduce_rows(rows, M, options.exact_size, K, L);
 
   polish_weights(J, E, r, target, rows);

@@ -7,6 +7,8 @@
 #include <carat/base/byte_stream.hpp>
 #include <carat/base/error.hpp>
 #include <carat/base/input_file.hpp>
+#include <carat/base/interruption.hpp>
+#include <carat/base/machine_memory.hpp>
 #include <carat/base/multiversion.hpp>
 #include <carat/base/output_folder.hpp>
 #include <carat/base/statistics.hpp>
@@ -21,6 +23,7 @@
 #include <carat/coreset/problem_compression.hpp>
 #include <carat/coreset/quadratic_model.hpp>
 #include <carat/coreset/row_coreset.hpp>
+#include <carat/coreset/row_coreset_cost.hpp>
 #include <carat/registration/align.hpp>
 #include <carat/registration/correspondences.hpp>
 #include <carat/registration/covariance.hpp>

@@ -80,8 +80,7 @@ py::array_t<int> PythonProblem::add_rows(const py::object& function, const py::h
   const auto local_of = [&](VariableId v) {
     const auto [it, inserted] = local.emplace(v.index, static_cast<int>(batch_variables.size()));
     if (inserted) {
-      batch_variables.push_back(
-          {v, problem_.value_offset(v), problem_.manifold(v).ambient_size()});
+      batch_variables.push_back({v, problem_.value_offset(v), problem_.manifold(v).ambient_size()});
     }
     return it->second;
   };
@@ -126,8 +125,8 @@ py::array_t<int> PythonProblem::add_rows(const py::object& function, const py::h
       } else if (kind(v) != slot.kind || problem_.manifold(v).ambient_size() != slot.ambient) {
         throw py::value_error(what + ": mixes variables of kinds " +
                               describe(slot.kind, slot.ambient) + " and " +
-                              describe(kind(v), problem_.manifold(v).ambient_size()) +
-                              " (group " + std::to_string(g) + ")");
+                              describe(kind(v), problem_.manifold(v).ambient_size()) + " (group " +
+                              std::to_string(g) + ")");
       }
       slot.per_group[static_cast<std::size_t>(g)] = local_of(v);
     }
@@ -175,8 +174,8 @@ py::array_t<int> PythonProblem::add_rows(const py::object& function, const py::h
           for (std::size_t b = a + 1; b < num_slots; ++b) {
             if (variable_of(a, g) == variable_of(b, g)) {
               throw py::value_error(
-                  "add_rows: arguments " + std::to_string(a + 1) + " and " +
-                  std::to_string(b + 1) + " are the same variable (" +
+                  "add_rows: arguments " + std::to_string(a + 1) + " and " + std::to_string(b + 1) +
+                  " are the same variable (" +
                   std::to_string(
                       batch_variables[static_cast<std::size_t>(variable_of(a, g))].id.index) +
                   ") in group " + std::to_string(g) + "; a block's variables must be distinct");
@@ -218,8 +217,8 @@ py::array_t<int> PythonProblem::add_rows(const py::object& function, const py::h
       block_groups.assign(grouped.begin() + static_cast<std::ptrdiff_t>(block_start[b]),
                           grouped.begin() + static_cast<std::ptrdiff_t>(block_start[b + 1]));
     }
-    auto block = std::make_shared<NumpyRowsBlock>(batch, tuple, std::move(block_groups),
-                                                  std::vector<int>{});
+    auto block =
+        std::make_shared<NumpyRowsBlock>(batch, tuple, std::move(block_groups), std::vector<int>{});
     ids.mutable_data()[b] = problem_.add_residual_block(block, variable_ids, block_loss).index;
   }
   return ids;

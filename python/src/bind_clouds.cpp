@@ -18,6 +18,7 @@
 #include "carat/registration/kdtree.hpp"
 #include "carat/registration/voxel_grid.hpp"
 #include "frame_list.hpp"
+#include "integer_arguments.hpp"
 #include "interrupt.hpp"
 
 namespace carat::python {
@@ -85,8 +86,8 @@ py::list list_from_frames(const std::vector<std::shared_ptr<const Frame>>& frame
 }
 
 void bind_clouds(py::module_& m) {
-  m.def(
-      "read_point_cloud",
+  def_checked(
+      m, "read_point_cloud",
       [](const std::filesystem::path& path, const std::string& kitti_format, bool drop_non_finite,
          std::optional<std::size_t> max_points) {
         const KittiFormat format = parse_kitti_format(kitti_format);
@@ -99,8 +100,8 @@ void bind_clouds(py::module_& m) {
       py::arg("max_points") = py::none(),
       "Reads x, y, z (metres) of a .pcd, .ply or KITTI .bin file (kitti_format 'xyzi' or 'xyz') "
       "as an N x 3 float32 array. Raises carat.Error naming the file for a malformed one.");
-  m.def(
-      "write_point_cloud",
+  def_checked(
+      m, "write_point_cloud",
       [](const std::filesystem::path& path, const py::handle& points, bool ascii,
          const std::string& kitti_format) {
         const PointCloud cloud = cloud_from_array(points, "points");
@@ -120,8 +121,8 @@ void bind_clouds(py::module_& m) {
       py::arg("path"), py::arg("points"), py::arg("ascii") = false,
       py::arg("kitti_format") = "xyzi",
       "Writes an N x 3 array as .pcd, .ply (binary unless ascii) or KITTI .bin, atomically.");
-  m.def(
-      "voxel_downsample",
+  def_checked(
+      m, "voxel_downsample",
       [](const py::handle& points, double voxel_size) {
         const PointCloud cloud = cloud_from_array(points, "points");
         PointCloud down =
@@ -130,8 +131,8 @@ void bind_clouds(py::module_& m) {
       },
       py::arg("points"), py::arg("voxel_size"),
       "Centroids of the occupied voxels of edge voxel_size (metres), ordered by voxel.");
-  m.def(
-      "estimate_covariances",
+  def_checked(
+      m, "estimate_covariances",
       [](const py::handle& points, int neighbors, int threads) {
         PointCloud cloud = cloud_from_array(points, "points");
         CovarianceOptions options;
@@ -147,15 +148,16 @@ void bind_clouds(py::module_& m) {
       "GICP covariances (N x 3 x 3, metres squared) from the k nearest neighbours of each point, "
       "regularized to a plane (eigenvalues 1e-3, 1, 1).");
 
-  py::class_<Frame, std::shared_ptr<Frame>>(
+  py::class_<Frame, std::shared_ptr<Frame>> frame(
       m, "Frame",
       "A scan prepared for registration: voxel-downsampled points (the frame's own coordinates, "
-      "metres), GICP covariances and a k-d tree. Immutable.")
-      .def(py::init(&make_frame), py::arg("points"), py::arg("voxel_size") = 0.25,
-           py::arg("neighbors") = 10, py::arg("min_points") = 29, py::arg("threads") = 1,
-           py::arg("name") = "",
-           "Downsamples an N x 3 array, estimates covariances and builds the tree. Raises "
-           "carat.Error when fewer than min_points points are left.")
+      "metres), GICP covariances and a k-d tree. Immutable.");
+  init_checked(frame, &make_frame, py::arg("points"), py::arg("voxel_size") = 0.25,
+               py::arg("neighbors") = 10, py::arg("min_points") = 29, py::arg("threads") = 1,
+               py::arg("name") = "",
+               "Downsamples an N x 3 array, estimates covariances and builds the tree. Raises "
+               "carat.Error when fewer than min_points points are left.");
+  frame
       .def_property_readonly("points", &frame_points,
                              "The downsampled points, N x 3 float32 (a read-only view)")
       .def_property_readonly(

@@ -13,6 +13,7 @@
 
 #include "arrays.hpp"
 #include "bindings.hpp"
+#include "carat/base/error.hpp"
 #include "carat/registration/dense_graph.hpp"
 #include "carat/registration/frame.hpp"
 #include "carat/registration/global_registration.hpp"
@@ -24,6 +25,7 @@
 #include "carat/registration/pose_graph_baseline.hpp"
 #include "carat/registration/trajectory_error.hpp"
 #include "frame_list.hpp"
+#include "integer_arguments.hpp"
 #include "interrupt.hpp"
 #include "mapping_types.hpp"
 
@@ -151,6 +153,7 @@ MappingResult pose_graph(const py::handle& frames_in, const py::handle& graph,
   out.poses = read_only(array_from_poses(result.T_world_frame));
   out.summary = summary_dict(result.summary);
   out.stats["factors"] = pairs.size();
+  out.stats["unconverged_pairs"] = result.unconverged_pairs;
   out.stats["registration_s"] = registration_s;
   out.factor_costs = py::array_t<double>(0);
   return out;
@@ -199,15 +202,42 @@ py::dict close_loops_py(const py::handle& frames_in, const py::handle& poses_in,
   return out;
 }
 
-py::array_t<double> odometry_py(const py::handle& frames_in, double max_correspondence_distance,
-                                int threads) {
+py::object odometry_py(const py::handle& frames_in, double max_correspondence_distance, int threads,
+                       bool allow_unconverged, bool steps) {
   const auto frames = frames_from_sequence(frames_in, "frames");
   AlignSettings settings;
   settings.max_correspondence_distance = max_correspondence_distance;
   settings.num_threads = threads_argument(threads);
   const OdometryResult result = run_released(
       [&](InterruptCheck& check) { return run_scan_odometry(frames, settings, check.progress()); });
-  return array_from_poses(result.T_world_frame);
+  // A step that did not converge (or fixes fewer than 6 directions) makes every later pose wrong.
+  if (result.unreliable_steps() > 0 && !allow_unconverged) {
+    throw Error("odometry: " + std::to_string(result.unreliable_steps()) + " of " +
+                std::to_string(result.steps.size()) +
+                " steps cannot be trusted, so every pose after the first of them would be wrong: " +
+                result.describe_unreliable_steps(frames) +
+                " (allow_unconverged=True returns the poses anyway; steps=True reports each step)");
+  }
+  py::array_t<double> poses = array_from_poses(result.T_world_frame);
+  if (!steps) return poses;
+  const auto n = static_cast<py::ssize_t>(result.steps.size());
+  py::array_t<bool> converged(n), reliable(n);
+  py::array_t<std::int64_t> constrained_dof(n), iterations(n), correspondences(n);
+  for (py::ssize_t k = 0; k < n; ++k) {
+    const PairRegistration& step = result.steps[static_cast<std::size_t>(k)];
+    converged.mutable_data()[k] = step.converged;
+    reliable.mutable_data()[k] = step.reliable();
+    constrained_dof.mutable_data()[k] = step.constrained_dof;
+    iterations.mutable_data()[k] = step.iterations;
+    correspondences.mutable_data()[k] = step.num_correspondences;
+  }
+  py::dict report;
+  report["converged"] = converged;
+  report["constrained_dof"] = constrained_dof;
+  report["reliable"] = reliable;
+  report["iterations"] = iterations;
+  report["correspondences"] = correspondences;
+  return py::make_tuple(poses, report);
 }
 
 py::dict ate(const py::handle& estimate_in, const py::handle& reference_in, bool align) {
@@ -234,8 +264,8 @@ py::dict ate(const py::handle& estimate_in, const py::handle& reference_in, bool
 }  // namespace
 
 void bind_mapping(py::module_& m) {
-  m.def(
-      "load_frames",
+  def_checked(
+      m, "load_frames",
       [](const std::filesystem::path& folder, double voxel_size, int neighbors, int min_points,
          int threads, const std::string& layout) {
         const auto scans = list_scan_folder(folder, parse_bin_layout(layout));
@@ -253,8 +283,8 @@ void bind_mapping(py::module_& m) {
       py::arg("min_points") = 29, py::arg("threads") = 1, py::arg("layout") = "auto",
       "Reads and preprocesses every scan of a folder (DIR/*.bin|*.pcd|*.ply or "
       "DIR/<frame>/points.bin, natural name order) into a list of carat.Frame.");
-  m.def(
-      "preprocess_frames",
+  def_checked(
+      m, "preprocess_frames",
       [](const py::handle& clouds_in, double voxel_size, int neighbors, int min_points,
          int threads) {
         if (!py::isinstance<py::sequence>(clouds_in)) {
@@ -281,16 +311,16 @@ void bind_mapping(py::module_& m) {
       "Preprocesses a sequence of N x 3 arrays (metres, each in its own frame) in parallel into "
       "a list of carat.Frame.");
 
-  m.def(
-      "read_trajectory",
+  def_checked(
+      m, "read_trajectory",
       [](const std::filesystem::path& path, const std::string& format) {
         const Trajectory t = read_trajectory(path, parse_trajectory_format(format));
         return array_from_poses(t.poses);
       },
       py::arg("path"), py::arg("format") = "kitti",
       "Reads T_world_frame poses ('kitti', 'tum' or 'graph') as an N x 4 x 4 array.");
-  m.def(
-      "write_trajectory",
+  def_checked(
+      m, "write_trajectory",
       [](const std::filesystem::path& path, const py::handle& poses, const std::string& format,
          const std::optional<std::vector<double>>& stamps) {
         Trajectory t;
@@ -333,8 +363,8 @@ void bind_mapping(py::module_& m) {
           "Overlap fraction of each pair at the poses the graph was built at")
       .def("__len__", [](const DenseGraph& g) { return g.pairs.size(); });
 
-  m.def(
-      "dense_graph",
+  def_checked(
+      m, "dense_graph",
       [](const py::handle& frames_in, const py::handle& poses_in, double overlap_threshold,
          double voxel_size, double max_distance, int overlap_stride, int threads) {
         const auto frames = frames_from_sequence(frames_in, "frames");
@@ -365,30 +395,30 @@ void bind_mapping(py::module_& m) {
                     "Per factor (global registration): squared error / correspondences")
       .def_readonly("rounds", &MappingResult::rounds, "Correspondence rounds run");
 
-  m.def("optimize", &optimize, py::arg("frames"), py::arg("graph"), py::arg("poses"),
-        py::arg("sampling") = "exact", py::arg("residuals") = 29,
-        py::arg("max_correspondence_distance") = 1.0, py::arg("seed") = 1, py::arg("threads") = 1,
-        py::arg("rounds") = 1, py::arg("max_iterations") = 100,
-        py::arg("factor_cauchy_scale") = 0.0, py::arg("factor_excess_cauchy_scale") = 0.0,
-        R"(Global registration error minimization over the dense graph.
+  def_checked(m, "optimize", &optimize, py::arg("frames"), py::arg("graph"), py::arg("poses"),
+              py::arg("sampling") = "exact", py::arg("residuals") = 29,
+              py::arg("max_correspondence_distance") = 1.0, py::arg("seed") = 1,
+              py::arg("threads") = 1, py::arg("rounds") = 1, py::arg("max_iterations") = 100,
+              py::arg("factor_cauchy_scale") = 0.0, py::arg("factor_excess_cauchy_scale") = 0.0,
+              R"(Global registration error minimization over the dense graph.
 
 frames: list of carat.Frame; graph: carat.DenseGraph or P x 2 frame indices; poses: the
 initial T_world_frame (N x 4 x 4; the first pose is held constant). sampling: 'full' (every
 row), 'exact' (a coreset of `residuals` rows per factor, same H, b, c at the initial poses),
 'lossless' (at most 13 rows with the same cost at every pose) or 'random'.
 Returns a carat.MappingResult.)");
-  m.def("pose_graph", &pose_graph, py::arg("frames"), py::arg("graph"), py::arg("poses"),
-        py::arg("information") = "hessian", py::arg("cauchy_scale") = 1.0,
-        py::arg("max_correspondence_distance") = 1.0, py::arg("max_iterations") = 100,
-        py::arg("threads") = 1,
-        "The pose-graph baseline: GICP for every graph pair from the initial poses, then one "
-        "relative-pose factor per pair ('hessian' or 'identity' information, Cauchy kernel). "
-        "Returns a carat.MappingResult.");
-  m.def("close_loops", &close_loops_py, py::arg("frames"), py::arg("poses"),
-        py::arg("exclude_recent_m") = 100.0, py::arg("max_descriptor_distance") = 0.35,
-        py::arg("min_inlier_fraction") = 0.8, py::arg("max_correspondence_distance") = 1.0,
-        py::arg("threads") = 1,
-        R"(Closes the loops of a drive from a drifting guess (N x 4 x 4 T_world_frame).
+  def_checked(m, "pose_graph", &pose_graph, py::arg("frames"), py::arg("graph"), py::arg("poses"),
+              py::arg("information") = "hessian", py::arg("cauchy_scale") = 1.0,
+              py::arg("max_correspondence_distance") = 1.0, py::arg("max_iterations") = 100,
+              py::arg("threads") = 1,
+              "The pose-graph baseline: GICP for every graph pair from the initial poses, then one "
+              "relative-pose factor per pair ('hessian' or 'identity' information, Cauchy kernel). "
+              "Returns a carat.MappingResult.");
+  def_checked(m, "close_loops", &close_loops_py, py::arg("frames"), py::arg("poses"),
+              py::arg("exclude_recent_m") = 100.0, py::arg("max_descriptor_distance") = 0.35,
+              py::arg("min_inlier_fraction") = 0.8, py::arg("max_correspondence_distance") = 1.0,
+              py::arg("threads") = 1,
+              R"(Closes the loops of a drive from a drifting guess (N x 4 x 4 T_world_frame).
 
 Scan Context candidates (each frame's best match at least exclude_recent_m back along the
 path), validated by GICP (converged, 6 directions fixed, min_inlier_fraction of the source's
@@ -396,14 +426,22 @@ points within max_correspondence_distance), then a pose graph of consecutive GIC
 accepted loops. Returns a dict: poses (the pose graph's result; the guess when no loop was
 accepted), candidates (target, source, descriptor_distance, yaw, verdict, inlier_fraction,
 T_target_source each), loops (K x 2), sparse_frames, summary (None without loops).)");
-  m.def("odometry", &odometry_py, py::arg("frames"), py::arg("max_correspondence_distance") = 1.0,
-        py::arg("threads") = 1,
-        "GICP odometry of frames in order (each from the previous motion, a coarse then a fine "
-        "pass), chained from the identity: N x 4 x 4 T_world_frame.");
-  m.def("ate", &ate, py::arg("estimate"), py::arg("reference"), py::arg("align") = true,
-        "Absolute trajectory error of N x 4 x 4 poses against a reference (pose k with pose k): "
-        "rmse, mean, median, std, min, max (metres), rotation errors (degrees), after a rigid "
-        "Umeyama alignment unless align is False.");
+  def_checked(m, "odometry", &odometry_py, py::arg("frames"),
+              py::arg("max_correspondence_distance") = 1.0, py::arg("threads") = 1,
+              py::arg("allow_unconverged") = false, py::arg("steps") = false,
+              R"(GICP odometry of frames in order (each from the previous motion, a coarse then a
+fine pass), chained from the identity: N x 4 x 4 T_world_frame.
+
+A step that did not converge, or whose scans fix fewer than 6 directions (a plane), makes
+every later pose wrong: it raises carat.Error naming its frames unless allow_unconverged.
+steps=True returns (poses, steps) instead, steps a dict of N - 1 arrays, entry k for frame
+k + 1 aligned to frame k: converged, constrained_dof, reliable (both), iterations,
+correspondences.)");
+  def_checked(
+      m, "ate", &ate, py::arg("estimate"), py::arg("reference"), py::arg("align") = true,
+      "Absolute trajectory error of N x 4 x 4 poses against a reference (pose k with pose k): "
+      "rmse, mean, median, std, min, max (metres), rotation errors (degrees), after a rigid "
+      "Umeyama alignment unless align is False.");
 }
 
 }  // namespace carat::python

@@ -105,15 +105,14 @@ ProblemCompressionOptions compression_options(int target_rows, int clusters, int
   return options;
 }
 
-RecompressedSolveSummary solve_recompressed_problem(PythonProblem& problem,
-                                                    const std::string& mode, int target_rows,
-                                                    int clusters, int min_rows, std::uint64_t seed,
-                                                    int max_recompressions,
+RecompressedSolveSummary solve_recompressed_problem(PythonProblem& problem, const std::string& mode,
+                                                    int target_rows, int clusters, int min_rows,
+                                                    std::uint64_t seed, int max_recompressions,
                                                     const py::kwargs& kwargs) {
   RecompressedSolveOptions options;
   options.inner = solver_options(kwargs, "solve_recompressed");
-  options.compression = compression_options(target_rows, clusters, min_rows, seed,
-                                            options.inner.num_threads);
+  options.compression =
+      compression_options(target_rows, clusters, min_rows, seed, options.inner.num_threads);
   options.max_recompressions = max_recompressions;
   try {
     options.mode = parse_compression_mode(mode);
@@ -152,7 +151,8 @@ void bind_problem(py::module_& m) {
                             "What carat.solve did: costs (1/2 sum rho(|r|^2)), iterations, why it "
                             "stopped and where the time went.")
       .def_property_readonly(
-          "termination", [](const SolverSummary& s) { return std::string(to_string(s.termination)); },
+          "termination",
+          [](const SolverSummary& s) { return std::string(to_string(s.termination)); },
           "'CONVERGENCE', 'NO_CONVERGENCE', 'FAILURE' or 'USER_ABORT'")
       .def_readonly("message", &SolverSummary::message, "why it stopped, in words")
       .def_readonly("initial_cost", &SolverSummary::initial_cost)
@@ -163,8 +163,9 @@ void bind_problem(py::module_& m) {
       .def_readonly("num_residual_rows", &SolverSummary::num_residual_rows)
       .def_readonly("num_residual_blocks", &SolverSummary::num_residual_blocks)
       .def_readonly("linear_solver", &SolverSummary::linear_solver)
-      .def_property_readonly("time_s", [](const SolverSummary& s) { return s.time.total_s; },
-                             "wall time of the solve, seconds")
+      .def_property_readonly(
+          "time_s", [](const SolverSummary& s) { return s.time.total_s; },
+          "wall time of the solve, seconds")
       .def_property_readonly("time_breakdown",
                              [](const SolverSummary& s) { return time_breakdown(s.time); })
       .def("brief_report", &SolverSummary::brief_report)
@@ -191,15 +192,13 @@ void bind_problem(py::module_& m) {
       .def_readonly("recompressions", &RecompressedSolveSummary::recompressions)
       .def_readonly("inner_iterations", &RecompressedSolveSummary::inner_iterations)
       .def_readonly("full_iterations", &RecompressedSolveSummary::full_iterations)
-      .def_property_readonly("iterations",
-                             [](const RecompressedSolveSummary& s) {
-                               return s.inner_iterations + s.full_iterations;
-                             })
+      .def_property_readonly(
+          "iterations",
+          [](const RecompressedSolveSummary& s) { return s.inner_iterations + s.full_iterations; })
       .def_readonly("full_rows", &RecompressedSolveSummary::full_rows)
       .def_readonly("compressed_rows", &RecompressedSolveSummary::compressed_rows)
       .def_readonly("compression_s", &RecompressedSolveSummary::compression_s)
-      .def_property_readonly("time_s",
-                             [](const RecompressedSolveSummary& s) { return s.total_s; })
+      .def_property_readonly("time_s", [](const RecompressedSolveSummary& s) { return s.total_s; })
       .def("brief_report", &RecompressedSolveSummary::brief_report)
       .def("__repr__", &RecompressedSolveSummary::brief_report);
 
@@ -259,8 +258,7 @@ matrices or [x, y, theta] (tangent [omega, vx, vy]). The cost is 1/2 sum rho(|r|
       .def("set_value", &PythonProblem::set_value, py::arg("variable"), py::arg("value"))
       .def("add_rows", &PythonProblem::add_rows, py::arg("residual"), py::arg("variables"),
            py::kw_only(), py::arg("rows"), py::arg("group") = 1, py::arg("loss") = "none",
-           py::arg("loss_scale") = 1.0, py::arg("loss_per") = "group",
-           py::arg("name") = py::none(),
+           py::arg("loss_scale") = 1.0, py::arg("loss_per") = "group", py::arg("name") = py::none(),
            R"(Adds `rows` residual rows evaluated by residual(*values, rows).
 
 variables: one entry per argument of `residual`: a variable id (every row reads it), or an
@@ -324,13 +322,12 @@ residual function raised.)");
             compression_options(target_rows, clusters, min_rows, seed, threads);
         CompressionReport out;
         out.problem = &problem;
-        out.report = problem.run(
-            [&](Problem& p, InterruptCheck&) { return compress_problem(p, options); });
+        out.report =
+            problem.run([&](Problem& p, InterruptCheck&) { return compress_problem(p, options); });
         return out;
       },
       py::arg("problem"), py::kw_only(), py::arg("target_rows") = 0, py::arg("clusters") = 0,
-      py::arg("min_rows") = 0, py::arg("seed") = 1, py::arg("threads") = 1,
-      py::keep_alive<0, 1>(),
+      py::arg("min_rows") = 0, py::arg("seed") = 1, py::arg("threads") = 1, py::keep_alive<0, 1>(),
       R"(Replaces every block of more than target_rows rows by its exact coreset at the current
 values (target_rows 0: the minimum r(r+1)/2 + r + 2). Returns a carat.CompressionReport.)");
 

@@ -20,6 +20,7 @@
 #include "carat/residuals/gicp_block.hpp"
 #include "carat/residuals/lossless_block.hpp"
 #include "carat/solver/se3.hpp"
+#include "integer_arguments.hpp"
 #include "interrupt.hpp"
 
 namespace carat::python {
@@ -152,11 +153,11 @@ void bind_registration(py::module_& m) {
                " correspondences=" + std::to_string(r.num_correspondences) + ">";
       });
 
-  m.def("align", &align_frames, py::arg("target"), py::arg("source"),
-        py::arg("T_init") = py::none(), py::arg("method") = "gicp",
-        py::arg("max_correspondence_distance") = 1.0, py::arg("max_iterations") = 30,
-        py::arg("voxel_size") = 0.25, py::arg("neighbors") = 10, py::arg("threads") = 1,
-        R"(Aligns source onto target (GICP, or 'point-to-plane' / 'point-to-point' ICP).
+  def_checked(m, "align", &align_frames, py::arg("target"), py::arg("source"),
+              py::arg("T_init") = py::none(), py::arg("method") = "gicp",
+              py::arg("max_correspondence_distance") = 1.0, py::arg("max_iterations") = 30,
+              py::arg("voxel_size") = 0.25, py::arg("neighbors") = 10, py::arg("threads") = 1,
+              R"(Aligns source onto target (GICP, or 'point-to-plane' / 'point-to-point' ICP).
 
 target, source: carat.Frame, or N x 3 arrays of points (metres), then downsampled with
 voxel_size and given covariances from `neighbors` nearest points.

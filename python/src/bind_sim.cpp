@@ -8,13 +8,16 @@
 #include <vector>
 
 #include "arrays.hpp"
-#include "carat/base/error.hpp"
 #include "bindings.hpp"
+#include "carat/base/error.hpp"
+#include "carat/base/machine_memory.hpp"
+#include "carat/registration/frame.hpp"
 #include "carat/sim/bal_scene.hpp"
 #include "carat/sim/pipeline.hpp"
 #include "carat/sim/sequence.hpp"
 #include "carat/sim/world.hpp"
 #include "frame_list.hpp"
+#include "integer_arguments.hpp"
 #include "interrupt.hpp"
 #include "mapping_types.hpp"
 
@@ -49,12 +52,36 @@ SyntheticTrajectoryOptions drive_options(int frames, int laps, int circuit_block
   return drive;
 }
 
+/// Refuses, before any work, a drive that would not fit the memory available, priced from its
+/// first scan as `carat simulate` prices the disk: ValueError naming frames. `frame_bytes` gives
+/// what the call holds per frame from that scan.
+template <typename FrameBytes>
+void check_drive_memory(const SyntheticWorldOptions& world_options,
+                        const SyntheticTrajectoryOptions& drive, const FrameBytes& frame_bytes) {
+  const SyntheticWorld world(world_options);
+  const double per_frame = frame_bytes(first_scan(world, drive));
+  const double bytes = static_cast<double>(drive.frames) * per_frame;
+  const auto available = static_cast<double>(available_memory_bytes());
+  if (bytes > 0.8 * available) {
+    throw py::value_error("frames: " + std::to_string(drive.frames) + " frames would take about " +
+                          format_bytes(bytes) + " of memory (" + format_bytes(per_frame) +
+                          " per frame); " + format_bytes(available) +
+                          " are available; use fewer frames");
+  }
+}
+
 Simulation simulate(int frames, int laps, std::uint64_t seed, int beams, int circuit_blocks,
                     double voxel_size, double drift_translation, double drift_rotation_deg,
                     double drift_heading_deg, bool odometry, bool dense_graph, int threads) {
   SyntheticPipelineOptions options;
   options.world = world_options(seed, beams, circuit_blocks);
   options.drive = drive_options(frames, laps, circuit_blocks);
+  // Every frame is kept preprocessed (points, covariances, k-d tree) with its share of the graph.
+  check_drive_memory(options.world, options.drive, [&](PointCloud scan) {
+    return 1.5 *
+           static_cast<double>(
+               preprocess_frame(std::move(scan), options.preprocess, "frame 0")->memory_bytes());
+  });
   options.preprocess.voxel_size = voxel_size;
   options.preprocess.num_threads = threads_argument(threads);
   options.drift.translation_sigma = drift_translation;
@@ -88,6 +115,10 @@ Simulation simulate(int frames, int laps, std::uint64_t seed, int beams, int cir
 py::tuple simulate_scans(int frames, int laps, std::uint64_t seed, int beams, int circuit_blocks) {
   const SyntheticWorldOptions options = world_options(seed, beams, circuit_blocks);
   const SyntheticTrajectoryOptions drive = drive_options(frames, laps, circuit_blocks);
+  // Every raw scan is kept, as float x, y, z.
+  check_drive_memory(options, drive, [](const PointCloud& scan) {
+    return 12.0 * static_cast<double>(scan.size());
+  });
   // Frame by frame (each scan parallel inside), so that Ctrl-C is seen between frames.
   std::vector<PointCloud> scans_out;
   std::vector<Eigen::Isometry3d> truth;
@@ -182,25 +213,27 @@ void bind_sim(py::module_& m) {
       .def_readonly("raw_points", &Simulation::raw_points,
                     "Points of all scans before downsampling")
       .def_readonly("timings", &Simulation::timings, "Seconds per stage");
-  m.def("simulate", &simulate, py::arg("frames") = 100, py::arg("laps") = 2, py::arg("seed") = 1,
-        py::arg("beams") = 32, py::arg("circuit_blocks") = 1, py::arg("voxel_size") = 0.5,
-        py::arg("drift_translation") = 0.02, py::arg("drift_rotation_deg") = 0.1,
-        py::arg("drift_heading_deg") = 0.0, py::arg("odometry") = true,
-        py::arg("dense_graph") = true, py::arg("threads") = 1,
-        R"(Simulates a spinning LiDAR driving `laps` times around a synthetic city block: ground
+  def_checked(
+      m, "simulate", &simulate, py::arg("frames") = 100, py::arg("laps") = 2, py::arg("seed") = 1,
+      py::arg("beams") = 32, py::arg("circuit_blocks") = 1, py::arg("voxel_size") = 0.5,
+      py::arg("drift_translation") = 0.02, py::arg("drift_rotation_deg") = 0.1,
+      py::arg("drift_heading_deg") = 0.0, py::arg("odometry") = true, py::arg("dense_graph") = true,
+      py::arg("threads") = 1,
+      R"(Simulates a spinning LiDAR driving `laps` times around a synthetic city block: ground
 truth, preprocessed frames, a drifting initial guess (drift_translation metres and
 drift_rotation_deg degrees of std-dev per metre travelled, plus a steady heading drift of
 drift_heading_deg degrees per metre), refined by GICP odometry, and the
 dense graph at it; the defaults are `carat demo`'s. Deterministic in seed.
 Returns a carat.Simulation.)");
-  m.def("simulate_scans", &simulate_scans, py::arg("frames") = 100, py::arg("laps") = 2,
-        py::arg("seed") = 1, py::arg("beams") = 32, py::arg("circuit_blocks") = 1,
-        "Raw scans of a simulated drive: (list of N x 3 float32 arrays in the sensor frame, "
-        "ground-truth T_world_frame N x 4 x 4).");
-  m.def("simulate_bal", &simulate_bal_scene, py::arg("cameras") = 16, py::arg("points") = 1000,
-        py::arg("observations_per_point") = 4, py::arg("layout") = "ring", py::arg("noise") = 1.0,
-        py::arg("outliers") = 0.0, py::arg("start_noise") = 1.0, py::arg("seed") = 1,
-        R"(A synthetic bundle-adjustment problem in the BAL camera model, as `carat simulate-bal`
+  def_checked(m, "simulate_scans", &simulate_scans, py::arg("frames") = 100, py::arg("laps") = 2,
+              py::arg("seed") = 1, py::arg("beams") = 32, py::arg("circuit_blocks") = 1,
+              "Raw scans of a simulated drive: (list of N x 3 float32 arrays in the sensor frame, "
+              "ground-truth T_world_frame N x 4 x 4).");
+  def_checked(
+      m, "simulate_bal", &simulate_bal_scene, py::arg("cameras") = 16, py::arg("points") = 1000,
+      py::arg("observations_per_point") = 4, py::arg("layout") = "ring", py::arg("noise") = 1.0,
+      py::arg("outliers") = 0.0, py::arg("start_noise") = 1.0, py::arg("seed") = 1,
+      R"(A synthetic bundle-adjustment problem in the BAL camera model, as `carat simulate-bal`
 writes it (same options, same seed, same numbers). Returns a dict: cameras (C x 9: angle-axis
 w, t, f, k1, k2), points (P x 3), camera_index and point_index (one per observation), observed
 (N x 2 pixels), truth_cameras, truth_points, outlier (N booleans).)");

@@ -16,6 +16,7 @@
 #include "carat/residuals/pose_graph_se2.hpp"
 #include "carat/solver/loss_function.hpp"
 #include "carat/solver/solve.hpp"
+#include "integer_arguments.hpp"
 #include "interrupt.hpp"
 #include "mapping_types.hpp"
 
@@ -87,11 +88,12 @@ py::dict solve_g2o(const std::filesystem::path& path, int max_iterations, int th
 }  // namespace
 
 void bind_solve(py::module_& m) {
-  m.def("solve_g2o", &solve_g2o, py::arg("path"), py::arg("max_iterations") = 100,
-        py::arg("threads") = 1, py::arg("method") = "lm", py::arg("loss") = "none",
-        py::arg("loss_scale") = 1.0, py::arg("ordering") = "auto",
-        py::arg("repair_information") = false, py::arg("out") = py::none(),
-        R"(Optimizes a g2o pose graph (VERTEX_SE3:QUAT / EDGE_SE3:QUAT or VERTEX_SE2 / EDGE_SE2).
+  def_checked(
+      m, "solve_g2o", &solve_g2o, py::arg("path"), py::arg("max_iterations") = 100,
+      py::arg("threads") = 1, py::arg("method") = "lm", py::arg("loss") = "none",
+      py::arg("loss_scale") = 1.0, py::arg("ordering") = "auto",
+      py::arg("repair_information") = false, py::arg("out") = py::none(),
+      R"(Optimizes a g2o pose graph (VERTEX_SE3:QUAT / EDGE_SE3:QUAT or VERTEX_SE2 / EDGE_SE2).
 
 method: 'lm' or 'gn'; loss: 'none', 'huber' or 'cauchy' (loss_scale in whitened units);
 out: write the optimized graph there (atomically; never the input).

@@ -15,6 +15,7 @@
 #include <type_traits>
 #include <utility>
 
+#include "carat/base/interruption.hpp"
 #include "carat/solver/solver_options.hpp"
 
 namespace carat::python {
@@ -57,12 +58,15 @@ class InterruptCheck {
 };
 
 /// Runs f(check) with the GIL released, where check is an InterruptCheck whose progress() f
-/// (or iteration_callback()) hands to carat; an interruption comes back as the Python exception
-/// its handler raised (KeyboardInterrupt for Ctrl-C), whether f ended by Interrupted or returned
-/// after a solve aborted. Any other exception propagates as it is.
+/// (or iteration_callback()) hands to carat, and which carat's interruption points on this
+/// thread (carat/base/interruption.hpp: the coreset's levels and eliminations) also poll; an
+/// interruption comes back as the Python exception its handler raised (KeyboardInterrupt for
+/// Ctrl-C), whether f ended by Interrupted or returned after a solve aborted. Any other exception
+/// propagates as it is.
 template <typename F>
 auto run_released(F&& f) {
   InterruptCheck check;
+  const InterruptionScope scope([&check] { check.check(); });
   using Result = std::invoke_result_t<F, InterruptCheck&>;
   if constexpr (std::is_void_v<Result>) {
     bool interrupted = false;

@@ -188,8 +188,7 @@ StridedRows NumpyRows::checked_residuals(const py::handle& r, std::size_t num_ro
   keep->append(a);
   const auto* data = static_cast<const char*>(a.data());
   return flat ? StridedRows::make(data, a.strides(0), 0, 0, 1)
-              : StridedRows::make(data, a.strides(0), a.strides(1), 0,
-                                  static_cast<std::size_t>(k));
+              : StridedRows::make(data, a.strides(0), a.strides(1), 0, static_cast<std::size_t>(k));
 }
 
 StridedRows NumpyRows::checked_jacobian(const py::handle& J, int slot, std::size_t num_rows,
@@ -215,8 +214,7 @@ StridedRows NumpyRows::checked_jacobian(const py::handle& J, int slot, std::size
   const auto k = static_cast<py::ssize_t>(group_rows_);
   const auto t = static_cast<py::ssize_t>(s.tangent);
   const bool plain = a.ndim() == 2 && a.shape(0) == n && a.shape(1) == t;
-  const bool grouped =
-      a.ndim() == 3 && a.shape(0) * k == n && a.shape(1) == k && a.shape(2) == t;
+  const bool grouped = a.ndim() == 3 && a.shape(0) * k == n && a.shape(1) == k && a.shape(2) == t;
   const bool column = t == 1 && a.ndim() == 1 && a.shape(0) == n;
   if (!plain && !grouped && !column) {
     fail(name_ + ": the residual function returned " + which + " of shape " + shape_text(a) +
@@ -301,8 +299,8 @@ void NumpyRows::call(std::span<const int> groups, const Source& source, bool jac
       // The residuals are copied first: the function may fill the same arrays on every call.
       std::vector<double>& center = out->owned_.emplace_back(n);
       for (std::size_t i = 0; i < n; ++i) center[i] = out->residuals_.at(i);
-      out->residuals_ = StridedRows::make(reinterpret_cast<const char*>(center.data()),
-                                          sizeof(double), 0, 0, 1);
+      out->residuals_ =
+          StridedRows::make(reinterpret_cast<const char*>(center.data()), sizeof(double), 0, 0, 1);
       for (std::size_t j = 0; j < num_slots; ++j) {
         if (!given[j].is_none()) continue;
         const RowsSlot& s = slots_[j];
@@ -319,9 +317,9 @@ void NumpyRows::call(std::span<const int> groups, const Source& source, bool jac
           moved[j] = slot_values(static_cast<int>(j), groups, source, static_cast<int>(d), -1.0);
           const StridedRows minus = checked_residuals(invoke(moved, rows, false), n, &scratch);
           for (std::size_t g = 0; g < groups.size(); ++g) {
-            const double h = difference_step(s.kind, s.ambient,
-                                             value(source, static_cast<int>(j), groups[g]),
-                                             static_cast<int>(d));
+            const double h =
+                difference_step(s.kind, s.ambient, value(source, static_cast<int>(j), groups[g]),
+                                static_cast<int>(d));
             for (std::size_t c = 0; c < k; ++c) {
               const std::size_t i = g * k + c;
               columns[i * t + d] = (plus_values[i] - minus.at(i)) / (2.0 * h);
@@ -399,8 +397,7 @@ const double* NumpyRows::common_base(std::span<const int> block_variables,
 
 std::shared_ptr<const RowsEvaluation> NumpyRows::lookup(std::span<const int> block_variables,
                                                         ParameterPointers params,
-                                                        std::span<const int> groups,
-                                                        bool jacobians,
+                                                        std::span<const int> groups, bool jacobians,
                                                         std::vector<std::size_t>* positions) const {
   positions->resize(groups.size());
   {

@@ -65,11 +65,11 @@ struct RowsSlot {
 /// user builds one coordinate at a time, e.g. J of shape (k, t, n) returned as
 /// J.transpose(2, 0, 1), are read in place.
 struct StridedRows {
-  const char* data = nullptr;   ///< first number
-  std::ptrdiff_t group = 0;     ///< bytes between groups (between rows when k == 1)
-  std::ptrdiff_t component = 0; ///< bytes between the rows of a group
-  std::ptrdiff_t column = 0;    ///< bytes between columns
-  std::size_t group_rows = 1;   ///< k; 1 when rows are evenly spaced (then `group` apart)
+  const char* data = nullptr;    ///< first number
+  std::ptrdiff_t group = 0;      ///< bytes between groups (between rows when k == 1)
+  std::ptrdiff_t component = 0;  ///< bytes between the rows of a group
+  std::ptrdiff_t column = 0;     ///< bytes between columns
+  std::size_t group_rows = 1;    ///< k; 1 when rows are evenly spaced (then `group` apart)
 
   /// Rows of k in a group: evenly spaced rows become one stride.
   static StridedRows make(const char* data, std::ptrdiff_t group, std::ptrdiff_t component,
@@ -83,10 +83,9 @@ struct StridedRows {
   std::ptrdiff_t row_stride() const { return group; }
   /// Where row i starts.
   const char* row(std::size_t i) const {
-    return data + (group_rows == 1
-                       ? static_cast<std::ptrdiff_t>(i) * group
-                       : static_cast<std::ptrdiff_t>(i / group_rows) * group +
-                             static_cast<std::ptrdiff_t>(i % group_rows) * component);
+    return data + (group_rows == 1 ? static_cast<std::ptrdiff_t>(i) * group
+                                   : static_cast<std::ptrdiff_t>(i / group_rows) * group +
+                                         static_cast<std::ptrdiff_t>(i % group_rows) * component);
   }
   /// Column c of the row starting at `start`.
   double in_row(const char* start, int c) const {
@@ -133,11 +132,11 @@ class RowsEvaluation {
   int group_rows_ = 1;
   std::size_t num_rows_ = 0;
   StridedRows residuals_;
-  std::vector<StridedRows> jacobians_;             // one per slot, empty without Jacobians
-  std::vector<double> weights_;                    // per group: sqrt(rho'(s_g)); empty: no loss
-  std::vector<double> rho_, squared_;              // per group: rho(s_g), s_g (with a loss)
-  std::vector<std::vector<double>> owned_;         // arrays carat computed (differences)
-  py::object keep_;                                // the Python arrays read in place
+  std::vector<StridedRows> jacobians_;      // one per slot, empty without Jacobians
+  std::vector<double> weights_;             // per group: sqrt(rho'(s_g)); empty: no loss
+  std::vector<double> rho_, squared_;       // per group: rho(s_g), s_g (with a loss)
+  std::vector<std::vector<double>> owned_;  // arrays carat computed (differences)
+  py::object keep_;                         // the Python arrays read in place
 };
 
 /// The rows of one add_rows() call and the Python function that evaluates them.
@@ -204,15 +203,14 @@ class NumpyRows {
   };
   const double* value(const Source& source, int slot, int group) const;
   std::shared_ptr<const RowsEvaluation> evaluate_groups(std::span<const int> groups,
-                                                        const Source& source,
-                                                        bool jacobians) const;
+                                                        const Source& source, bool jacobians) const;
   /// With the GIL: the arguments, the call, the checks, differences where needed.
   void call(std::span<const int> groups, const Source& source, bool jacobians,
             RowsEvaluation* out) const;
   py::object invoke(const std::vector<py::object>& arguments, const py::object& rows,
                     bool jacobians) const;
-  py::object slot_values(int slot, std::span<const int> groups, const Source& source,
-                         int direction, double sign) const;
+  py::object slot_values(int slot, std::span<const int> groups, const Source& source, int direction,
+                         double sign) const;
   StridedRows checked_residuals(const py::handle& r, std::size_t num_rows, py::list* keep) const;
   StridedRows checked_jacobian(const py::handle& J, int slot, std::size_t num_rows,
                                py::list* keep) const;
@@ -237,14 +235,14 @@ class NumpyRows {
   // lookup()'s last evaluation, the values it was made at and where each group lies in it.
   struct Cache {
     std::shared_ptr<const RowsEvaluation> evaluation;
-    std::vector<double> values;                  // each variable at variable_start_[v]
-    std::vector<std::int64_t> group_position;    // first row of each group, -1: not held
+    std::vector<double> values;                // each variable at variable_start_[v]
+    std::vector<std::int64_t> group_position;  // first row of each group, -1: not held
     bool jacobians = false;
   };
   mutable std::mutex cache_mutex_;
   mutable Cache cache_;
-  mutable std::mutex users_mutex_;         // never held while waiting for the GIL
-  mutable std::vector<int> users_;         // per group: blocks that use it
+  mutable std::mutex users_mutex_;           // never held while waiting for the GIL
+  mutable std::vector<int> users_;           // per group: blocks that use it
   std::vector<std::size_t> variable_start_;  // where each variable's values lie in Cache::values
 };
 

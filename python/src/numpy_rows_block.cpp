@@ -17,22 +17,23 @@ using StridedVector = Eigen::Map<const Eigen::VectorXd, 0, Eigen::InnerStride<Ei
 
 /// Whether the view is an Eigen map: evenly spaced rows, strides of whole doubles.
 bool whole_doubles(const StridedRows& view) {
-  return view.group_rows == 1 && view.row_stride() % static_cast<std::ptrdiff_t>(sizeof(double)) == 0 &&
+  return view.group_rows == 1 &&
+         view.row_stride() % static_cast<std::ptrdiff_t>(sizeof(double)) == 0 &&
          view.column % static_cast<std::ptrdiff_t>(sizeof(double)) == 0;
 }
 
 StridedMatrix matrix_of(const StridedRows& view, std::size_t rows, int columns) {
   constexpr auto kSize = static_cast<std::ptrdiff_t>(sizeof(double));
   return StridedMatrix(reinterpret_cast<const double*>(view.data), static_cast<Eigen::Index>(rows),
-                       columns, Eigen::Stride<Eigen::Dynamic, Eigen::Dynamic>(
-                                    view.column / kSize, view.row_stride() / kSize));
+                       columns,
+                       Eigen::Stride<Eigen::Dynamic, Eigen::Dynamic>(view.column / kSize,
+                                                                     view.row_stride() / kSize));
 }
 
 }  // namespace
 
 NumpyRowsBlock::NumpyRowsBlock(std::shared_ptr<const NumpyRows> rows, std::vector<int> variables,
-                               std::vector<int> groups, std::vector<int> batch_rows,
-                               bool with_loss)
+                               std::vector<int> groups, std::vector<int> batch_rows, bool with_loss)
     : rows_(std::move(rows)),
       variables_(std::move(variables)),
       groups_(std::move(groups)),
@@ -81,7 +82,8 @@ void NumpyRowsBlock::map_rows(std::span<const int> rows, std::vector<int>* out) 
       (*out)[k] = row;
     } else {
       const int group_rows = rows_->group_rows();
-      (*out)[k] = groups_[static_cast<std::size_t>(row / group_rows)] * group_rows + row % group_rows;
+      (*out)[k] =
+          groups_[static_cast<std::size_t>(row / group_rows)] * group_rows + row % group_rows;
     }
   }
 }
@@ -114,7 +116,8 @@ NumpyRowsBlock::Evaluated NumpyRowsBlock::evaluate(ParameterPointers params,
     out.evaluation = rows_->lookup(variables_, params, groups_, jacobians, &scratch.start);
     scratch.position.resize(static_cast<std::size_t>(n));
     for (std::size_t q = 0; q < groups_.size(); ++q) {
-      for (std::size_t c = 0; c < k_rows; ++c) scratch.position[q * k_rows + c] = scratch.start[q] + c;
+      for (std::size_t c = 0; c < k_rows; ++c)
+        scratch.position[q * k_rows + c] = scratch.start[q] + c;
     }
     out.position = scratch.position.data();
     return out;
@@ -194,9 +197,9 @@ double NumpyRowsBlock::accumulate(ParameterPointers params, Eigen::Ref<Eigen::Ma
   }
   if (direct) {  // the arrays as they are: products of strided maps, no copy of the rows
     constexpr auto kSize = static_cast<std::ptrdiff_t>(sizeof(double));
-    const StridedVector r(reinterpret_cast<const double*>(values.residual_view().data),
-                          static_cast<Eigen::Index>(n),
-                          Eigen::InnerStride<Eigen::Dynamic>(values.residual_view().row_stride() / kSize));
+    const StridedVector r(
+        reinterpret_cast<const double*>(values.residual_view().data), static_cast<Eigen::Index>(n),
+        Eigen::InnerStride<Eigen::Dynamic>(values.residual_view().row_stride() / kSize));
     int column_a = 0;
     for (std::size_t a = 0; a < dims.size(); ++a) {
       const StridedMatrix Ja = matrix_of(values.jacobian_view(static_cast<int>(a)), n, dims[a]);
@@ -231,8 +234,8 @@ double NumpyRowsBlock::accumulate(ParameterPointers params, Eigen::Ref<Eigen::Ma
   b.setZero(D);
   double cost = 0.0;
   for (std::size_t begin = 0; begin < n; begin += static_cast<std::size_t>(chunk)) {
-    const auto used =
-        static_cast<Eigen::Index>(std::min<std::size_t>(static_cast<std::size_t>(chunk), n - begin));
+    const auto used = static_cast<Eigen::Index>(
+        std::min<std::size_t>(static_cast<std::size_t>(chunk), n - begin));
     for (Eigen::Index q = 0; q < used; ++q) {
       const std::size_t i = e.at(begin + static_cast<std::size_t>(q));
       const double w = weighted_rows ? values.weight(i) : 1.0;

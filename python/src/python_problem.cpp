@@ -127,8 +127,8 @@ std::vector<VariableId> PythonProblem::ids(const py::handle& variables, const st
   std::vector<VariableId> out(static_cast<std::size_t>(values.size()));
   for (std::size_t k = 0; k < out.size(); ++k) {
     const std::int64_t raw = values.data()[k];
-    out[k] = id(raw < 0 || raw > std::numeric_limits<int>::max() ? -1 : static_cast<int>(raw),
-                what);
+    out[k] =
+        id(raw < 0 || raw > std::numeric_limits<int>::max() ? -1 : static_cast<int>(raw), what);
   }
   return out;
 }
@@ -212,8 +212,8 @@ int PythonProblem::add_relative_pose(int i, int j, const py::handle& T_i_j,
     }
   }
   const se3::Matrix6d info = information_argument(information, 6, "add_relative_pose information");
-  auto block = std::make_shared<RelativePoseBlock>(pose_from_array(T_i_j, "add_relative_pose T_i_j"),
-                                                   info);
+  auto block =
+      std::make_shared<RelativePoseBlock>(pose_from_array(T_i_j, "add_relative_pose T_i_j"), info);
   return problem_
       .add_residual_block(block, {vi, vj}, loss_argument(loss, loss_scale, "add_relative_pose"))
       .index;
@@ -227,8 +227,8 @@ int PythonProblem::add_relative_pose_se2(int i, int j, const py::handle& T_i_j,
   const VariableId vj = id(j, "add_relative_pose_se2");
   for (VariableId v : {vi, vj}) {
     if (kind(v) != VariableKind::kSE2) {
-      throw py::value_error("add_relative_pose_se2: variable " + std::to_string(v.index) +
-                            " is " + problem_.manifold(v).name() + "; expected an SE(2) variable");
+      throw py::value_error("add_relative_pose_se2: variable " + std::to_string(v.index) + " is " +
+                            problem_.manifold(v).name() + "; expected an SE(2) variable");
     }
   }
   const Eigen::Matrix3d info =
@@ -236,8 +236,7 @@ int PythonProblem::add_relative_pose_se2(int i, int j, const py::handle& T_i_j,
   auto block = std::make_shared<RelativePoseSE2Block>(
       pose2_from_array(T_i_j, "add_relative_pose_se2 T_i_j"), info);
   return problem_
-      .add_residual_block(block, {vi, vj},
-                          loss_argument(loss, loss_scale, "add_relative_pose_se2"))
+      .add_residual_block(block, {vi, vj}, loss_argument(loss, loss_scale, "add_relative_pose_se2"))
       .index;
 }
 
@@ -280,8 +279,8 @@ py::array_t<int> PythonProblem::add_bal_observations(const py::handle& cameras,
     const VariableId v{static_cast<int>(variable)};
     if (kind(v) != VariableKind::kEuclidean || problem_.manifold(v).ambient_size() != size) {
       throw py::value_error(std::string("add_bal_observations: ") + what + " " +
-                            std::to_string(variable) + " is not euclidean(" +
-                            std::to_string(size) + ")");
+                            std::to_string(variable) + " is not euclidean(" + std::to_string(size) +
+                            ")");
     }
     return v;
   };

@@ -61,9 +61,8 @@ class PythonProblem {
   int add_relative_pose(int i, int j, const py::handle& T_i_j, const py::handle& information,
                         const std::string& loss, double loss_scale);
   /// RelativePoseSE2Block between SE(2) variables i and j.
-  int add_relative_pose_se2(int i, int j, const py::handle& T_i_j,
-                            const py::handle& information, const std::string& loss,
-                            double loss_scale);
+  int add_relative_pose_se2(int i, int j, const py::handle& T_i_j, const py::handle& information,
+                            const std::string& loss, double loss_scale);
   /// PosePriorBlock on an SE(3) variable.
   int add_pose_prior(int variable, const py::handle& T_world_prior, const py::handle& information,
                      const std::string& loss, double loss_scale);

@@ -192,6 +192,34 @@ void check_inputs(std::size_t frames, std::span<const FramePair> pairs,
   }
 }
 
+/// Throws unless the pairs tie every frame to frame 0 (the gauge, held constant): a frame or a
+/// group of frames that no pair links to it would keep its start pose while the solve reports
+/// convergence.
+void check_connected(std::size_t frames, std::span<const FramePair> pairs) {
+  std::vector<std::size_t> parent(frames);
+  std::iota(parent.begin(), parent.end(), std::size_t{0});
+  const auto find = [&](std::size_t i) {
+    while (parent[i] != i) i = parent[i] = parent[parent[i]];
+    return i;
+  };
+  for (const FramePair& pair : pairs) {
+    parent[find(static_cast<std::size_t>(pair.target))] =
+        find(static_cast<std::size_t>(pair.source));
+  }
+  std::size_t loose = 0, example = 0;
+  for (std::size_t i = frames; i-- > 1;) {
+    if (find(i) == find(0)) continue;
+    ++loose;
+    example = i;
+  }
+  if (loose > 0) {
+    throw Error("global registration: " + std::to_string(loose) + " of " + std::to_string(frames) +
+                " frames are tied to frame 0 by no chain of pairs (e.g. frame " +
+                std::to_string(example) + "; " + std::to_string(pairs.size()) +
+                " pairs given), so their poses are undetermined; add pairs that link them");
+  }
+}
+
 /// One factor: correspondences at the initial relative pose, the full block, its kept form.
 RegistrationFactor build_factor(const Frame& target, const Frame& source, const FramePair& pair,
                                 std::size_t k, const Eigen::Isometry3d& T_world_target,
@@ -312,6 +340,7 @@ RegistrationProblem assemble_registration_problem(std::span<const FramePair> pai
                                                   double build_s) {
   check_options(options);
   check_inputs(T_world_frame.size(), pairs, T_world_frame);
+  check_connected(T_world_frame.size(), pairs);
   if (factors.size() != pairs.size()) {
     throw Error("global registration: " + std::to_string(factors.size()) + " factors for " +
                 std::to_string(pairs.size()) + " pairs");
@@ -372,6 +401,7 @@ FrameStore checked_store(std::span<const std::shared_ptr<const Frame>> frames,
                          const GlobalRegistrationOptions& options) {
   check_options(options);
   check_inputs(frames.size(), pairs, T_world_frame);
+  check_connected(frames.size(), pairs);
   for (std::size_t i = 0; i < frames.size(); ++i) {
     if (!frames[i]) throw Error("global registration: frame " + std::to_string(i) + " is null");
     check_frame(*frames[i], i);
@@ -425,6 +455,8 @@ GlobalRegistrationResult optimize_registration(const RegistrationFactorBuilder& 
                                                const GlobalRegistrationOptions& options) {
   if (options.rounds < 1)
     throw Error("global registration: rounds must be >= 1, got " + std::to_string(options.rounds));
+  check_inputs(T_world_frame.size(), pairs, T_world_frame);
+  check_connected(T_world_frame.size(), pairs);
   GlobalRegistrationResult out;
   out.T_world_frame.assign(T_world_frame.begin(), T_world_frame.end());
   SolverOptions solver = options.solver;

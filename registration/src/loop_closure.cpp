@@ -252,6 +252,7 @@ std::vector<LoopCheck> validate_loop_candidates(FrameStore& frames,
       r.num_correspondences = chosen.num_correspondences;
       r.iterations = chosen.iterations;
       r.converged = chosen.converged;
+      r.constrained_dof = chosen.constrained_dof;
       if (chosen.constrained_dof < 6) {
         check.verdict = LoopVerdict::kDegenerate;
       } else if (check.inlier_fraction < options.min_inlier_fraction) {

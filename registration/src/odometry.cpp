@@ -6,6 +6,31 @@
 
 namespace carat {
 
+std::size_t OdometryResult::unreliable_steps() const {
+  std::size_t count = 0;
+  for (const PairRegistration& step : steps) count += step.reliable() ? 0 : 1;
+  return count;
+}
+
+std::string OdometryResult::describe_unreliable_steps(
+    std::span<const std::shared_ptr<const Frame>> frames, std::size_t limit) const {
+  const auto name = [&](int k) {
+    const auto i = static_cast<std::size_t>(k);
+    return i < frames.size() && frames[i] && !frames[i]->name().empty() ? frames[i]->name()
+                                                                        : std::to_string(k);
+  };
+  std::string text;
+  std::size_t listed = 0;
+  for (const PairRegistration& step : steps) {
+    if (step.reliable()) continue;
+    if (listed++ == limit) continue;
+    if (!text.empty()) text += "; ";
+    text += name(step.pair.target) + " -> " + name(step.pair.source) + " " + step.problem();
+  }
+  if (listed > limit) text += "; and " + std::to_string(listed - limit) + " more";
+  return text;
+}
+
 OdometryResult run_odometry(std::span<const std::shared_ptr<const Frame>> frames,
                             std::span<const Eigen::Isometry3d> T_world_guess,
                             const AlignSettings& settings, int num_threads,
@@ -57,6 +82,7 @@ OdometryResult run_scan_odometry(std::span<const std::shared_ptr<const Frame>> f
     step.num_correspondences = result.num_correspondences;
     step.iterations = result.iterations;
     step.converged = result.converged;
+    step.constrained_dof = result.constrained_dof;
     out.steps.push_back(step);
     out.T_world_frame.push_back(out.T_world_frame.back() * result.T_target_source);
     motion = result.T_target_source;

@@ -14,6 +14,15 @@
 
 namespace carat {
 
+std::string PairRegistration::problem() const {
+  if (!converged) return "did not converge";
+  if (constrained_dof < 6) {
+    return "fixes only " + std::to_string(constrained_dof) +
+           " of 6 degrees of freedom (a degenerate scene, e.g. a single plane)";
+  }
+  return {};
+}
+
 std::vector<PairRegistration> register_pairs(
     std::span<const std::shared_ptr<const Frame>> frames, std::span<const FramePair> pairs,
     std::span<const Eigen::Isometry3d> T_world_frame, const AlignSettings& settings,
@@ -74,6 +83,7 @@ std::vector<PairRegistration> register_pairs(
     r.num_correspondences = result.num_correspondences;
     r.iterations = result.iterations;
     r.converged = result.converged;
+    r.constrained_dof = result.constrained_dof;
     r.align_s = align_time.elapsed_s();
     if (progress) progress(done.fetch_add(1) + 1, pairs.size());
   };

@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <memory>
+#include <numeric>
 #include <string>
 
 #include "carat/base/error.hpp"
@@ -49,6 +50,43 @@ PoseGraphBaselineResult optimize_pose_graph_baseline(
     throw Error("pose graph: cauchy_scale must be finite and >= 0 (0: no kernel), got " +
                 std::to_string(options.cauchy_scale));
   }
+  // A frame whose pose rests on registrations that did not converge alone (no chain of converged
+  // ones ties it to frame 0) would land where they put it, with CONVERGENCE reported.
+  const std::size_t n = T_world_initial.size();
+  std::vector<std::size_t> parent(n);
+  std::iota(parent.begin(), parent.end(), std::size_t{0});
+  const auto find = [&](std::size_t i) {
+    while (parent[i] != i) i = parent[i] = parent[parent[i]];
+    return i;
+  };
+  std::size_t unconverged = 0;
+  std::string named;
+  for (const PairRegistration& r : registrations) {
+    const auto i = static_cast<std::size_t>(r.pair.target),
+               j = static_cast<std::size_t>(r.pair.source);
+    if (i >= n || j >= n) continue;  // build_pose_graph_problem() names the missing frame
+    if (r.converged) {
+      parent[find(i)] = find(j);
+    } else if (unconverged++ < 5) {
+      named += (named.empty() ? "" : ", ") + std::string("(") + std::to_string(i) + ", " +
+               std::to_string(j) + ")";
+    }
+  }
+  std::size_t loose = 0, example = 0;
+  for (std::size_t i = n; i-- > 1;) {
+    if (find(i) == find(0)) continue;
+    ++loose;
+    example = i;
+  }
+  if (unconverged > 0 && loose > 0) {
+    throw Error("pose graph: " + std::to_string(loose) + " frames (e.g. frame " +
+                std::to_string(example) +
+                ") are tied to frame 0 only through pair registrations that did not converge from "
+                "the initial poses (" +
+                std::to_string(unconverged) + " of " + std::to_string(registrations.size()) + ": " +
+                named + (unconverged > 5 ? ", ..." : "") +
+                "), so the graph would put them where those put them; start closer to the truth");
+  }
   PoseGraph graph;
   for (std::size_t i = 0; i < T_world_initial.size(); ++i)
     graph.vertices.push_back({static_cast<std::int64_t>(i), T_world_initial[i]});
@@ -67,6 +105,7 @@ PoseGraphBaselineResult optimize_pose_graph_baseline(
     problem_options.loss = std::make_shared<CauchyLoss>(options.cauchy_scale);
   PoseGraphProblem built = build_pose_graph_problem(graph, problem_options);
   PoseGraphBaselineResult out;
+  out.unconverged_pairs = unconverged;
   out.summary = solve(options.solver, built.problem);
   if (!out.summary.is_solution_usable())
     throw Error("pose-graph optimization failed: " + out.summary.message);

@@ -10,6 +10,8 @@
 
 #include "carat/base/error.hpp"
 #include "carat/residuals/pose_graph.hpp"
+#include "carat/solver/se2.hpp"
+#include "carat/solver/se3.hpp"
 
 namespace carat {
 
@@ -50,6 +52,15 @@ void check_anchored(const Graph& graph, const PoseGraphProblem& built) {
   }
 }
 
+/// What keeps a measurement or pose from being rigid, or nullptr (either dimension).
+inline const char* rigid_problem_of(const Eigen::Isometry3d& T) {
+  return se3::rigid_transform_problem(T);
+}
+/// What keeps a measurement or pose from being rigid, or nullptr (either dimension).
+inline const char* rigid_problem_of(const Eigen::Isometry2d& T) {
+  return se2::rigid_transform_problem(T);
+}
+
 /// Builds the problem of `graph`: add_vertex(problem, vertex) adds a vertex's variable,
 /// make_block(edge) makes an edge's residual block.
 template <typename Graph, typename AddVertex, typename MakeBlock>
@@ -58,6 +69,9 @@ PoseGraphProblem build_graph_problem(const Graph& graph, const PoseGraphProblemO
   PoseGraphProblem out;
   std::unordered_map<std::int64_t, VariableId> by_id;
   for (const auto& vertex : graph.vertices) {
+    if (const char* problem = rigid_problem_of(vertex.T_world_vertex)) {
+      throw Error("pose graph: vertex " + std::to_string(vertex.id) + ": the pose " + problem);
+    }
     const VariableId v = add_vertex(out.problem, vertex);
     if (!by_id.emplace(vertex.id, v).second) {
       throw Error("pose graph: vertex id " + std::to_string(vertex.id) + " appears twice");
@@ -72,6 +86,10 @@ PoseGraphProblem build_graph_problem(const Graph& graph, const PoseGraphProblemO
       throw Error("pose graph: edge " + std::to_string(e) + " (" + std::to_string(edge.from) +
                   " -> " + std::to_string(edge.to) + ") names a missing vertex " +
                   std::to_string(from == by_id.end() ? edge.from : edge.to));
+    }
+    if (const char* problem = rigid_problem_of(edge.T_from_to)) {
+      throw Error("pose graph: edge " + std::to_string(e) + " (" + std::to_string(edge.from) +
+                  " -> " + std::to_string(edge.to) + "): the measurement " + problem);
     }
     if (edge.from == edge.to) {
       throw Error("pose graph: edge " + std::to_string(e) + " joins vertex " +

@@ -20,6 +20,12 @@ constexpr double kRingRadius = 10.0;       // metres
 constexpr double kStreetSpacing = 1.0;     // metres between street cameras
 constexpr double kCentralRadius = 4.0;     // ring: cylinder radius of the points, metres
 constexpr double kRandomBallRadius = 3.0;  // random: ball radius of the points, metres
+// Street: cameras stand 1.6 +- 0.1 m high and look at a target (+-1, 9, 0.5..2.5) m away;
+// facade points lie 8-10 m across the street, 0-8 m high, and at most 2 m beyond the outermost
+// observer along it. A point d metres along the street from a camera is at least
+// (-d + 9 * 8 - 2.5 * 1.7) / |(1, 9, 2.5)| in front of it, more than the 1 m needed while
+// d < 72 - 4.25 - 9.39 = 58.36: k consecutive observers keep every point within k + 1 m.
+constexpr int kMaxStreetObservers = 57;
 
 /// A uniform integer in [0, n) (n >= 1); the rounding bias is below 2^-40 for carat's sizes.
 int uniform_index(Random& random, int n) {
@@ -73,6 +79,12 @@ void check_options(const BalSimulationOptions& o) {
   if (o.observations_per_point < 2 || o.observations_per_point > o.cameras) {
     fail("observations_per_point must be in [2, cameras = " + std::to_string(o.cameras) +
          "], got " + std::to_string(o.observations_per_point));
+  }
+  if (o.observations_per_point > max_observations_per_point(o.layout, o.cameras)) {
+    fail("observations_per_point must be at most " +
+         std::to_string(max_observations_per_point(o.layout, o.cameras)) + " for the " +
+         to_string(o.layout) + " layout (no facade point is in front of more consecutive " +
+         "cameras), got " + std::to_string(o.observations_per_point));
   }
   if (static_cast<std::int64_t>(o.points) * o.observations_per_point >
       std::numeric_limits<int>::max()) {
@@ -224,6 +236,10 @@ BalLayout parse_bal_layout(std::string_view name) {
     if (name == to_string(layout)) return layout;
   }
   throw Error("unknown BAL layout " + quote_bytes(name) + " (valid: ring, street, random)");
+}
+
+int max_observations_per_point(BalLayout layout, int cameras) {
+  return layout == BalLayout::kStreet ? std::min(cameras, kMaxStreetObservers) : cameras;
 }
 
 BalScene simulate_bal(const BalSimulationOptions& o) {

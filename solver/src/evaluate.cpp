@@ -9,6 +9,16 @@
 #include <vector>
 
 namespace carat {
+namespace {
+
+/// Pointers to the values of a block's variables, in the block's order.
+std::vector<const double*> values_of(const Problem& problem, const Problem::BlockEntry& entry) {
+  std::vector<const double*> params;
+  for (VariableId v : entry.variables) params.push_back(problem.value(v).data());
+  return params;
+}
+
+}  // namespace
 
 ProblemEvaluation evaluate_problem(const Problem& problem, int num_threads) {
   ProblemEvaluation out;
@@ -27,8 +37,7 @@ ProblemEvaluation evaluate_problem(const Problem& problem, int num_threads) {
   arena.execute([&] {
     tbb::parallel_for(std::size_t{0}, blocks.size(), [&](std::size_t i) {
       const auto& entry = blocks[i];
-      std::vector<const double*> params;
-      for (VariableId v : entry.variables) params.push_back(problem.value(v).data());
+      const std::vector<const double*> params = values_of(problem, entry);
       const int r = entry.block->reduced_dim();
       const int D = entry.block->tangent_dim();
       Eigen::MatrixXd H = Eigen::MatrixXd::Zero(r, r);
@@ -73,9 +82,7 @@ double evaluate_cost(const Problem& problem, int num_threads) {
   arena.execute([&] {
     tbb::parallel_for(std::size_t{0}, blocks.size(), [&](std::size_t i) {
       const auto& entry = blocks[i];
-      std::vector<const double*> params;
-      for (VariableId v : entry.variables) params.push_back(problem.value(v).data());
-      const double sq = entry.block->squared_norm(params);
+      const double sq = entry.block->squared_norm(values_of(problem, entry));
       cost[i] = 0.5 * (entry.loss ? entry.loss->evaluate(sq).rho : sq);
     });
   });

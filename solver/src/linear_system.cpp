@@ -1,15 +1,22 @@
 #include "linear_system.hpp"
 
+#include <algorithm>
 #include <map>
 #include <string>
 
 #include "carat/base/error.hpp"
+#include "carat/base/machine_memory.hpp"
 #include "carat/base/stopwatch.hpp"
 #include "schur_system.hpp"
 #include "sparse_system.hpp"
+#include "system_memory.hpp"
 
 namespace carat::internal {
 namespace {
+
+/// kAuto keeps the Schur complement while its estimate is at most this many times the whole
+/// system's: it is usually the faster of the two when both fit (bundle adjustment).
+constexpr double kSchurMemoryMargin = 2.0;
 
 /// The free variables marked eliminable; throws if a block connects two of them.
 std::vector<char> marked_group(const Problem& problem) {
@@ -90,34 +97,85 @@ bool LinearSystem::linearize(const BlockEvaluator& evaluator, int which, Eigen::
   return true;
 }
 
+namespace {
+
+/// The memory the linear system may take: the option, else 80 % of what the machine has.
+double memory_cap(const SolverOptions& options) {
+  if (options.max_linear_system_bytes > 0.0) return options.max_linear_system_bytes;
+  return 0.8 * static_cast<double>(available_memory_bytes());
+}
+
+}  // namespace
+
 std::unique_ptr<LinearSystem> make_linear_system(const Problem& problem,
                                                  const SolverOptions& options) {
+  const double cap = memory_cap(options);
+  const std::string limit = format_bytes(cap) +
+                            " may be used (SolverOptions::max_linear_system_bytes, or 80 % of "
+                            "the memory available)";
+  // Whether the whole system fits: a dense factor's size when even that fits, else the estimate.
+  const auto whole_bytes = [&] {
+    const double bound = whole_system_bound(problem);
+    return bound <= cap ? bound : whole_system_bytes(problem, cap);
+  };
+  const auto refuse = [&](const std::string& what, double bytes, const std::string& other) {
+    throw Error("linear solver: " + what + " needs about " + format_bytes(bytes) +
+                " (matrix and factor); " + limit + other);
+  };
   if (options.linear_solver == LinearSolver::kCholesky) {
+    const double bytes = whole_bytes();
+    if (bytes > cap) refuse("sparse Cholesky of the whole system", bytes, "");
     return std::make_unique<SparseSystem>(problem, options.ordering);
   }
-  if (problem.has_eliminable()) {
-    return std::make_unique<SchurSystem>(problem, marked_group(problem), options.ordering);
-  }
+  std::vector<char> eliminate;
   int group_dims = 0;
-  std::vector<char> eliminate = detected_group(problem, &group_dims);
+  if (problem.has_eliminable()) {
+    eliminate = marked_group(problem);
+  } else {
+    eliminate = detected_group(problem, &group_dims);
+  }
   int total_dims = 0;
   for (int v = 0; v < problem.num_variables(); ++v) {
     const VariableId id{v};
     if (!problem.is_constant(id)) total_dims += problem.manifold(id).tangent_size();
   }
   if (options.linear_solver == LinearSolver::kSchur) {
-    if (group_dims == 0) {
+    if (!problem.has_eliminable() && group_dims == 0) {
       throw Error(
           "linear solver schur: no variables to eliminate (mark them with "
           "Problem::set_eliminable(); every group of free variables of one tangent size has a "
           "residual block connecting two of its members)");
     }
+    const double bytes = schur_system_bytes(problem, eliminate, cap).bytes;
+    if (bytes > cap) refuse("the Schur complement", bytes, "; try the whole system (cholesky)");
     return std::make_unique<SchurSystem>(problem, eliminate, options.ordering);
   }
-  // Auto: eliminate when the group is most of the system and something is left to reduce to.
-  if (group_dims > 0 && 2 * group_dims > total_dims && group_dims < total_dims) {
-    return std::make_unique<SchurSystem>(problem, eliminate, options.ordering);
+  // Auto: the Schur complement when a group can be eliminated (marked, or most of the system)
+  // and it fits in at most kSchurMemoryMargin times the whole system's memory. A reduced system
+  // made dense by points that most cameras share can take far more than the whole system, which
+  // then is the one to factorize.
+  const bool schur_candidate =
+      problem.has_eliminable() ||
+      (group_dims > 0 && 2 * group_dims > total_dims && group_dims < total_dims);
+  if (schur_candidate) {
+    const SchurMemory schur = schur_system_bytes(problem, eliminate, cap);
+    // The whole system's own estimate is needed only when its lower bound does not settle it.
+    if (schur.bytes <= cap && schur.bytes <= kSchurMemoryMargin * schur.whole_lower_bound) {
+      return std::make_unique<SchurSystem>(problem, eliminate, options.ordering);
+    }
+    const double whole = whole_system_bytes(problem, cap);
+    if (schur.bytes <= cap && (schur.bytes <= kSchurMemoryMargin * whole || whole > cap)) {
+      return std::make_unique<SchurSystem>(problem, eliminate, options.ordering);
+    }
+    if (whole > cap) {
+      throw Error("linear solver auto: neither system fits: the Schur complement needs about " +
+                  format_bytes(schur.bytes) + " and sparse Cholesky of the whole system about " +
+                  format_bytes(whole) + " (matrix and factor); " + limit);
+    }
+    return std::make_unique<SparseSystem>(problem, options.ordering);
   }
+  const double whole = whole_bytes();
+  if (whole > cap) refuse("sparse Cholesky of the whole system", whole, "");
   return std::make_unique<SparseSystem>(problem, options.ordering);
 }
 

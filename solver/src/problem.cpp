@@ -38,12 +38,20 @@ VariableId Problem::add_variable(std::shared_ptr<const Manifold> manifold,
 }
 
 VariableId Problem::add_se3(const Eigen::Isometry3d& T_world_body) {
+  if (const char* problem = se3::rigid_transform_problem(T_world_body)) {
+    throw Error("Problem::add_se3 (variable " + std::to_string(num_variables()) +
+                "): T_world_body " + problem);
+  }
   double storage[7];
   se3::to_storage(T_world_body, storage);
   return add_variable(se3_manifold(), storage);
 }
 
 VariableId Problem::add_se2(const Eigen::Isometry2d& T_world_body) {
+  if (const char* problem = se2::rigid_transform_problem(T_world_body)) {
+    throw Error("Problem::add_se2 (variable " + std::to_string(num_variables()) +
+                "): T_world_body " + problem);
+  }
   double storage[3];
   se2::to_storage(T_world_body, storage);
   return add_variable(se2_manifold(), storage);
@@ -264,47 +272,38 @@ std::size_t Problem::bound_index(VariableId id, int coordinate, const char* who)
 }
 
 void Problem::set_lower_bound(VariableId id, int coordinate, double lower) {
-  const std::size_t k = bound_index(id, coordinate, "Problem::set_lower_bound");
-  const std::string where = "Problem::set_lower_bound: variable " + std::to_string(id.index) +
-                            ", coordinate " + std::to_string(coordinate);
-  if (std::isnan(lower) || lower == std::numeric_limits<double>::infinity()) {
-    throw Error(where + ": the bound " + message_number(lower) + " is not a number below +inf");
-  }
-  if (!upper_.empty() && lower > upper_[k]) {
-    throw Error(where + ": the lower bound " + message_number(lower) +
-                " is above the upper bound " + message_number(upper_[k]));
-  }
-  if (values_[k] < lower) {
-    throw Error(where + ": the value " + message_number(values_[k]) + " is below the bound " +
-                message_number(lower));
-  }
-  if (lower_.empty()) {
-    lower_.assign(values_.size(), -std::numeric_limits<double>::infinity());
-    upper_.assign(values_.size(), std::numeric_limits<double>::infinity());
-  }
-  lower_[k] = lower;
+  set_bound(id, coordinate, lower, true);
 }
 
 void Problem::set_upper_bound(VariableId id, int coordinate, double upper) {
-  const std::size_t k = bound_index(id, coordinate, "Problem::set_upper_bound");
-  const std::string where = "Problem::set_upper_bound: variable " + std::to_string(id.index) +
+  set_bound(id, coordinate, upper, false);
+}
+
+void Problem::set_bound(VariableId id, int coordinate, double bound, bool lower) {
+  const char* who = lower ? "Problem::set_lower_bound" : "Problem::set_upper_bound";
+  const std::size_t k = bound_index(id, coordinate, who);
+  const std::string where = std::string(who) + ": variable " + std::to_string(id.index) +
                             ", coordinate " + std::to_string(coordinate);
-  if (std::isnan(upper) || upper == -std::numeric_limits<double>::infinity()) {
-    throw Error(where + ": the bound " + message_number(upper) + " is not a number above -inf");
+  const double inf = std::numeric_limits<double>::infinity();
+  if (std::isnan(bound) || bound == (lower ? inf : -inf)) {
+    throw Error(where + ": the bound " + message_number(bound) + " is not a number " +
+                (lower ? "below +inf" : "above -inf"));
   }
-  if (!lower_.empty() && upper < lower_[k]) {
-    throw Error(where + ": the upper bound " + message_number(upper) +
-                " is below the lower bound " + message_number(lower_[k]));
+  const double other = lower_.empty() ? (lower ? inf : -inf) : (lower ? upper_[k] : lower_[k]);
+  if (lower ? bound > other : bound < other) {
+    throw Error(where + ": the " + (lower ? "lower" : "upper") + " bound " + message_number(bound) +
+                " is " + (lower ? "above" : "below") + " the " + (lower ? "upper" : "lower") +
+                " bound " + message_number(other));
   }
-  if (values_[k] > upper) {
-    throw Error(where + ": the value " + message_number(values_[k]) + " is above the bound " +
-                message_number(upper));
+  if (lower ? values_[k] < bound : values_[k] > bound) {
+    throw Error(where + ": the value " + message_number(values_[k]) + " is " +
+                (lower ? "below" : "above") + " the bound " + message_number(bound));
   }
   if (lower_.empty()) {
-    lower_.assign(values_.size(), -std::numeric_limits<double>::infinity());
-    upper_.assign(values_.size(), std::numeric_limits<double>::infinity());
+    lower_.assign(values_.size(), -inf);
+    upper_.assign(values_.size(), inf);
   }
-  upper_[k] = upper;
+  (lower ? lower_ : upper_)[k] = bound;
 }
 
 double Problem::lower_bound(VariableId id, int coordinate) const {

@@ -98,32 +98,11 @@ void evaluate_rows_checked(const ResidualBlock& block, ParameterPointers params,
                            std::span<const int> rows, double* residuals, double* jacobian) {
   const auto count = rows.size();
   const auto r = static_cast<std::size_t>(block.reduced_dim());
-  // Room for every row the block has (a careless block writes them all): per-thread scratch
-  // for small blocks, else allocated without being touched, so that only the pages a block
-  // writes cost memory. A block's evaluate_rows() may itself call this (compressed rows of
-  // compressed rows): the flag keeps a nested call off the scratch in use.
+  // Room for every row the block has (a careless block writes them all), allocated without
+  // being touched, so that only the pages a block writes cost memory.
   const std::size_t capacity = std::max(count + 1, static_cast<std::size_t>(block.num_rows()));
-  constexpr std::size_t kReusedDoubles = std::size_t{1} << 15;
-  thread_local std::vector<double> reused;
-  thread_local bool in_use = false;
-  const std::size_t needed = capacity * (jacobian ? r + 1 : 1);
-  const bool reuse = !in_use && needed <= kReusedDoubles;
-  std::unique_ptr<double[]> fresh;
-  double* scratch = nullptr;
-  if (reuse) {
-    if (reused.size() < needed) reused.resize(kReusedDoubles);
-    scratch = reused.data();
-  } else {
-    fresh.reset(new double[needed]);
-    scratch = fresh.get();
-  }
-  struct Claim {
-    bool* flag;
-    ~Claim() {
-      if (flag) *flag = false;
-    }
-  } claim{reuse ? &in_use : nullptr};
-  if (reuse) in_use = true;
+  const std::unique_ptr<double[]> storage(new double[capacity * (jacobian ? r + 1 : 1)]);
+  double* const scratch = storage.get();
   double* const e = scratch;
   double* const J = jacobian ? scratch + capacity : nullptr;
   std::fill_n(e, count + 1, guard_value());

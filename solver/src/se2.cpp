@@ -3,6 +3,8 @@
 #include <cmath>
 #include <numbers>
 
+#include "rigid_check.hpp"
+
 namespace carat::se2 {
 namespace {
 
@@ -100,6 +102,10 @@ Eigen::Isometry2d make(double x, double y, double theta) {
   T.linear() = Eigen::Rotation2Dd(theta).toRotationMatrix();
   T.translation() = Eigen::Vector2d(x, y);
   return T;
+}
+
+const char* rigid_transform_problem(const Eigen::Isometry2d& T) {
+  return internal::rigid_problem(T);
 }
 
 }  // namespace carat::se2

@@ -1,6 +1,7 @@
 #include "carat/solver/se3.hpp"
 
 #include "carat/solver/so3.hpp"
+#include "rigid_check.hpp"
 
 namespace carat::se3 {
 
@@ -52,6 +53,10 @@ Eigen::Isometry3d make(const Eigen::Quaterniond& q, const Eigen::Vector3d& t) {
   T.linear() = q.normalized().toRotationMatrix();
   T.translation() = t;
   return T;
+}
+
+const char* rigid_transform_problem(const Eigen::Isometry3d& T) {
+  return internal::rigid_problem(T);
 }
 
 }  // namespace carat::se3

@@ -82,7 +82,8 @@ bool SolverOptions::validate(std::string* error) const {
                       {"parameter_tolerance", parameter_tolerance},
                       {"min_relative_decrease", min_relative_decrease},
                       {"min_trust_region_radius", min_trust_region_radius},
-                      {"min_lm_diagonal", min_lm_diagonal}};
+                      {"min_lm_diagonal", min_lm_diagonal},
+                      {"max_linear_system_bytes", max_linear_system_bytes}};
   for (const auto& item : non_negative) {
     if (!(item.value >= 0.0) || !std::isfinite(item.value)) {
       return fail(error, std::string(item.name) + " must be finite and >= 0, got " +

@@ -1,8 +1,10 @@
 #include "carat/registration/io/scan_folder.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <charconv>
 #include <map>
+#include <numeric>
 #include <system_error>
 
 #include "carat/base/error.hpp"
@@ -57,12 +59,37 @@ bool natural_less(std::string_view a, std::string_view b) {
   return a.size() - i < b.size() - j;
 }
 
+bool is_frame_file_name(std::string_view name) {
+  const auto dot = name.rfind('.');
+  if (dot == std::string_view::npos || dot == 0) return false;
+  const std::string_view ext = name.substr(dot);
+  return ext == ".bin" || ext == ".pcd" || ext == ".ply";
+}
+
+bool looks_like_frame_name(std::string_view name) {
+  std::string folded;
+  for (const char c : name)
+    folded += static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  // Trailing blanks and editor backups ("x.bin ", "x.bin~") hide the extension.
+  while (!folded.empty() &&
+         (std::isspace(static_cast<unsigned char>(folded.back())) != 0 || folded.back() == '~')) {
+    folded.pop_back();
+  }
+  if (is_frame_file_name(folded)) return true;
+  // A frame extension before another one: compressed, renamed or partial ("x.bin.gz").
+  const auto last = folded.rfind('.');
+  return last != std::string::npos && last > 0 && is_frame_file_name(folded.substr(0, last));
+}
+
 std::vector<ScanFile> list_scan_folder(const fs::path& dir, BinLayout layout) {
   std::error_code ec;
   if (!fs::is_directory(dir, ec)) throw Error(dir.string() + ": not a folder of frames");
   std::vector<ScanFile> flat, nested;
+  std::vector<fs::path> folders_without_points;
   fs::directory_iterator it(dir, ec);
   if (ec) throw Error(dir.string() + ": cannot list the folder: " + ec.message());
+  const std::string hide =
+      "; move it out of the folder or hide it (a name starting with '.') to run without it";
   for (const auto& entry : it) {
     const fs::path& p = entry.path();
     const std::string file = p.filename().string();
@@ -77,13 +104,32 @@ std::vector<ScanFile> list_scan_folder(const fs::path& dir, BinLayout layout) {
       nested.push_back({p / "points.bin", file, KittiFormat::kXyz});
       continue;
     }
-    const std::string ext = p.extension().string();
-    if (ext != ".bin" && ext != ".pcd" && ext != ".ply") continue;
-    if (is_dir) continue;
+    if (is_dir) {
+      // Skipping an entry named like a frame would pair every later frame with the wrong pose.
+      if (looks_like_frame_name(file)) {
+        throw Error(p.string() + ": is a directory named like a frame file" + hide);
+      }
+      folders_without_points.push_back(p);
+      continue;
+    }
+    if (!is_frame_file_name(file)) {
+      if (looks_like_frame_name(file)) {
+        throw Error(p.string() +
+                    ": is named like a frame, but frames are read only from *.bin, *.pcd and "
+                    "*.ply (lower case)" +
+                    hide);
+      }
+      continue;
+    }
     if (!entry.is_regular_file(status_ec)) {
       throw Error(p.string() + ": is not a regular file (frames are read from regular files)");
     }
     flat.push_back({p, p.stem().string(), KittiFormat::kXyzi});
+  }
+  if (!nested.empty() && !folders_without_points.empty()) {
+    std::sort(folders_without_points.begin(), folders_without_points.end());
+    throw Error(folders_without_points.front().string() +
+                ": a folder without points.bin among <frame>/points.bin frames" + hide);
   }
   if (!flat.empty() && !nested.empty()) {
     throw Error(dir.string() +
@@ -109,6 +155,39 @@ PointCloud read_scan(const ScanFile& scan, const ReadOptions& options) {
   return read_point_cloud(scan.path, scan.bin_format, options);
 }
 
+namespace {
+
+/// The scans' names as numbers when every name is a decimal number below 2^64 and no two are
+/// equal; else empty.
+std::vector<std::uint64_t> distinct_name_numbers(const std::vector<ScanFile>& scans) {
+  std::vector<std::uint64_t> numbers;
+  for (const ScanFile& scan : scans) {
+    std::uint64_t number = 0;
+    const std::string& name = scan.name;
+    const auto [ptr, ec] = std::from_chars(name.data(), name.data() + name.size(), number);
+    if (name.empty() || name[0] < '0' || name[0] > '9' || ec != std::errc() ||
+        ptr != name.data() + name.size()) {
+      return {};
+    }
+    numbers.push_back(number);
+  }
+  std::vector<std::uint64_t> sorted = numbers;
+  std::sort(sorted.begin(), sorted.end());
+  if (std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end()) return {};
+  return numbers;
+}
+
+}  // namespace
+
+std::vector<std::uint64_t> scan_graph_ids(const std::vector<ScanFile>& scans) {
+  std::vector<std::uint64_t> ids = distinct_name_numbers(scans);
+  if (ids.empty()) {
+    ids.resize(scans.size());
+    std::iota(ids.begin(), ids.end(), std::uint64_t{0});
+  }
+  return ids;
+}
+
 Trajectory poses_in_scan_order(const Trajectory& trajectory, TrajectoryFormat format,
                                const std::vector<ScanFile>& scans, const std::string& poses_name) {
   if (trajectory.poses.size() != scans.size()) {
@@ -119,42 +198,25 @@ Trajectory poses_in_scan_order(const Trajectory& trajectory, TrajectoryFormat fo
   }
   if (format != TrajectoryFormat::kGraph) return trajectory;
   std::map<std::uint64_t, std::size_t> by_id;
-  for (std::size_t k = 0; k < trajectory.stamps.size(); ++k) {
-    by_id.emplace(static_cast<std::uint64_t>(trajectory.stamps[k]), k);
+  for (std::size_t k = 0; k < trajectory.poses.size(); ++k) {
+    by_id.emplace(trajectory.ids.empty() ? static_cast<std::uint64_t>(trajectory.stamps[k])
+                                         : trajectory.ids[k],
+                  k);
   }
-  std::vector<std::uint64_t> numbers;
-  for (const ScanFile& scan : scans) {
-    std::uint64_t number = 0;
-    const std::string& name = scan.name;
-    const auto [ptr, ec] = std::from_chars(name.data(), name.data() + name.size(), number);
-    if (name.empty() || ec != std::errc() || ptr != name.data() + name.size()) {
-      numbers.clear();
-      break;
-    }
-    numbers.push_back(number);
-  }
+  // Numbered scans take the vertex of their number; others the ids in increasing order (which
+  // are 0, 1, ... in a file carat wrote for them).
+  const std::vector<std::uint64_t> numbers = distinct_name_numbers(scans);
   Trajectory ordered;
-  if (numbers.empty()) {  // names are not numbers: ids in increasing order
-    for (const auto& [id, k] : by_id) {
-      ordered.stamps.push_back(trajectory.stamps[k]);
-      ordered.poses.push_back(trajectory.poses[k]);
-    }
-    return ordered;
-  }
-  std::map<std::uint64_t, std::size_t> scan_of_number;
-  for (std::size_t f = 0; f < scans.size(); ++f) {
-    const auto [it, inserted] = scan_of_number.emplace(numbers[f], f);
-    if (!inserted) {
-      throw Error(scans[f].path.string() + ": has the same frame number (" +
-                  std::to_string(numbers[f]) + ") as " + scans[it->second].path.string());
-    }
-    const auto pose = by_id.find(numbers[f]);
+  auto next = by_id.begin();
+  for (std::size_t f = 0; f < scans.size(); ++f, ++next) {
+    const auto pose = numbers.empty() ? next : by_id.find(numbers[f]);
     if (pose == by_id.end()) {
       throw Error(poses_name + ": has no vertex v" + std::to_string(numbers[f]) + " for frame " +
                   scans[f].path.string() + " (graph poses pair with frames by id)");
     }
     ordered.stamps.push_back(trajectory.stamps[pose->second]);
     ordered.poses.push_back(trajectory.poses[pose->second]);
+    ordered.ids.push_back(pose->first);
   }
   return ordered;
 }

@@ -17,7 +17,7 @@ namespace {
 
 constexpr double kRotationTolerance = 1e-3;    // |R^T R - I| (Frobenius) of a KITTI rotation
 constexpr double kQuaternionTolerance = 1e-3;  // |norm(q) - 1| of a TUM / graph quaternion
-constexpr std::uint64_t kMaxGraphId = std::uint64_t{1} << 53;  // ids stay exact as doubles
+constexpr std::uint64_t kMaxExactStamp = std::uint64_t{1} << 53;  // ids exact as double stamps
 
 bool is_space(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\v' || c == '\f'; }
 
@@ -125,8 +125,8 @@ class LineParser {
       fail("expected a vertex id 'vN', found " + quote_bytes(token));
     }
     const auto [ptr, ec] = std::from_chars(first, last, id);
-    if (ec != std::errc() || ptr != last || id > kMaxGraphId) {
-      fail("cannot read a vertex id (v0 ... v2^53) from " + quote_bytes(token));
+    if (ec != std::errc() || ptr != last) {
+      fail("cannot read a vertex id (v0 ... v18446744073709551615) from " + quote_bytes(token));
     }
     return id;
   }
@@ -212,6 +212,7 @@ Trajectory read_trajectory_lines(LineReader& reader, TrajectoryFormat format) {
         }
         trajectory.poses.push_back(p.translation_quaternion(tokens, 1));
         trajectory.stamps.push_back(static_cast<double>(id));
+        trajectory.ids.push_back(id);
         break;
       }
     }
@@ -244,6 +245,11 @@ std::string format_trajectory(const Trajectory& trajectory, TrajectoryFormat for
   };
   if (trajectory.stamps.size() != trajectory.poses.size()) {
     fail(std::to_string(trajectory.stamps.size()) + " stamps for " +
+         std::to_string(trajectory.poses.size()) + " poses");
+  }
+  const bool has_ids = !trajectory.ids.empty();
+  if (has_ids && trajectory.ids.size() != trajectory.poses.size()) {
+    fail(std::to_string(trajectory.ids.size()) + " graph ids for " +
          std::to_string(trajectory.poses.size()) + " poses");
   }
   std::string text;
@@ -280,12 +286,12 @@ std::string format_trajectory(const Trajectory& trajectory, TrajectoryFormat for
         put_translation_quaternion();
         break;
       case TrajectoryFormat::kGraph: {
-        if (!(stamp >= 0.0 && stamp <= static_cast<double>(kMaxGraphId)) ||
-            stamp != std::floor(stamp)) {
+        if (!has_ids && (!(stamp >= 0.0 && stamp <= static_cast<double>(kMaxExactStamp)) ||
+                         stamp != std::floor(stamp))) {
           fail("graph stamp " + std::to_string(k) + " (" + format_number(stamp) +
                ") is not an integer id in [0, 2^53]");
         }
-        const auto id = static_cast<std::uint64_t>(stamp);
+        const std::uint64_t id = has_ids ? trajectory.ids[k] : static_cast<std::uint64_t>(stamp);
         if (!ids.insert(id).second) fail("graph id v" + std::to_string(id) + " is repeated");
         text += 'v' + std::to_string(id) + ' ';
         put_translation_quaternion();

@@ -23,6 +23,10 @@ struct ProblemCompressionOptions {
   /// Blocks with at most this many rows stay as they are (0: those with at most M rows, for
   /// which a coreset would be the block itself).
   int min_rows = 0;
+  /// With compression.target_rows 0, each block keeps max(its minimum M, this) rows: more rows
+  /// than the minimum r(r+1)/2 + r + 2 of a block of small r make a better subsample away from
+  /// the point (solve_recompressed() uses 64), for a coreset that costs little more.
+  int min_target_rows = 0;
   int num_threads = 1;  ///< blocks are compressed in parallel; results do not depend on it
   /// Optional filter: compress block `id` only if it returns true.
   std::function<bool(ResidualBlockId, const ResidualBlock&)> select;

@@ -6,6 +6,7 @@
 #include <functional>
 #include <memory>
 #include <span>
+#include <string>
 #include <vector>
 
 #include "carat/registration/pair_registration.hpp"
@@ -16,6 +17,15 @@ namespace carat {
 struct OdometryResult {
   std::vector<Eigen::Isometry3d> T_world_frame;  ///< chained poses, the first one as given
   std::vector<PairRegistration> steps;           ///< step k aligns frame k+1 to frame k
+
+  /// Steps that cannot be trusted (PairRegistration::reliable() is false): every pose after the
+  /// first of them is wrong.
+  std::size_t unreliable_steps() const;
+  /// Names those steps, their frames and why ("000011 -> 000012 did not converge; ..."; at most
+  /// `limit` of them, then how many more), with frame names from `frames` (else indices); "" when
+  /// every step is reliable.
+  std::string describe_unreliable_steps(std::span<const std::shared_ptr<const Frame>> frames,
+                                        std::size_t limit = 5) const;
 };
 
 /// Aligns frame k+1 to frame k for every k, starting each alignment from the relative motion

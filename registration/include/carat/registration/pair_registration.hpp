@@ -7,6 +7,7 @@
 #include <functional>
 #include <memory>
 #include <span>
+#include <string>
 #include <vector>
 
 #include "carat/registration/align.hpp"
@@ -26,7 +27,13 @@ struct PairRegistration {
   int num_correspondences = 0;              ///< pairs used in the last iteration
   int iterations = 0;                       ///< outer GICP iterations
   bool converged = false;                   ///< the last step was below tolerance
-  double align_s = 0.0;                     ///< wall time of this pair's alignment (1 thread)
+  int constrained_dof = 0;  ///< directions the pair's geometry fixes (AlignResult::constrained_dof)
+  double align_s = 0.0;     ///< wall time of this pair's alignment (1 thread)
+
+  /// Whether the relative pose can be trusted: converged and all 6 directions fixed.
+  bool reliable() const { return converged && constrained_dof >= 6; }
+  /// Why it cannot ("did not converge", "fixes only 3 of 6 degrees of freedom"), or "".
+  std::string problem() const;
 };
 
 /// Aligns every pair (source onto target) starting from the relative pose that T_world_frame

@@ -4,6 +4,7 @@
 /// registered frame pair, with identity or GICP-Hessian information and a Cauchy kernel.
 
 #include <Eigen/Geometry>
+#include <cstddef>
 #include <span>
 #include <string_view>
 #include <vector>
@@ -39,6 +40,7 @@ struct PoseGraphBaselineOptions {
 struct PoseGraphBaselineResult {
   std::vector<Eigen::Isometry3d> T_world_frame;  ///< optimized poses
   SolverSummary summary;                         ///< the solve
+  std::size_t unconverged_pairs = 0;  ///< registrations that did not converge (kept as factors)
 };
 
 /// The information of a relative-pose factor (translation first, RelativePoseBlock's order)
@@ -47,9 +49,12 @@ struct PoseGraphBaselineResult {
 se3::Matrix6d relative_pose_information(const Eigen::Isometry3d& T_target_source,
                                         const se3::Matrix6d& H);
 
-/// Optimizes the poses from T_world_initial with one factor per registration. Throws
-/// carat::Error when a registration names a missing frame or its information is not positive
-/// definite, or when the solve fails.
+/// Optimizes the poses from T_world_initial with one factor per registration (those that did not
+/// converge too: the kernel down-weights them; they are counted in unconverged_pairs). Throws
+/// carat::Error when a frame is tied to frame 0 only through registrations that did not converge
+/// (it would land where they put it, the solve reporting convergence; the pairs are named), when
+/// a registration names a missing frame or has information that is not positive definite, when a
+/// frame is tied to no fixed one, or when the solve fails.
 PoseGraphBaselineResult optimize_pose_graph_baseline(
     std::span<const Eigen::Isometry3d> T_world_initial,
     std::span<const PairRegistration> registrations, const PoseGraphBaselineOptions& options = {});

@@ -52,12 +52,20 @@ struct BalScene {
   std::vector<char> outlier;  ///< 1 where problem.observations[k] is an outlier
 };
 
+/// The most observations per point `layout` can place with `cameras` cameras: every camera for
+/// the ring and random layouts (all look at the central points); for the street, the cameras
+/// that can all have a facade point at least 1 m in front of them (57 consecutive cameras: a
+/// point further along the street can fall behind one that looks slightly the other way), or
+/// `cameras` if fewer.
+int max_observations_per_point(BalLayout layout, int cameras);
+
 /// Generates the scene: exactly `cameras` cameras, `points` points and points *
 /// observations_per_point observations (grouped by point), every camera observing at least one
 /// point and every observed point in front of its camera (P_z < 0). Exactly
 /// round(outlier_fraction * observations) observations are outliers. Random numbers come from
 /// std::mt19937_64 through carat's own uniform and Gaussian transforms, so a seed gives the same
-/// scene everywhere. Throws carat::Error for out-of-range options.
+/// scene everywhere. Throws carat::Error for out-of-range options, among them more observations
+/// per point than max_observations_per_point(), before any work.
 BalScene simulate_bal(const BalSimulationOptions& options = {});
 
 }  // namespace carat

@@ -22,6 +22,11 @@ struct SyntheticSequence {
 /// Noise seed of frame `frame` in make_synthetic_sequence (splitmix64 of seed and frame).
 std::uint64_t synthetic_frame_noise_seed(std::uint64_t seed, std::size_t frame);
 
+/// The first scan of the drive along world.trajectory(options), as make_synthetic_sequence() makes
+/// it: every scan of a drive is about as large, so it prices a drive (disk, memory) before the
+/// drive is simulated.
+PointCloud first_scan(const SyntheticWorld& world, const SyntheticTrajectoryOptions& options);
+
 /// Simulates a whole drive along world.trajectory(options): frame k is scanned with noise seed
 /// synthetic_frame_noise_seed(world seed, k). Scans run in parallel with TBB; the result does
 /// not depend on the number of threads.

@@ -32,10 +32,12 @@ class Problem {
   VariableId add_variable(std::shared_ptr<const Manifold> manifold,
                           std::span<const double> initial);
 
-  /// Adds an SE(3) variable T_world_body (see se3.hpp for the storage).
+  /// Adds an SE(3) variable T_world_body (see se3.hpp for the storage). Throws carat::Error
+  /// naming the variable when T_world_body is not rigid (se3::rigid_transform_problem()).
   VariableId add_se3(const Eigen::Isometry3d& T_world_body);
 
-  /// Adds an SE(2) variable T_world_body (see se2.hpp for the storage [x, y, theta]).
+  /// Adds an SE(2) variable T_world_body (see se2.hpp for the storage [x, y, theta]). Throws
+  /// carat::Error naming the variable when T_world_body is not rigid.
   VariableId add_se2(const Eigen::Isometry2d& T_world_body);
 
   /// Adds a Euclidean variable.
@@ -138,6 +140,8 @@ class Problem {
   void check(VariableId id) const;
   /// Index into values_ of a bounded coordinate; throws for a variable bounds cannot apply to.
   std::size_t bound_index(VariableId id, int coordinate, const char* who) const;
+  /// set_lower_bound() (lower) or set_upper_bound().
+  void set_bound(VariableId id, int coordinate, double bound, bool lower);
 
   std::vector<std::shared_ptr<const Manifold>> manifolds_;
   std::vector<std::size_t> offsets_;

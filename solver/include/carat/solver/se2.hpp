@@ -43,4 +43,8 @@ void to_storage(const Eigen::Isometry2d& T, double* storage);
 /// Builds a planar rigid transform from a position (metres) and a heading theta (radians).
 Eigen::Isometry2d make(double x, double y, double theta);
 
+/// What keeps T from being a rigid transform, or nullptr: not finite, a rotation block that is
+/// not orthonormal (|R^T R - I| > 1e-6, Frobenius: scaled or sheared) or a reflection (det < 0).
+const char* rigid_transform_problem(const Eigen::Isometry2d& T);
+
 }  // namespace carat::se2

@@ -32,4 +32,8 @@ void to_storage(const Eigen::Isometry3d& T, double* storage);
 /// Builds a rigid transform from a quaternion (normalized here) and a translation.
 Eigen::Isometry3d make(const Eigen::Quaterniond& q, const Eigen::Vector3d& t);
 
+/// What keeps T from being a rigid transform, or nullptr: not finite, a rotation block that is
+/// not orthonormal (|R^T R - I| > 1e-6, Frobenius: scaled or sheared) or a reflection (det < 0).
+const char* rigid_transform_problem(const Eigen::Isometry3d& T);
+
 }  // namespace carat::se3

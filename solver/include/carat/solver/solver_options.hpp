@@ -36,8 +36,10 @@ Ordering parse_ordering(std::string_view name);
 
 /// How the linear system of each iteration is solved.
 enum class LinearSolver {
-  kAuto,      ///< Schur complement when a group of variables can be eliminated (see solve()),
-              ///< else sparse Cholesky of the whole system
+  kAuto,      ///< Schur complement when a group of variables can be eliminated (see solve())
+              ///< and its reduced system takes at most twice the whole system's memory (a
+              ///< reduced system made dense by shared points can take far more) and fits
+              ///< SolverOptions::max_linear_system_bytes; else sparse Cholesky of the whole system
   kSchur,     ///< eliminate the eliminable variables (Problem::set_eliminable(), or the group
               ///< kAuto would pick), then sparse Cholesky of the reduced system
   kCholesky,  ///< sparse Cholesky (CHOLMOD supernodal) of the whole system
@@ -63,6 +65,12 @@ struct SolverOptions {
   Method method = Method::kLevenbergMarquardt;       ///< nonlinear method
   Ordering ordering = Ordering::kAuto;               ///< fill-reducing ordering
   LinearSolver linear_solver = LinearSolver::kAuto;  ///< whole system or Schur complement
+  /// Most memory the linear system may take, bytes (its matrix and factor; for the Schur
+  /// complement also the reduced system and the eliminated blocks), estimated from the fill of
+  /// a symbolic analysis before anything of that size is allocated; 0: 80 % of the memory
+  /// available (carat::available_memory_bytes()). kAuto picks the system that fits; a system
+  /// that does not fit ends the solve with FAILURE and the estimate in the message.
+  double max_linear_system_bytes = 0.0;
   int max_iterations = 50;                   ///< iterations (accepted or not) before giving up
   double function_tolerance = 1e-6;          ///< stop when |cost change| / cost < this
   double gradient_tolerance = 1e-10;         ///< stop when max |gradient| < this

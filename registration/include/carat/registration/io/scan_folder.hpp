@@ -5,6 +5,7 @@
 /// name order (2.bin before 10.bin); hidden names are skipped. Poses pair with the scans by line
 /// (KITTI, TUM) or by vertex id (graph.txt: scan 000003 takes v3).
 
+#include <cstdint>
 #include <filesystem>
 #include <string>
 #include <string_view>
@@ -35,21 +36,36 @@ const char* to_string(BinLayout layout);
 /// Parses "auto", "xyz" or "xyzi"; throws carat::Error listing them otherwise.
 BinLayout parse_bin_layout(std::string_view name);
 
-/// The scans of `dir` in natural name order. Throws carat::Error naming the path when `dir` is
-/// not a folder, holds no scans, mixes the two layouts, or holds a scan name (*.bin, *.pcd,
-/// *.ply) that is not a regular file (skipping it would pair every later scan with the wrong
-/// pose).
+/// Whether `name` is a scan file name: it ends in .bin, .pcd or .ply (lower case).
+bool is_frame_file_name(std::string_view name);
+
+/// Whether `name` looks like a scan file name in any case or dress: .BIN, .Pcd, "x.bin~",
+/// "x.bin " or a frame extension before another one ("x.bin.gz").
+bool looks_like_frame_name(std::string_view name);
+
+/// The scans of `dir` in natural name order; other files and hidden names (a leading '.') are
+/// skipped. Throws carat::Error naming the path when `dir` is not a folder, holds no scans, mixes
+/// the two layouts, or holds an entry that skipping would turn into a silent shift of every later
+/// frame's pose: a scan name (*.bin, *.pcd, *.ply) that is not a regular file, a directory named
+/// like a scan file, a file named like one in another case or dress (looks_like_frame_name()),
+/// or, among <frame>/points.bin frames, a folder without points.bin.
 std::vector<ScanFile> list_scan_folder(const std::filesystem::path& dir,
                                        BinLayout layout = BinLayout::kAuto);
 
 /// Reads one scan (by its extension). Throws carat::Error as the readers do.
 PointCloud read_scan(const ScanFile& scan, const ReadOptions& options = {});
 
+/// The graph vertex id of each scan, the one rule of every reader and writer of graph poses for
+/// a scan folder: the scan's name as a number (`000003` is v3, a 19-digit nanosecond stamp its
+/// own id) when every name is a decimal number below 2^64 and no two are equal; otherwise the
+/// scan's index in natural order (v0, v1, ...).
+std::vector<std::uint64_t> scan_graph_ids(const std::vector<ScanFile>& scans);
+
 /// The poses of `trajectory` in scan order: KITTI and TUM poses by line (the counts must be
-/// equal), graph.txt poses by vertex id: scan `000003` takes `v3` when every scan's name is a
-/// number, otherwise the scans in order take the ids in increasing order. The result's stamps
-/// are the ids (graph) or the trajectory's stamps. Throws carat::Error naming `poses_name` and
-/// the scan for different counts, a scan without its id, or two scans with one number.
+/// equal), graph.txt poses by vertex id as scan_graph_ids() gives them: numbered scans take the
+/// vertex of their number; otherwise the scans in order take the ids in increasing order. The
+/// result keeps the stamps and the ids of the poses it takes. Throws carat::Error naming
+/// `poses_name` and the scan for different counts or a numbered scan without its vertex.
 Trajectory poses_in_scan_order(const Trajectory& trajectory, TrajectoryFormat format,
                                const std::vector<ScanFile>& scans, const std::string& poses_name);
 

@@ -8,9 +8,11 @@
 /// that is not finite or out of double range is an error, as is a wrong field count or trailing
 /// garbage. A KITTI rotation is accepted if |R^T R - I| (Frobenius) <= 1e-3 and det R > 0, and is
 /// then re-orthonormalized; a quaternion is accepted if |norm(q) - 1| <= 1e-3, and is then
-/// normalized. TUM stamps must increase strictly; graph ids must be unique (v0 ... v2^53).
+/// normalized. TUM stamps must increase strictly; graph ids must be unique decimal integers
+/// (v0 ... v18446744073709551615, so that 19-digit nanosecond timestamps stay exact).
 
 #include <Eigen/Geometry>
+#include <cstdint>
 #include <filesystem>
 #include <string>
 #include <string_view>
@@ -34,6 +36,9 @@ TrajectoryFormat parse_trajectory_format(std::string_view name);
 struct Trajectory {
   std::vector<double> stamps;            ///< seconds (TUM), pose index (KITTI) or id (graph)
   std::vector<Eigen::Isometry3d> poses;  ///< T_world_frame of each pose
+  /// Graph vertex ids, exact (a double holds integers only up to 2^53): filled by the graph
+  /// reader, written by the graph writer when not empty (else the stamps are the ids).
+  std::vector<std::uint64_t> ids;
 };
 
 /// Parses trajectory text; `name` (a file name) is used in error messages as "name:line: problem".
@@ -47,9 +52,10 @@ Trajectory parse_trajectory(std::string_view text, TrajectoryFormat format,
 Trajectory read_trajectory(const std::filesystem::path& path, TrajectoryFormat format);
 
 /// Formats a trajectory as text that parse_trajectory() reads back to the same poses (numbers in
-/// shortest round-trip form; graph ids written as "v<stamp>"). Throws carat::Error for mismatched
-/// stamp and pose counts, non-finite values, TUM stamps that do not increase, or graph stamps
-/// that are not unique integers in [0, 2^53].
+/// shortest round-trip form; graph ids written as "v<id>", from `ids` when it is not empty, else
+/// from the stamps). Throws carat::Error for mismatched stamp, id and pose counts, non-finite
+/// values, TUM stamps that do not increase, repeated graph ids, or graph stamps (without ids)
+/// that are not integers in [0, 2^53].
 std::string format_trajectory(const Trajectory& trajectory, TrajectoryFormat format);
 
 /// Writes format_trajectory() atomically (temporary file, then rename); errors name the path.
