@@ -41,6 +41,13 @@ expect solve_bal_written_cost "$(python3 -c "import json,sys; a=json.load(open(s
 check solve_bal_report 0 "" -- "$CARAT" solve-bal "$scratch/ba.bal" --threads 2 --loss huber --loss-scale 2
 grep -q "^$scratch/ba.bal: 12 cameras, 400 points, 1600 observations$" "$scratch/out" && pass=$((pass + 1)) || { echo "FAIL solve-bal report heading: $(head -c 200 "$scratch/out")"; fail=$((fail + 1)); }
 printf '2 2 3\n0 0 1 1\n1 0 2 2\n0 1 3 3\n' >"$scratch/bad.bal"
+# --covariance: every camera's 9 x 9 covariance; the scene's similarity (7 free directions) is
+# removed by the pseudo-inverse, or is an error when asked for.
+check solve_bal_covariance 0 "" -- "$CARAT" solve-bal "$scratch/ba.bal" --json --covariance "$scratch/ba_cov.txt"
+expect solve_bal_covariance_json "$(json_field "$scratch/out" "j['covariance_gauge_dimension'] == 7 and j['covariance_s'] >= 0")"
+expect solve_bal_covariance_file "$(covariance_file_ok "$scratch/ba_cov.txt" 9 0 1 2 3 4 5 6 7 8 9 10 11)"
+check solve_bal_covariance_gauge_error 1 "ba.bal: covariance: H is singular: 7 free directions" -- "$CARAT" solve-bal "$scratch/ba.bal" --covariance "$scratch/never_cov.txt" --covariance-gauge error
+[[ ! -e "$scratch/never_cov.txt" ]] && pass=$((pass + 1)) || { echo "FAIL solve-bal wrote --covariance on an error"; fail=$((fail + 1)); }
 check solve_bal_truncated 1 "bad.bal:" -- "$CARAT" solve-bal "$scratch/bad.bal"
 check solve_bal_bad_solver 2 "--linear-solver" -- "$CARAT" solve-bal "$scratch/ba.bal" --linear-solver qr
 check solve_bal_bad_growth 2 "--trust-region-growth" -- "$CARAT" solve-bal "$scratch/ba.bal" --trust-region-growth 0.5

@@ -47,11 +47,13 @@ y = [float(l.split()[7]) for l in open(sys.argv[1])]
 print(150 < max(x) - min(x) < 163 and 40 < max(y) - min(y) < 55)" "$scratch/seq-long/poses.txt") != "True" ]]; then
   echo "FAIL simulate --circuit-blocks 3 did not drive around three blocks"; fail=$((fail + 1)); else pass=$((pass + 1)); fi
 check simulate_bad_circuit 2 "" -- "$CARAT" simulate --out "$scratch/never-sim" --circuit-blocks 0
-check map_synthetic 0 "" -- "$CARAT" map --frames "$scratch/seq" --poses "$scratch/seq/poses.txt" --perturb-m 0.1 --perturb-deg 1 --out "$scratch/map_out.txt" --json
+check map_synthetic 0 "" -- "$CARAT" map --frames "$scratch/seq" --poses "$scratch/seq/poses.txt" --perturb-m 0.1 --perturb-deg 1 --out "$scratch/map_out.txt" --covariance "$scratch/map_cov.txt" --json
 cp "$scratch/out" "$scratch/map.json"
 if [[ $(json_field "$scratch/map.json" "j['ate_rmse'] < 0.25 * j['initial_ate_rmse'] and j['frames'] == 20") != "True" ]]; then
   echo "FAIL map on the simulated drive: $(head -c 400 "$scratch/map.json")"; fail=$((fail + 1)); else pass=$((pass + 1)); fi
 if [[ $(grep -c . "$scratch/map_out.txt") -ne 20 ]]; then echo "FAIL map --out"; fail=$((fail + 1)); else pass=$((pass + 1)); fi
+expect map_covariance "$(covariance_file_ok "$scratch/map_cov.txt" 6 $(seq 1 19))"
+expect map_covariance_json "$(json_field "$scratch/map.json" "j['covariance_s'] >= 0")"
 check map_excess_kernel 0 "" -- "$CARAT" map --frames "$scratch/seq" --poses "$scratch/seq/poses.txt" --perturb-m 0.1 --perturb-deg 1 --gre-excess-cauchy 1 --json
 cp "$scratch/out" "$scratch/map_excess.json"
 if [[ $(json_field "$scratch/map_excess.json" "j['ate_rmse'] < 0.25 * j['initial_ate_rmse'] and j['time_breakdown']['factor_minimum_s'] > 0") != "True" ]]; then

@@ -25,6 +25,16 @@ if ! awk '$1 == "VERTEX_SE3:QUAT" && $2 == 2 { exit !(($3 - 2) ^ 2 < 1e-12) }' "
   echo "FAIL --out did not write the solved graph"; fail=$((fail + 1))
 else pass=$((pass + 1)); fi
 
+# --covariance: one line per free vertex (not vertex 0, held constant), its g2o id and its 6 x 6
+# covariance; written with the graph, never over it or the input.
+check solve_g2o_covariance 0 "" -- "$CARAT" solve-g2o "$scratch/tiny.g2o" --json --covariance "$scratch/cov.txt"
+expect solve_g2o_covariance_json "$(json_field "$scratch/out" "j['covariance'] == '$scratch/cov.txt' and j['covariance_s'] >= 0")"
+expect solve_g2o_covariance_file "$(covariance_file_ok "$scratch/cov.txt" 6 1 2)"
+check solve_g2o_covariance_is_out 2 "--covariance $scratch/same.txt is the same file as --out $scratch/same.txt" -- "$CARAT" solve-g2o "$scratch/tiny.g2o" --out "$scratch/same.txt" --covariance "$scratch/same.txt"
+check solve_g2o_covariance_is_input 2 "--covariance $scratch/tiny.g2o is the same file as the input FILE" -- "$CARAT" solve-g2o "$scratch/tiny.g2o" --covariance "$scratch/tiny.g2o"
+check solve_g2o_gauge_alone 2 "--covariance-gauge does not apply without --covariance" -- "$CARAT" solve-g2o "$scratch/tiny.g2o" --covariance-gauge pseudo-inverse
+[[ ! -e "$scratch/same.txt" ]] && pass=$((pass + 1)) || { echo "FAIL solve-g2o wrote an output on a usage error"; fail=$((fail + 1)); }
+
 # solve-g2o on a 2D graph: a square of four unit odometry steps and quarter turns, the second
 # vertex off by 0.3 m; --out writes VERTEX_SE2 records at the solution.
 cat >"$scratch/square2d.g2o" <<'G2O'
@@ -37,7 +47,7 @@ EDGE_SE2 1 2 1 0 1.5707963267948966 1 0 0 1 0 1
 EDGE_SE2 2 3 1 0 1.5707963267948966 1 0 0 1 0 1
 EDGE_SE2 3 0 1 0 1.5707963267948966 1 0 0 1 0 1
 G2O
-check solve_g2o_2d 0 "" -- "$CARAT" solve-g2o "$scratch/square2d.g2o" --json --out "$scratch/square2d_solved.g2o"
+check solve_g2o_2d 0 "" -- "$CARAT" solve-g2o "$scratch/square2d.g2o" --json --out "$scratch/square2d_solved.g2o" --covariance "$scratch/square2d_cov.txt"
 cp "$scratch/out" "$scratch/square2d.json"
 if [[ $(json_field "$scratch/square2d.json" "j['dimension'] == 2 and j['vertices'] == 4 and j['edges'] == 4 and j['final_cost'] < 1e-12 < j['initial_cost']") != "True" ]]; then
   echo "FAIL solve-g2o did not solve the 2D square"; fail=$((fail + 1))
@@ -45,6 +55,7 @@ else pass=$((pass + 1)); fi
 if ! awk '$1 == "VERTEX_SE2" && $2 == 1 { exit !(($3 - 1) ^ 2 < 1e-12 && $4 ^ 2 < 1e-12) }' "$scratch/square2d_solved.g2o"; then
   echo "FAIL --out did not write the solved 2D graph"; fail=$((fail + 1))
 else pass=$((pass + 1)); fi
+expect solve_g2o_2d_covariance "$(covariance_file_ok "$scratch/square2d_cov.txt" 3 1 2 3)"
 printf 'VERTEX_SE2 0 0 0 0\nVERTEX_SE3:QUAT 1 0 0 0 0 0 0 1\n' >"$scratch/mixed.g2o"
 check mixed_dimensions 1 "mixed.g2o:2: 3D record VERTEX_SE3:QUAT in a 2D graph (line 1 holds VERTEX_SE2)" -- "$CARAT" solve-g2o "$scratch/mixed.g2o"
 

@@ -1,7 +1,7 @@
 // carat map --frames DIR (--poses FILE | --initial FILE | both) [--poses-format kitti|tum|graph]
 //           [--initial-format F] [--loops | --no-loops] [--method gre|pgo]
 //           [--sampling exact|random|full|lossless] [--residuals M] [--perturb-m X --perturb-deg Y]
-//           [--seed S] [--out FILE] [--json]
+//           [--seed S] [--out FILE] [--covariance FILE] [--json]
 // Global trajectory optimization on real scans. The start is --initial (an odometry file), or
 // the reference --poses, optionally perturbed (frame 0 stays: it is the gauge). With --loops
 // (the default when --initial is given) loops are closed first: Scan Context candidates
@@ -36,6 +36,7 @@
 #include "carat/registration/trajectory_error.hpp"
 #include "cli_support.hpp"
 #include "commands.hpp"
+#include "covariance_output.hpp"
 #include "mapping_methods.hpp"
 #include "mpi_map.hpp"
 #include "progress.hpp"
@@ -67,6 +68,7 @@ struct MapArgs {
   double perturb_deg = 0.0;
   std::uint64_t seed = 1;
   std::string out;
+  CovarianceRequest covariance;
   int threads = 0;
   bool drop_non_finite = false;
   double max_frame_memory_mb = 0.0;  // 0: every frame in memory
@@ -144,11 +146,12 @@ int run_map(const CLI::App& command, const MapArgs& args) {
   const std::vector<ScanFile> files =
       list_scan_folder(args.frames, parse_bin_layout(args.bin_format));
   std::unique_ptr<OutputFile> out_file;
+  std::vector<NamedInput> inputs;
+  if (has_reference) inputs.push_back({"--poses", args.poses});
+  if (has_initial) inputs.push_back({"--initial", args.initial});
+  for (const ScanFile& file : files) inputs.push_back({"--frames", file.path.string()});
+  check_covariance_request(command, args.covariance, inputs, "--out", args.out);
   if (!args.out.empty()) {
-    std::vector<NamedInput> inputs;
-    if (has_reference) inputs.push_back({"--poses", args.poses});
-    if (has_initial) inputs.push_back({"--initial", args.initial});
-    for (const ScanFile& file : files) inputs.push_back({"--frames", file.path.string()});
     check_output_file("--out", args.out, inputs);
     check_output_outside_folder("--out", args.out, {"--frames", args.frames});
   }
@@ -184,6 +187,7 @@ int run_map(const CLI::App& command, const MapArgs& args) {
   input.max_correspondence_distance = args.max_distance;
   input.rounds = args.rounds;
   input.gre_excess_cauchy_scale = args.gre_excess_cauchy;
+  input.covariance = !args.covariance.path.empty();
   PreprocessOptions preprocess;
   preprocess.voxel_size = args.voxel;
   ReadOptions read_options;
@@ -341,6 +345,14 @@ int run_map(const CLI::App& command, const MapArgs& args) {
       throw Error(args.out + ": " + e.what());
     }
   }
+  std::unique_ptr<OutputFile> covariance_file;
+  if (!args.covariance.path.empty()) {
+    covariance_file = std::make_unique<OutputFile>(args.covariance.path);
+    for (std::size_t k = 1; k < result.covariance.size(); ++k) {  // frame 0 is held constant
+      write_covariance_line(covariance_file->stream(), static_cast<std::int64_t>(k),
+                            result.covariance[k]);
+    }
+  }
   if (args.json) {
     nlohmann::json j = to_json(result);
     j["frames"] = files.size();
@@ -363,6 +375,10 @@ int run_map(const CLI::App& command, const MapArgs& args) {
     j["preprocess_s"] = preprocess_s;
     j["dense_graph_s"] = graph_s;
     if (!args.out.empty()) j["out"] = args.out;
+    if (covariance_file) {
+      j["covariance"] = args.covariance.path;
+      j["covariance_s"] = result.covariance_s;
+    }
     if (mpi) j["mpi"] = mpi->report();
     std::printf("%s\n", j.dump(2).c_str());
   } else {
@@ -394,9 +410,14 @@ int run_map(const CLI::App& command, const MapArgs& args) {
       std::printf("  termination %s\n", result.termination.c_str());
     }
     if (!args.out.empty()) std::printf("  wrote %s\n", args.out.c_str());
+    if (covariance_file) {
+      std::printf("  wrote %s (covariances of frames 1..%zu, %.3f s)\n",
+                  args.covariance.path.c_str(), result.covariance.size() - 1, result.covariance_s);
+    }
   }
   flush_standard_output();  // the report is out: now the trajectory goes into place
   if (out_file) out_file->commit();
+  if (covariance_file) covariance_file->commit();
   return 0;
 }
 
@@ -476,6 +497,9 @@ void register_map(CLI::App& app, CommandRegistry& registry) {
                   "write the optimized trajectory here (format of --poses; never one of the "
                   "inputs)")
       ->check(path_value());
+  add_covariance_options(cmd, &args->covariance,
+                         "every frame's pose but the first (by its index in scan order, from 0)",
+                         "");
   cmd->add_option("--threads", args->threads, "threads (0: all cores)")
       ->check(integer_in(0, 1024))
       ->capture_default_str();

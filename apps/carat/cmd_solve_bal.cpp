@@ -1,6 +1,7 @@
 // carat solve-bal FILE [--out FILE] [--linear-solver auto|schur|cholesky] [--max-iterations N]
 //                      [--threads T] [--loss none|huber|cauchy] [--loss-scale S]
-//                      [--trust-region-growth G] [--no-factor-reuse] [--json]
+//                      [--trust-region-growth G] [--no-factor-reuse]
+//                      [--covariance FILE [--covariance-gauge error|pseudo-inverse]] [--json]
 #include <cstdio>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -16,6 +17,7 @@
 #include "carat/solver/solver_options.hpp"
 #include "cli_support.hpp"
 #include "commands.hpp"
+#include "covariance_output.hpp"
 
 namespace carat::cli {
 namespace {
@@ -30,6 +32,7 @@ struct SolveBalArgs {
   double loss_scale = 1.0;
   double trust_region_growth = SolverOptions{}.max_trust_region_growth;
   bool no_factor_reuse = false;
+  CovarianceRequest covariance;
   bool json = false;
 };
 
@@ -38,6 +41,7 @@ int run_solve_bal(const CLI::App& command, const SolveBalArgs& args) {
   const LossKind loss = parse_loss_kind(args.loss);
   refuse_unused(command, "--loss-scale", loss != LossKind::kNone, "to --loss none (set --loss)");
   if (!args.output.empty()) check_output_file("--out", args.output, {{"FILE", args.input}});
+  check_covariance_request(command, args.covariance, {{"FILE", args.input}}, "--out", args.output);
 
   Stopwatch stage;
   BalProblem bal = read_bal(args.input);
@@ -69,6 +73,30 @@ int run_solve_bal(const CLI::App& command, const SolveBalArgs& args) {
   }
   const double write_s = stage.elapsed_s();
 
+  // The cameras' covariances (the points are eliminated: the reduced system's factor gives them).
+  std::unique_ptr<OutputFile> covariance_out;
+  double covariance_s = 0.0;
+  int gauge_dimension = 0;
+  if (!args.covariance.path.empty()) {
+    stage.restart();
+    Covariance::Options covariance_settings = covariance_options(args.covariance, args.threads);
+    covariance_settings.linear_solver = options.linear_solver;
+    const Covariance covariance = [&] {
+      try {
+        return Covariance(problem, covariance_settings);
+      } catch (const Error& e) {
+        throw Error(args.input + ": " + e.what());
+      }
+    }();
+    gauge_dimension = covariance.gauge_dimension();
+    covariance_out = std::make_unique<OutputFile>(args.covariance.path);
+    for (std::size_t c = 0; c < variables.cameras.size(); ++c) {
+      write_covariance_line(covariance_out->stream(), static_cast<std::int64_t>(c),
+                            covariance.block(variables.cameras[c]));
+    }
+    covariance_s = stage.elapsed_s();
+  }
+
   if (args.json) {
     nlohmann::json j = nlohmann::json::parse(summary.to_json());
     j["input"] = args.input;
@@ -82,6 +110,11 @@ int run_solve_bal(const CLI::App& command, const SolveBalArgs& args) {
     j["time_breakdown"]["write_s"] = write_s;
     j["time_s"] = total.elapsed_s();
     if (!args.output.empty()) j["output"] = args.output;
+    if (covariance_out) {
+      j["covariance"] = args.covariance.path;
+      j["covariance_s"] = covariance_s;
+      j["covariance_gauge_dimension"] = gauge_dimension;
+    }
     std::printf("%s\n", j.dump(2).c_str());
   } else {
     std::printf("%s: %zu cameras, %zu points, %zu observations", args.input.c_str(),
@@ -91,9 +124,18 @@ int run_solve_bal(const CLI::App& command, const SolveBalArgs& args) {
     std::printf("read %.3f s, build %.3f s, solve %.3f s, total %.3f s\n", read_s, build_s,
                 summary.time.total_s, total.elapsed_s());
     if (!args.output.empty()) std::printf("wrote %s\n", args.output.c_str());
+    if (covariance_out) {
+      std::printf("wrote %s (covariances of the cameras, %.3f s", args.covariance.path.c_str(),
+                  covariance_s);
+      if (gauge_dimension > 0) {
+        std::printf("; %d free directions removed: the pseudo-inverse", gauge_dimension);
+      }
+      std::printf(")\n");
+    }
   }
   flush_standard_output();  // the report is out: now the problem goes into place
   if (out) out->commit();
+  if (covariance_out) covariance_out->commit();
   return 0;
 }
 
@@ -129,6 +171,7 @@ void register_solve_bal(CLI::App& app, CommandRegistry& registry) {
       ->capture_default_str();
   cmd->add_flag("--no-factor-reuse", args->no_factor_reuse,
                 "factorize afresh every iteration (no steps on an earlier factorization)");
+  add_covariance_options(cmd, &args->covariance, "every camera (by its index)", "pseudo-inverse");
   cmd->add_flag("--json", args->json, "print one JSON object instead of the report");
   registry.add(cmd, [args, cmd] { return run_solve_bal(*cmd, *args); });
 }

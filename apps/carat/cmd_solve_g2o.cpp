@@ -1,6 +1,7 @@
 // carat solve-g2o FILE [--out FILE] [--max-iterations N] [--threads T] [--method lm|gn]
 //                      [--loss none|huber|cauchy] [--loss-scale S] [--no-factor-reuse]
-//                      [--trust-region-growth G] [--repair-information] [--json]
+//                      [--trust-region-growth G] [--repair-information]
+//                      [--covariance FILE [--covariance-gauge error|pseudo-inverse]] [--json]
 #include <cstdio>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -10,6 +11,7 @@
 
 #include "carat/base/atomic_file.hpp"
 #include "carat/base/error.hpp"
+#include "carat/base/stopwatch.hpp"
 #include "carat/residuals/io/g2o_io.hpp"
 #include "carat/residuals/pose_graph.hpp"
 #include "carat/residuals/pose_graph_se2.hpp"
@@ -18,6 +20,7 @@
 #include "carat/solver/solver_options.hpp"
 #include "cli_support.hpp"
 #include "commands.hpp"
+#include "covariance_output.hpp"
 
 namespace carat::cli {
 namespace {
@@ -34,6 +37,7 @@ struct SolveG2oArgs {
   bool no_factor_reuse = false;
   bool repair_information = false;
   double trust_region_growth = SolverOptions{}.max_trust_region_growth;
+  CovarianceRequest covariance;
   bool json = false;
 };
 
@@ -69,6 +73,25 @@ int solve_graph(const SolveG2oArgs& args, Method method, LossKind loss,
     out = std::make_unique<OutputFile>(args.output);
     write_g2o(out->stream(), graph);
   }
+  std::unique_ptr<OutputFile> covariance_out;
+  double covariance_s = 0.0;
+  if (!args.covariance.path.empty()) {
+    const Stopwatch covariance_time;
+    Covariance covariance = [&] {
+      try {
+        return Covariance(built.problem, covariance_options(args.covariance, args.threads));
+      } catch (const Error& e) {
+        throw Error(args.input + ": " + e.what());
+      }
+    }();
+    covariance_out = std::make_unique<OutputFile>(args.covariance.path);
+    for (std::size_t i = 0; i < graph.vertices.size(); ++i) {
+      const VariableId v = built.vertex_variables[i];
+      if (built.problem.is_constant(v)) continue;
+      write_covariance_line(covariance_out->stream(), graph.vertices[i].id, covariance.block(v));
+    }
+    covariance_s = covariance_time.elapsed_s();
+  }
   if (args.json) {
     nlohmann::json j = nlohmann::json::parse(summary.to_json());
     j["input"] = args.input;
@@ -77,6 +100,10 @@ int solve_graph(const SolveG2oArgs& args, Method method, LossKind loss,
     j["dimension"] = kDimension;
     j["repaired_information"] = read_report.repaired_lines.size();
     if (!args.output.empty()) j["output"] = args.output;
+    if (covariance_out) {
+      j["covariance"] = args.covariance.path;
+      j["covariance_s"] = covariance_s;
+    }
     std::printf("%s\n", j.dump(2).c_str());
   } else {
     std::printf("%s: %dD graph, %zu vertices, %zu edges", args.input.c_str(), kDimension,
@@ -88,9 +115,14 @@ int solve_graph(const SolveG2oArgs& args, Method method, LossKind loss,
     std::printf("\n\n");
     std::printf("%s\n%s\n", summary.full_report().c_str(), summary.brief_report().c_str());
     if (!args.output.empty()) std::printf("wrote %s\n", args.output.c_str());
+    if (covariance_out) {
+      std::printf("wrote %s (covariances of the free vertices, %.3f s)\n",
+                  args.covariance.path.c_str(), covariance_s);
+    }
   }
   flush_standard_output();  // the report is out: now the graph goes into place
   if (out) out->commit();
+  if (covariance_out) covariance_out->commit();
   return 0;
 }
 
@@ -102,6 +134,7 @@ int run_solve_g2o(const CLI::App& command, const SolveG2oArgs& args) {
   refuse_unused(command, "--trust-region-growth", lm, "to --method gn");
   refuse_unused(command, "--no-factor-reuse", lm, "to --method gn");
   if (!args.output.empty()) check_output_file("--out", args.output, {{"FILE", args.input}});
+  check_covariance_request(command, args.covariance, {{"FILE", args.input}}, "--out", args.output);
   G2oReadOptions read_options;
   if (args.repair_information) read_options.information = InformationRepair::kNearest;
   G2oReadReport read_report;
@@ -148,6 +181,7 @@ void register_solve_g2o(CLI::App& app, CommandRegistry& registry) {
   cmd->add_flag("--repair-information", args->repair_information,
                 "replace an information matrix that is not positive definite by the nearest one "
                 "(eigenvalues raised to 1e-9 of the largest) instead of failing");
+  add_covariance_options(cmd, &args->covariance, "every free vertex (by its g2o id)", "error");
   cmd->add_flag("--json", args->json, "print one JSON object instead of the report");
   registry.add(cmd, [args, cmd] { return run_solve_g2o(*cmd, *args); });
 }

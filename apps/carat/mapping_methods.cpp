@@ -41,6 +41,7 @@ MethodResult run_pose_graph(const MappingInput& input,
   options.information = information;
   options.cauchy_scale = input.pgo_cauchy_scale;
   options.solver = mapping_solver(input.threads);
+  options.covariance = input.covariance;
   const PoseGraphBaselineResult result =
       optimize_pose_graph_baseline(input.T_world_initial, registrations, options);
   MethodResult out;
@@ -48,6 +49,8 @@ MethodResult run_pose_graph(const MappingInput& input,
   out.key = hessian ? "pgo_hessian" : "pgo_identity";
   out.label = hessian ? "PGO (Hessian)" : "PGO (identity)";
   out.T_world_frame = result.T_world_frame;
+  out.covariance = result.covariance;
+  out.covariance_s = result.covariance_s;
   const TimeBreakdown& t = result.summary.time;
   out.breakdown = {{"registration_s", registration_s},
                    {"linearization_s", t.linearize_s},
@@ -78,6 +81,7 @@ MethodResult run_registration(const MappingInput& input, ResidualSampling sampli
   options.factor_excess_cauchy_scale = input.gre_excess_cauchy_scale;
   options.solver = mapping_solver(input.threads);
   options.iteration_callback = on_iteration;
+  options.covariance = input.covariance;
   MethodResult out;
   out.key = std::string("gre_") + to_string(sampling);
   out.label = sampling == ResidualSampling::kFull ? "GRE full"
@@ -101,6 +105,8 @@ MethodResult run_registration(const MappingInput& input, ResidualSampling sampli
                                             options, bar.callback());
   bar.finish();
   out.T_world_frame = result.T_world_frame;
+  out.covariance = result.covariance;
+  out.covariance_s = result.covariance_s;
   const TimeBreakdown& t = result.summary.time;
   out.breakdown = {{"correspondences_s", result.stats.correspondence_s},
                    {"compression_s", result.stats.compression_s},

@@ -39,6 +39,7 @@ struct MappingInput {
   double gre_cauchy_scale = 0.0;                   // Cauchy scale per GRE factor (0: none)
   double gre_excess_cauchy_scale = 0.0;  // Cauchy scale on each GRE factor's excess (0: none)
   bool progress = true;                  // progress bars on a terminal
+  bool covariance = false;               // every pose's covariance after the solve
   // When set, GRE builds each round's factors (parallel to the pairs) with this instead of from
   // `frames` (carat map under MPI: over the ranks).
   std::function<std::vector<RegistrationFactor>(std::span<const FramePair>,
@@ -63,6 +64,8 @@ struct MethodResult {
   std::vector<std::size_t> factor_memory_bytes;  // per factor: residual data held
   std::vector<std::size_t> factor_correspondence_bytes;  // per factor (GRE): full block built
   std::optional<AteStatistics> ate;                      // against the reference, when there is one
+  std::vector<se3::Matrix6d> covariance;  // with MappingInput::covariance: per pose (first: zero)
+  double covariance_s = 0.0;              // time of the covariances
 };
 
 /// GICP between every graph pair from the initial poses (shared by the PGO baselines).

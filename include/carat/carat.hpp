@@ -76,6 +76,7 @@
 #include <carat/sim/world_options.hpp>
 #include <carat/solver/autodiff_block.hpp>
 #include <carat/solver/block_checker.hpp>
+#include <carat/solver/covariance.hpp>
 #include <carat/solver/evaluate.hpp>
 #include <carat/solver/grouped_rows_block.hpp>
 #include <carat/solver/jacobian_checker.hpp>

@@ -75,3 +75,36 @@ def test_bad_graphs_raise(tmp_path):
         carat.solve_g2o(path, method="newton")
     with pytest.raises(carat.Error, match="overwrite the input"):
         carat.solve_g2o(path, out=path)
+
+
+def test_covariance_of_a_2d_chain(tmp_path):
+    # Unit steps along x from vertex 0 (held constant), exact measurements, information
+    # diag(100, 100, 400) in (x, y, theta). A chain is a tree: at the solution the covariance of
+    # vertex k is the propagation of the k step covariances, in carat's tangent [omega, vx, vy]:
+    # sum over d = 0 .. k - 1 of A_d diag(1/400, 1/100, 1/100) A_d^T with A_d the adjoint of a
+    # step of d metres back (omega moves vy by d omega).
+    n = 6
+    lines = [f"VERTEX_SE2 {k} {k + 0.1 * np.sin(k)} {0.05 * k} {0.02 * k}" for k in range(n)]
+    lines += [f"EDGE_SE2 {k} {k + 1} 1 0 0 100 0 0 100 0 400" for k in range(n - 1)]
+    (tmp_path / "chain.g2o").write_text("\n".join(lines) + "\n")
+    result = carat.solve_g2o(tmp_path / "chain.g2o", covariance=True)
+    assert result["final_cost"] < 1e-16
+    assert list(result["covariance_ids"]) == [1, 2, 3, 4, 5]
+    assert result["covariance"].shape == (5, 3, 3) and result["covariance_s"] >= 0
+    step = np.diag([1 / 400, 1 / 100, 1 / 100])
+    for k in range(1, n):
+        expected = np.zeros((3, 3))
+        for d in range(k):
+            A = np.eye(3)
+            A[2, 0] = d
+            expected += A @ step @ A.T
+        np.testing.assert_allclose(result["covariance"][k - 1], expected, rtol=1e-9, atol=1e-12)
+
+
+def test_covariance_gauge_is_checked(tmp_path):
+    path = tmp_path / "line.g2o"
+    path.write_text("VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1 0 0\nEDGE_SE2 0 1 1 0 0 1 0 0 1 0 1\n")
+    with pytest.raises(carat.Error, match="unknown covariance gauge 'none' \\(valid: error, pseudo-inverse\\)"):
+        carat.solve_g2o(path, covariance=True, covariance_gauge="none")
+    result = carat.solve_g2o(path, covariance=True, covariance_gauge="pseudo-inverse")
+    np.testing.assert_allclose(result["covariance"][0], np.eye(3), rtol=1e-12)

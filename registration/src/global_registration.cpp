@@ -24,6 +24,7 @@
 #include "carat/solver/se3.hpp"
 #include "carat/solver/solve.hpp"
 #include "parallel.hpp"
+#include "pose_covariances.hpp"
 
 namespace carat {
 namespace {
@@ -502,10 +503,16 @@ GlobalRegistrationResult optimize_registration(const RegistrationFactorBuilder& 
       out.factor_costs.push_back(blocks[k].block->squared_norm(values) /
                                  static_cast<double>(built.factor_correspondences[k]));
     }
-    if (summary.termination == TerminationType::kUserAbort) break;
-    if (max_translation < options.round_translation_tolerance &&
-        max_rotation < options.round_rotation_tolerance)
-      break;
+    const bool last = summary.termination == TerminationType::kUserAbort ||
+                      round + 1 == options.rounds ||
+                      (max_translation < options.round_translation_tolerance &&
+                       max_rotation < options.round_rotation_tolerance);
+    if (!last) continue;
+    if (options.covariance) {
+      out.covariance = internal::pose_covariances(built.problem, built.frame_variables,
+                                                  options.num_threads, &out.covariance_s);
+    }
+    break;
   }
   return out;
 }

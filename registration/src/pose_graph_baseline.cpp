@@ -8,6 +8,7 @@
 #include "carat/base/error.hpp"
 #include "carat/residuals/pose_graph.hpp"
 #include "carat/solver/solve.hpp"
+#include "pose_covariances.hpp"
 
 namespace carat {
 
@@ -109,6 +110,10 @@ PoseGraphBaselineResult optimize_pose_graph_baseline(
   out.summary = solve(options.solver, built.problem);
   if (!out.summary.is_solution_usable())
     throw Error("pose-graph optimization failed: " + out.summary.message);
+  if (options.covariance) {
+    out.covariance = internal::pose_covariances(built.problem, built.vertex_variables,
+                                                options.solver.num_threads, &out.covariance_s);
+  }
   update_vertices(built, &graph);
   for (const auto& vertex : graph.vertices) out.T_world_frame.push_back(vertex.T_world_vertex);
   return out;

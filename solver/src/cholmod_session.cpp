@@ -1,12 +1,12 @@
 #include "cholmod_session.hpp"
 
 #include <cholmod.h>
-#include <omp.h>
 
 #include <algorithm>
 #include <string>
 
 #include "carat/base/error.hpp"
+#include "serial_openmp.hpp"
 
 namespace carat::internal {
 
@@ -73,14 +73,11 @@ void CholmodSession::analyze(const char* who) {
 
 bool CholmodSession::factorize() {
   State& st = *state_;
-  // Debian's CHOLMOD runs some loops of its supernodal factorization under OpenMP with a fixed
-  // team size; on small machines that oversubscribes the cores and costs more in thread wake-ups
-  // than it gains (measured: torus3D 1.6 s vs 1.0 s of factorization). Run those regions
-  // inactive (single-threaded) for this call only.
-  const int saved_levels = omp_get_max_active_levels();
-  omp_set_max_active_levels(0);
-  const int ok = cholmod_l_factorize(&st.matrix, st.factor, &st.common);
-  omp_set_max_active_levels(saved_levels);
+  int ok = 0;
+  {
+    const SerialOpenMp serial;  // CHOLMOD's OpenMP regions single-threaded for this call
+    ok = cholmod_l_factorize(&st.matrix, st.factor, &st.common);
+  }
   return ok && st.common.status == CHOLMOD_OK && st.factor->minor == st.matrix.nrow;
 }
 

@@ -1382,6 +1382,12 @@ void SchurSystem::multiply(const Eigen::VectorXd& x, Eigen::VectorXd* y) const {
   }
 }
 
+int SchurSystem::eliminated_at(int offset) const {
+  const auto it = std::lower_bound(pt_offset_.begin(), pt_offset_.end(), offset);
+  if (it == pt_offset_.end() || *it != offset) return -1;
+  return static_cast<int>(it - pt_offset_.begin());
+}
+
 double SchurSystem::take_elimination_seconds() {
   const double s = elimination_s_;
   elimination_s_ = 0.0;

@@ -56,6 +56,43 @@ class SchurSystem final : public LinearSystem {
   /// Number of eliminated variables.
   int num_eliminated() const { return static_cast<int>(pt_dim_.size()); }
 
+  // What the covariance reads after factorize() (see covariance.hpp): the factor of S, and per
+  // eliminated variable p its V's inverse factor and its blocks W with the kept variables.
+
+  /// The reduced system's CHOLMOD session; after factorize(), its factor is of S.
+  CholmodSession& reduced_cholmod() { return *cholmod_; }
+  /// The eliminated variable whose tangent starts at system offset `offset`; -1 if none does.
+  int eliminated_at(int offset) const;
+  /// System offset of eliminated variable p.
+  int eliminated_offset(std::size_t p) const { return pt_offset_[p]; }
+  /// Tangent size of eliminated variable p.
+  int eliminated_dim(std::size_t p) const { return pt_dim_[p]; }
+  /// L^-1 (column-major, lower) with L L^T = V_p + damping of the last factorize().
+  const double* eliminated_l_inverse(std::size_t p) const {
+    return l_inverse_.data() + pt_v_offset_[p];
+  }
+  /// Edges of eliminated variable p: [first, end) (kept variables sharing a block with it).
+  std::pair<std::size_t, std::size_t> eliminated_edges(std::size_t p) const {
+    return {pt_edge_begin_[p], pt_edge_begin_[p + 1]};
+  }
+  /// System offset of edge e's kept variable.
+  int edge_offset(std::size_t e) const {
+    return cam_offset_[static_cast<std::size_t>(edge_cam_[e])];
+  }
+  /// Tangent size of edge e's kept variable.
+  int edge_dim(std::size_t e) const { return cam_dim_[static_cast<std::size_t>(edge_cam_[e])]; }
+  /// W = H(kept, eliminated) of edge e: edge_dim(e) x eliminated_dim(p), column-major.
+  const double* edge_w(std::size_t e) const { return w_.data() + edge_w_offset_[e]; }
+  /// V_p = H(p, p) of the last assembly (undamped; column-major).
+  const double* eliminated_v(std::size_t p) const { return v_.data() + pt_v_offset_[p]; }
+  /// S's lower triangle in compressed columns (kept variables in system order) as the last
+  /// factorize() formed it, damping included: column pointers, rows, values.
+  const std::vector<std::int64_t>& reduced_colptr() const { return colptr_; }
+  /// See reduced_colptr().
+  const std::vector<std::int64_t>& reduced_rows() const { return rows_; }
+  /// See reduced_colptr().
+  const std::vector<double>& reduced_values() const { return values_; }
+
  private:
   template <int DC, int DP>
   bool eliminate_points(const Eigen::VectorXd& damping);

@@ -50,6 +50,10 @@ class SparseSystem final : public LinearSystem {
   /// Solves (H + diag(damping)) x = rhs with the last successful factorization.
   void solve(const Eigen::VectorXd& rhs, Eigen::VectorXd* x) override;
 
+  /// The CHOLMOD session; after factorize(), its factor is of H + diag(damping) in the system's
+  /// own order (natural ordering: the variables were ordered before assembly).
+  CholmodSession& cholmod() { return *cholmod_; }
+
  private:
   std::size_t factor_nnz_ = 0;
   double factor_flops_ = 0.0;

@@ -18,6 +18,7 @@
 #include "carat/registration/frame_store.hpp"
 #include "carat/solver/loss_function.hpp"
 #include "carat/solver/problem.hpp"
+#include "carat/solver/se3.hpp"
 #include "carat/solver/solver_options.hpp"
 #include "carat/solver/solver_summary.hpp"
 
@@ -67,6 +68,9 @@ struct GlobalRegistrationOptions {
   double round_translation_tolerance = 1e-3;  ///< metres
   double round_rotation_tolerance = 1e-4;     ///< radians
   SolverOptions solver;                       ///< LM settings
+  /// After the last round: every pose's marginal covariance at the solution, from the problem
+  /// as solved (carat::Covariance over its kept rows; see carat/solver/covariance.hpp).
+  bool covariance = false;
   /// Per-iteration poses (e.g. an error against a reference at every iteration); it runs after
   /// solver.iteration_callback when both are set. Empty: none.
   RegistrationIterationCallback iteration_callback;
@@ -154,6 +158,11 @@ struct GlobalRegistrationResult {
   std::vector<std::size_t> factor_correspondence_bytes;  ///< per factor: its full block's bytes
   std::vector<std::size_t> factor_residual_bytes;  ///< per factor: bytes held during the solve
   int rounds = 0;                                  ///< correspondence rounds run
+  /// With GlobalRegistrationOptions::covariance: per frame, the covariance of its pose's right
+  /// perturbation xi = [omega (rad), v (m)], T_world_frame <- T_world_frame Exp(xi); zero for
+  /// the first frame, which is held constant.
+  std::vector<se3::Matrix6d> covariance;
+  double covariance_s = 0.0;  ///< wall time of the covariances
 };
 
 /// Builds the problem and solves it, `options.rounds` times at most. Over the rounds: the

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "carat/registration/pair_registration.hpp"
+#include "carat/solver/se3.hpp"
 #include "carat/solver/solver_options.hpp"
 #include "carat/solver/solver_summary.hpp"
 
@@ -34,6 +35,8 @@ struct PoseGraphBaselineOptions {
   /// by about 1 / |error|^2 (a strong reweighting, not only outlier rejection).
   double cauchy_scale = 1.0;
   SolverOptions solver;  ///< LM settings (first pose held constant)
+  /// After the solve: every pose's marginal covariance at the solution (carat::Covariance).
+  bool covariance = false;
 };
 
 /// Optimized poses and the solve's summary.
@@ -41,6 +44,11 @@ struct PoseGraphBaselineResult {
   std::vector<Eigen::Isometry3d> T_world_frame;  ///< optimized poses
   SolverSummary summary;                         ///< the solve
   std::size_t unconverged_pairs = 0;  ///< registrations that did not converge (kept as factors)
+  /// With PoseGraphBaselineOptions::covariance: per frame, the covariance of its pose's right
+  /// perturbation xi = [omega (rad), v (m)], T_world_frame <- T_world_frame Exp(xi); zero for
+  /// the first frame, which is held constant.
+  std::vector<se3::Matrix6d> covariance;
+  double covariance_s = 0.0;  ///< wall time of the covariances
 };
 
 /// The information of a relative-pose factor (translation first, RelativePoseBlock's order)
