@@ -1,5 +1,6 @@
 // carat.Problem, carat.solve, carat.compress and carat.solve_recompressed: least-squares problems
 // defined from Python, with residual rows written in numpy.
+#include <pybind11/eigen.h>
 #include <pybind11/stl.h>
 
 #include <optional>
@@ -9,7 +10,9 @@
 #include "bindings.hpp"
 #include "carat/base/error.hpp"
 #include "carat/coreset/problem_compression.hpp"
+#include "carat/solver/covariance.hpp"
 #include "carat/solver/solve.hpp"
+#include "integer_arguments.hpp"
 #include "mapping_types.hpp"
 #include "python_problem.hpp"
 
@@ -22,6 +25,12 @@ struct CompressionReport {
   ProblemCompressionReport report;
   PythonProblem* problem = nullptr;
   bool restored = false;
+};
+
+/// What carat.covariance returns: marginal covariances of a problem at the values it held.
+struct ProblemCovariance {
+  std::shared_ptr<const Covariance> covariance;
+  const PythonProblem* problem = nullptr;
 };
 
 /// Solver options from keyword arguments named as SolverOptions' fields (threads for
@@ -94,9 +103,10 @@ SolverSummary solve_problem(PythonProblem& problem, const py::kwargs& kwargs) {
   return summary;
 }
 
+/// `options` with the settings carat.compress and carat.solve_recompressed take.
 ProblemCompressionOptions compression_options(int target_rows, int clusters, int min_rows,
-                                              std::uint64_t seed, int threads) {
-  ProblemCompressionOptions options;
+                                              std::uint64_t seed, int threads,
+                                              ProblemCompressionOptions options = {}) {
   options.compression.target_rows = target_rows;
   options.compression.clusters = clusters;
   options.compression.seed = seed;
@@ -111,9 +121,16 @@ RecompressedSolveSummary solve_recompressed_problem(PythonProblem& problem, cons
                                                     const py::kwargs& kwargs) {
   RecompressedSolveOptions options;
   options.inner = solver_options(kwargs, "solve_recompressed");
-  options.compression =
-      compression_options(target_rows, clusters, min_rows, seed, options.inner.num_threads);
+  options.compression = compression_options(target_rows, clusters, min_rows, seed,
+                                            options.inner.num_threads, options.compression);
   options.max_recompressions = max_recompressions;
+  // The stop tests asked for are also the full problem's between compressions.
+  if (kwargs.contains("function_tolerance")) {
+    options.function_tolerance = options.inner.function_tolerance;
+  }
+  if (kwargs.contains("gradient_tolerance")) {
+    options.gradient_tolerance = options.inner.gradient_tolerance;
+  }
   try {
     options.mode = parse_compression_mode(mode);
   } catch (const Error& e) {
@@ -129,6 +146,23 @@ RecompressedSolveSummary solve_recompressed_problem(PythonProblem& problem, cons
     throw Error("solve_recompressed: " + summary.message);
   }
   return summary;
+}
+
+ProblemCovariance covariance_of(PythonProblem& problem, const std::string& gauge,
+                                const std::string& linear_solver, int threads) {
+  Covariance::Options options;
+  try {
+    options.gauge = parse_covariance_gauge(gauge);
+    options.linear_solver = parse_linear_solver(linear_solver);
+  } catch (const Error& e) {
+    throw py::value_error(std::string("covariance(): ") + e.what());
+  }
+  options.num_threads = threads_argument(threads);
+  ProblemCovariance out;
+  out.problem = &problem;
+  out.covariance = problem.run(
+      [&](Problem& p, InterruptCheck&) { return std::make_shared<const Covariance>(p, options); });
+  return out;
 }
 
 py::dict time_breakdown(const TimeBreakdown& t) {
@@ -230,6 +264,36 @@ void bind_problem(py::module_& m) {
                ", rows_after=" + std::to_string(r.report.rows_after) + ")";
       });
 
+  py::class_<ProblemCovariance>(
+      m, "Covariance",
+      "Marginal covariances of a problem's free variables at the values it held when "
+      "carat.covariance ran, in each variable's tangent coordinates (SE(3): [omega, v] of the "
+      "right perturbation T Exp(xi); SE(2): [omega, vx, vy]; Euclidean: its coordinates).")
+      .def(
+          "block",
+          [](const ProblemCovariance& c, int a, const std::optional<int>& b) {
+            const VariableId va = c.problem->id(a, "Covariance.block");
+            const VariableId vb = b ? c.problem->id(*b, "Covariance.block") : va;
+            return c.covariance->block(va, vb);
+          },
+          py::arg("a"), py::arg("b") = py::none(),
+          "The covariance of variable a (tangent x tangent), or the cross-covariance "
+          "E[xi_a xi_b^T] of a and b; carat.Error for a constant variable.")
+      .def_property_readonly(
+          "gauge_dimension",
+          [](const ProblemCovariance& c) { return c.covariance->gauge_dimension(); },
+          "free directions removed (gauge='pseudo-inverse'); 0 when H is "
+          "nonsingular")
+      .def_property_readonly(
+          "size", [](const ProblemCovariance& c) { return c.covariance->size(); },
+          "tangent dimensions of the free variables")
+      .def_property_readonly(
+          "description", [](const ProblemCovariance& c) { return c.covariance->description(); },
+          "the factorization used")
+      .def_property_readonly(
+          "time_s", [](const ProblemCovariance& c) { return c.covariance->time().total_s; },
+          "seconds the computation took");
+
   py::class_<PythonProblem>(m, "Problem",
                             R"(A nonlinear least-squares problem: variables and residual blocks.
 
@@ -285,6 +349,13 @@ variables.)")
            py::arg("T_world_prior"), py::arg("information") = py::none(), py::kw_only(),
            py::arg("loss") = "none", py::arg("loss_scale") = 1.0,
            "carat's SE(3) pose prior (6 x 6 information, translation first).")
+      .def("add_gicp", &PythonProblem::add_gicp, py::arg("i"), py::arg("j"),
+           py::arg("target_means"), py::arg("target_covariances"), py::arg("source_means"),
+           py::arg("source_covariances"), py::arg("T_target_source") = py::none(), py::kw_only(),
+           py::arg("loss") = "none", py::arg("loss_scale") = 1.0,
+           "carat's GICP block between SE(3) poses i (target) and j (source): N correspondences "
+           "(means N x 3 in metres, covariances N x 3 x 3), covariances fused at T_target_source "
+           "(None: the poses' current relative pose); three rows each. Returns its id.")
       .def("add_bal_observations", &PythonProblem::add_bal_observations, py::arg("cameras"),
            py::arg("points"), py::arg("observed"), py::kw_only(), py::arg("loss") = "none",
            py::arg("loss_scale") = 1.0,
@@ -314,8 +385,8 @@ check_blocks (False). Returns a carat.SolverSummary; raises carat.Error when the
 (e.g. a non-finite row at the start, naming the block and row) and re-raises an exception a
 residual function raised.)");
 
-  m.def(
-      "compress",
+  def_checked(
+      m, "compress",
       [](PythonProblem& problem, int target_rows, int clusters, int min_rows, std::uint64_t seed,
          int threads) {
         const ProblemCompressionOptions options =
@@ -331,10 +402,19 @@ residual function raised.)");
       R"(Replaces every block of more than target_rows rows by its exact coreset at the current
 values (target_rows 0: the minimum r(r+1)/2 + r + 2). Returns a carat.CompressionReport.)");
 
-  m.def("solve_recompressed", &solve_recompressed_problem, py::arg("problem"), py::kw_only(),
-        py::arg("mode") = "surrogate", py::arg("target_rows") = 0, py::arg("clusters") = 0,
-        py::arg("min_rows") = 0, py::arg("seed") = 1, py::arg("max_recompressions") = 20,
-        R"(Solves to the full problem's optimum with compressed blocks.
+  def_checked(
+      m, "covariance", &covariance_of, py::arg("problem"), py::kw_only(),
+      py::arg("gauge") = "error", py::arg("linear_solver") = "auto", py::arg("threads") = 1,
+      R"(Marginal covariances of the problem's free variables at its current values (blocks of
+(J^T J)^-1, robust losses applied as carat.solve applies them). gauge: 'error' (carat.Error
+naming the variables a singular H leaves free) or 'pseudo-inverse'. Returns a
+carat.Covariance.)");
+
+  def_checked(m, "solve_recompressed", &solve_recompressed_problem, py::arg("problem"),
+              py::kw_only(), py::arg("mode") = "surrogate", py::arg("target_rows") = 0,
+              py::arg("clusters") = 0, py::arg("min_rows") = 0, py::arg("seed") = 1,
+              py::arg("max_recompressions") = 20,
+              R"(Solves to the full problem's optimum with compressed blocks.
 
 mode: 'surrogate' (default), 'recompress', 'once' (one compression: fast, not the full optimum),
 'auto' or 'full'. Solver options as for carat.solve. Returns a carat.RecompressedSolveSummary.)");

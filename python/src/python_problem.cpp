@@ -6,6 +6,7 @@
 
 #include "arrays.hpp"
 #include "carat/base/error.hpp"
+#include "carat/residuals/gicp_block.hpp"
 #include "carat/residuals/pose_prior_block.hpp"
 #include "carat/residuals/relative_pose_block.hpp"
 #include "carat/residuals/relative_pose_se2_block.hpp"
@@ -253,6 +254,59 @@ int PythonProblem::add_pose_prior(int variable, const py::handle& T_world_prior,
   auto block = std::make_shared<PosePriorBlock>(
       pose_from_array(T_world_prior, "add_pose_prior T_world_prior"), info);
   return problem_.add_residual_block(block, {v}, loss_argument(loss, loss_scale, "add_pose_prior"))
+      .index;
+}
+
+int PythonProblem::add_gicp(int i, int j, const py::handle& target_means,
+                            const py::handle& target_covariances, const py::handle& source_means,
+                            const py::handle& source_covariances, const py::handle& T_target_source,
+                            const std::string& loss, double loss_scale) {
+  check_free();
+  const VariableId vi = id(i, "add_gicp");
+  const VariableId vj = id(j, "add_gicp");
+  for (VariableId v : {vi, vj}) {
+    if (kind(v) != VariableKind::kSE3) {
+      throw py::value_error("add_gicp: variable " + std::to_string(v.index) + " is " +
+                            problem_.manifold(v).name() + "; expected an SE(3) variable");
+    }
+  }
+  const auto mu_target = as_float64(target_means, "add_gicp target_means");
+  const auto C_target = as_float64(target_covariances, "add_gicp target_covariances");
+  const auto mu_source = as_float64(source_means, "add_gicp source_means");
+  const auto C_source = as_float64(source_covariances, "add_gicp source_covariances");
+  const py::ssize_t n = mu_target.ndim() == 2 ? mu_target.shape(0) : -1;
+  const auto means_ok = [n](const py::array_t<double>& a) {
+    return a.ndim() == 2 && a.shape(0) == n && a.shape(1) == 3;
+  };
+  const auto covariances_ok = [n](const py::array_t<double>& a) {
+    return a.ndim() == 3 && a.shape(0) == n && a.shape(1) == 3 && a.shape(2) == 3;
+  };
+  if (n < 1 || !means_ok(mu_target) || !means_ok(mu_source) || !covariances_ok(C_target) ||
+      !covariances_ok(C_source)) {
+    throw py::value_error(
+        "add_gicp: expected target_means and source_means of shape (N, 3) and target_covariances "
+        "and source_covariances of shape (N, 3, 3), N >= 1");
+  }
+  std::vector<GicpCorrespondence> correspondences(static_cast<std::size_t>(n));
+  using Row3 = Eigen::Matrix<double, 3, 3, Eigen::RowMajor>;
+  for (py::ssize_t k = 0; k < n; ++k) {
+    GicpCorrespondence& c = correspondences[static_cast<std::size_t>(k)];
+    c.mean_target = Eigen::Map<const Eigen::Vector3d>(mu_target.data() + 3 * k);
+    c.mean_source = Eigen::Map<const Eigen::Vector3d>(mu_source.data() + 3 * k);
+    c.covariance_target = Eigen::Map<const Row3>(C_target.data() + 9 * k);
+    c.covariance_source = Eigen::Map<const Row3>(C_source.data() + 9 * k);
+  }
+  const Eigen::Isometry3d T = T_target_source.is_none()
+                                  ? se3::from_storage(problem_.value(vi).data()).inverse() *
+                                        se3::from_storage(problem_.value(vj).data())
+                                  : pose_from_array(T_target_source, "add_gicp T_target_source");
+  std::shared_ptr<GicpBlock> block;
+  try {
+    block = std::make_shared<GicpBlock>(correspondences, T);
+  } catch (const Error& e) {
+    throw py::value_error(std::string("add_gicp: ") + e.what());
+  }
+  return problem_.add_residual_block(block, {vi, vj}, loss_argument(loss, loss_scale, "add_gicp"))
       .index;
 }
 

@@ -66,6 +66,12 @@ class PythonProblem {
   /// PosePriorBlock on an SE(3) variable.
   int add_pose_prior(int variable, const py::handle& T_world_prior, const py::handle& information,
                      const std::string& loss, double loss_scale);
+  /// One GicpBlock between SE(3) variables i (target) and j (source) over N correspondences:
+  /// target and source means (N x 3, metres) and covariances (N x 3 x 3); the covariances are
+  /// fused at T_target_source (None: the current T_world_i^-1 T_world_j).
+  int add_gicp(int i, int j, const py::handle& target_means, const py::handle& target_covariances,
+               const py::handle& source_means, const py::handle& source_covariances,
+               const py::handle& T_target_source, const std::string& loss, double loss_scale);
   /// One SnavelyReprojectionBlock per observation (BAL cameras of 9 numbers, points of 3).
   py::array_t<int> add_bal_observations(const py::handle& cameras, const py::handle& points,
                                         const py::handle& observed, const std::string& loss,
@@ -104,6 +110,9 @@ class PythonProblem {
     }
   }
 
+  /// The id of `variable`; ValueError naming `what` when there is no such variable.
+  VariableId id(int variable, const std::string& what) const;
+
   /// Whether a residual function has raised during the running call (any thread).
   bool callback_failed() const { return errors_->failed(); }
 
@@ -115,8 +124,6 @@ class PythonProblem {
   };
   friend struct Guard;
 
-  /// The id of `variable`; ValueError naming `what` when there is no such variable.
-  VariableId id(int variable, const std::string& what) const;
   /// The ids of an int or a 1-D array of ints (checked); *scalar says which it was.
   std::vector<VariableId> ids(const py::handle& variables, const std::string& what,
                               bool* scalar = nullptr) const;
