@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <utility>
+#include <variant>
 
 #include "carat/base/error.hpp"
 
@@ -13,7 +14,15 @@ constexpr int kChunkRows = 128;
 
 using StridedMatrix =
     Eigen::Map<const Eigen::MatrixXd, 0, Eigen::Stride<Eigen::Dynamic, Eigen::Dynamic>>;
+/// Columns of contiguous doubles (numpy's J.T of a (t, n) array): vectorized products.
+using ColumnsMatrix = Eigen::Map<const Eigen::MatrixXd, 0, Eigen::OuterStride<>>;
+/// Rows of contiguous doubles (a C-ordered (n, t) array): vectorized products.
+using RowsMatrix =
+    Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>, 0,
+               Eigen::OuterStride<>>;
+using AnyMatrix = std::variant<ColumnsMatrix, RowsMatrix, StridedMatrix>;
 using StridedVector = Eigen::Map<const Eigen::VectorXd, 0, Eigen::InnerStride<Eigen::Dynamic>>;
+using AnyVector = std::variant<Eigen::Map<const Eigen::VectorXd>, StridedVector>;
 
 /// Whether the view is an Eigen map: evenly spaced rows, strides of whole doubles.
 bool whole_doubles(const StridedRows& view) {
@@ -22,12 +31,30 @@ bool whole_doubles(const StridedRows& view) {
          view.column % static_cast<std::ptrdiff_t>(sizeof(double)) == 0;
 }
 
-StridedMatrix matrix_of(const StridedRows& view, std::size_t rows, int columns) {
+/// The view (whole_doubles()) as the fastest Eigen map its layout allows.
+AnyMatrix matrix_of(const StridedRows& view, std::size_t rows, int columns) {
   constexpr auto kSize = static_cast<std::ptrdiff_t>(sizeof(double));
-  return StridedMatrix(reinterpret_cast<const double*>(view.data), static_cast<Eigen::Index>(rows),
-                       columns,
-                       Eigen::Stride<Eigen::Dynamic, Eigen::Dynamic>(view.column / kSize,
-                                                                     view.row_stride() / kSize));
+  const auto* data = reinterpret_cast<const double*>(view.data);
+  const auto n = static_cast<Eigen::Index>(rows);
+  const std::ptrdiff_t row = view.row_stride() / kSize;
+  const std::ptrdiff_t column = view.column / kSize;
+  if (row == 1 && (columns == 1 || column >= n)) {
+    return ColumnsMatrix(data, n, columns, Eigen::OuterStride<>(columns == 1 ? n : column));
+  }
+  if ((column == 1 || columns == 1) && row >= columns) {
+    return RowsMatrix(data, n, columns, Eigen::OuterStride<>(row));
+  }
+  return StridedMatrix(data, n, columns,
+                       Eigen::Stride<Eigen::Dynamic, Eigen::Dynamic>(column, row));
+}
+
+/// The residuals (whole_doubles()) as an Eigen vector, contiguous when they are.
+AnyVector vector_of(const StridedRows& view, std::size_t rows) {
+  constexpr auto kSize = static_cast<std::ptrdiff_t>(sizeof(double));
+  const auto* data = reinterpret_cast<const double*>(view.data);
+  const auto n = static_cast<Eigen::Index>(rows);
+  if (view.row_stride() == kSize) return Eigen::Map<const Eigen::VectorXd>(data, n);
+  return StridedVector(data, n, Eigen::InnerStride<Eigen::Dynamic>(view.row_stride() / kSize));
 }
 
 }  // namespace
@@ -195,27 +222,33 @@ double NumpyRowsBlock::accumulate(ParameterPointers params, Eigen::Ref<Eigen::Ma
   for (std::size_t j = 0; j < dims.size(); ++j) {
     direct = direct && whole_doubles(values.jacobian_view(static_cast<int>(j)));
   }
-  if (direct) {  // the arrays as they are: products of strided maps, no copy of the rows
-    constexpr auto kSize = static_cast<std::ptrdiff_t>(sizeof(double));
-    const StridedVector r(
-        reinterpret_cast<const double*>(values.residual_view().data), static_cast<Eigen::Index>(n),
-        Eigen::InnerStride<Eigen::Dynamic>(values.residual_view().row_stride() / kSize));
+  if (direct) {  // the arrays as they are: products of maps, no copy of the rows
+    const AnyVector r = vector_of(values.residual_view(), n);
+    std::vector<AnyMatrix> J;
+    for (std::size_t a = 0; a < dims.size(); ++a) {
+      J.push_back(matrix_of(values.jacobian_view(static_cast<int>(a)), n, dims[a]));
+    }
     int column_a = 0;
     for (std::size_t a = 0; a < dims.size(); ++a) {
-      const StridedMatrix Ja = matrix_of(values.jacobian_view(static_cast<int>(a)), n, dims[a]);
-      b_r.segment(column_a, dims[a]).noalias() += Ja.transpose() * r;
+      std::visit(
+          [&](const auto& Ja, const auto& rv) {
+            b_r.segment(column_a, dims[a]).noalias() += Ja.transpose() * rv;
+          },
+          J[a], r);
       int column_b = column_a;
       for (std::size_t b = a; b < dims.size(); ++b) {
-        const StridedMatrix Jb =
-            a == b ? Ja : matrix_of(values.jacobian_view(static_cast<int>(b)), n, dims[b]);
-        const Eigen::MatrixXd block = Ja.transpose() * Jb;
-        H_r.block(column_a, column_b, dims[a], dims[b]) += block;
-        if (a != b) H_r.block(column_b, column_a, dims[b], dims[a]) += block.transpose();
+        std::visit(
+            [&](const auto& Ja, const auto& Jb) {
+              const Eigen::MatrixXd block = Ja.transpose() * Jb;
+              H_r.block(column_a, column_b, dims[a], dims[b]) += block;
+              if (a != b) H_r.block(column_b, column_a, dims[b], dims[a]) += block.transpose();
+            },
+            J[a], J[b]);
         column_b += dims[b];
       }
       column_a += dims[a];
     }
-    return r.squaredNorm();
+    return std::visit([](const auto& rv) { return rv.squaredNorm(); }, r);
   }
   struct Scratch {
     Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> J;
@@ -273,6 +306,10 @@ double NumpyRowsBlock::squared_norm(ParameterPointers params) const {
   const Evaluated e = evaluate(params, std::nullopt, false);
   const RowsEvaluation& values = *e.evaluation;
   const auto n = static_cast<std::size_t>(num_rows());
+  if (e.position == nullptr && !weighted() && whole_doubles(values.residual_view())) {
+    return std::visit([](const auto& rv) { return rv.squaredNorm(); },
+                      vector_of(values.residual_view(), n));
+  }
   double cost = 0.0;
   if (weighted()) {
     for (std::size_t q = 0; q < n; ++q) cost += values.cost_share(e.at(q));
