@@ -115,20 +115,26 @@ py::array_t<int> PythonProblem::add_rows(const py::object& function, const py::h
         py::array_t<std::int64_t, py::array::c_style | py::array::forcecast>::ensure(as_array);
     slot.indexed = true;
     slot.per_group.resize(static_cast<std::size_t>(groups));
+    // Kinds are checked once per distinct variable (a camera is read by thousands of groups).
+    std::unordered_map<std::int64_t, int> seen;
     for (int g = 0; g < groups; ++g) {
       const std::int64_t raw = ids.data()[g];
-      const int index =
-          raw < 0 || raw > std::numeric_limits<int>::max() ? -1 : static_cast<int>(raw);
-      const VariableId v = id(index, what + "[" + std::to_string(g) + "]");
-      if (g == 0) {
-        describe_slot(v);
-      } else if (kind(v) != slot.kind || problem_.manifold(v).ambient_size() != slot.ambient) {
-        throw py::value_error(what + ": mixes variables of kinds " +
-                              describe(slot.kind, slot.ambient) + " and " +
-                              describe(kind(v), problem_.manifold(v).ambient_size()) + " (group " +
-                              std::to_string(g) + ")");
+      const auto [it, fresh] = seen.emplace(raw, 0);
+      if (fresh) {
+        const int index =
+            raw < 0 || raw > std::numeric_limits<int>::max() ? -1 : static_cast<int>(raw);
+        const VariableId v = id(index, what + "[" + std::to_string(g) + "]");
+        if (g == 0) {
+          describe_slot(v);
+        } else if (kind(v) != slot.kind || problem_.manifold(v).ambient_size() != slot.ambient) {
+          throw py::value_error(what + ": mixes variables of kinds " +
+                                describe(slot.kind, slot.ambient) + " and " +
+                                describe(kind(v), problem_.manifold(v).ambient_size()) +
+                                " (group " + std::to_string(g) + ")");
+        }
+        it->second = local_of(v);
       }
-      slot.per_group[static_cast<std::size_t>(g)] = local_of(v);
+      slot.per_group[static_cast<std::size_t>(g)] = it->second;
     }
   }
 
