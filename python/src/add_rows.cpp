@@ -116,13 +116,11 @@ py::array_t<int> PythonProblem::add_rows(const py::object& function, const py::h
     slot.indexed = true;
     slot.per_group.resize(static_cast<std::size_t>(groups));
     // Kinds are checked once per distinct variable (a camera is read by thousands of groups).
-    std::unordered_map<std::int64_t, int> seen;
+    std::vector<int> seen(static_cast<std::size_t>(problem_.num_variables()), -1);
     for (int g = 0; g < groups; ++g) {
       const std::int64_t raw = ids.data()[g];
-      const auto [it, fresh] = seen.emplace(raw, 0);
-      if (fresh) {
-        const int index =
-            raw < 0 || raw > std::numeric_limits<int>::max() ? -1 : static_cast<int>(raw);
+      const int index = raw < 0 || raw >= problem_.num_variables() ? -1 : static_cast<int>(raw);
+      if (index < 0 || seen[static_cast<std::size_t>(index)] < 0) {
         const VariableId v = id(index, what + "[" + std::to_string(g) + "]");
         if (g == 0) {
           describe_slot(v);
@@ -132,9 +130,9 @@ py::array_t<int> PythonProblem::add_rows(const py::object& function, const py::h
                                 describe(kind(v), problem_.manifold(v).ambient_size()) +
                                 " (group " + std::to_string(g) + ")");
         }
-        it->second = local_of(v);
+        seen[static_cast<std::size_t>(index)] = local_of(v);
       }
-      slot.per_group[static_cast<std::size_t>(g)] = it->second;
+      slot.per_group[static_cast<std::size_t>(g)] = seen[static_cast<std::size_t>(index)];
     }
   }
 

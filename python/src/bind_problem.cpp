@@ -405,6 +405,7 @@ values (target_rows 0: the minimum r(r+1)/2 + r + 2). Returns a carat.Compressio
   def_checked(
       m, "covariance", &covariance_of, py::arg("problem"), py::kw_only(),
       py::arg("gauge") = "error", py::arg("linear_solver") = "auto", py::arg("threads") = 1,
+      py::keep_alive<0, 1>(),
       R"(Marginal covariances of the problem's free variables at its current values (blocks of
 (J^T J)^-1, robust losses applied as carat.solve applies them). gauge: 'error' (carat.Error
 naming the variables a singular H leaves free) or 'pseudo-inverse'. Returns a

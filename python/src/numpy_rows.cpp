@@ -123,6 +123,14 @@ py::object NumpyRows::slot_values(int slot, std::span<const int> groups, const S
   shape.insert(shape.begin(), count);
   py::array_t<double, py::array::f_style> out(shape);
   double* data = out.mutable_data();
+  if (s.kind == VariableKind::kEuclidean && direction < 0) {  // the stored numbers themselves
+    const auto n = static_cast<std::size_t>(count);
+    for (std::size_t k = 0; k < n; ++k) {
+      const double* x = value(source, slot, groups[k]);
+      for (std::size_t e = 0; e < size; ++e) data[k + n * e] = x[e];
+    }
+    return out;
+  }
   std::vector<double> one(size);
   const bool matrix = shape.size() == 3;
   const auto columns = matrix ? static_cast<std::size_t>(shape[2]) : size;
