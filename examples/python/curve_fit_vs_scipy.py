@@ -31,9 +31,10 @@ import carat
 
 # Tight enough that every solver stops at the optimum to about 1e-12 (relative).
 TOLERANCE = 1e-14
-# carat's full solve and its compressed solve that switches to compression where the
-# Gauss-Newton model fails (both end at the full problem's optimum).
-MODES = ("full", "auto")
+# carat's full solve and two compressed solves that end at the full problem's optimum:
+# "surrogate" (solve_recompressed's default) and "auto" (a full solve that switches to
+# compression where the Gauss-Newton model fails).
+MODES = ("full", "surrogate", "auto")
 
 
 CHUNK = 16384  # rows per numpy operation: arrays that stay in cache run about twice as fast
