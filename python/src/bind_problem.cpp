@@ -33,6 +33,33 @@ struct ProblemCovariance {
   const PythonProblem* problem = nullptr;
 };
 
+/// cls.def(name, method, extra...) with the method's integer parameters taken as any Python
+/// integer and checked by name (integer_arguments.hpp).
+template <typename R, typename... A, typename... Extra>
+void def_checked_method(py::class_<PythonProblem>& cls, const char* name,
+                        R (PythonProblem::*method)(A...), const Extra&... extra) {
+  const auto call = [method](PythonProblem& self, A... args) -> R {
+    return (self.*method)(std::forward<A>(args)...);
+  };
+  using W = detail::Wrapper<decltype(call), R(PythonProblem&, A...)>;
+  std::vector<std::string> names = detail::argument_names(extra...);
+  names.insert(names.begin(), "self");
+  cls.def(name, W::wrap(call, std::move(names)), extra...);
+}
+
+/// The same for a const method.
+template <typename R, typename... A, typename... Extra>
+void def_checked_method(py::class_<PythonProblem>& cls, const char* name,
+                        R (PythonProblem::*method)(A...) const, const Extra&... extra) {
+  const auto call = [method](const PythonProblem& self, A... args) -> R {
+    return (self.*method)(std::forward<A>(args)...);
+  };
+  using W = detail::Wrapper<decltype(call), R(const PythonProblem&, A...)>;
+  std::vector<std::string> names = detail::argument_names(extra...);
+  names.insert(names.begin(), "self");
+  cls.def(name, W::wrap(call, std::move(names)), extra...);
+}
+
 /// Solver options from keyword arguments named as SolverOptions' fields (threads for
 /// num_threads); TypeError for an unknown one, ValueError for a value out of range.
 SolverOptions solver_options(const py::kwargs& kwargs, const char* who) {
@@ -294,13 +321,14 @@ void bind_problem(py::module_& m) {
           "time_s", [](const ProblemCovariance& c) { return c.covariance->time().total_s; },
           "seconds the computation took");
 
-  py::class_<PythonProblem>(m, "Problem",
-                            R"(A nonlinear least-squares problem: variables and residual blocks.
+  py::class_<PythonProblem> problem_class(
+      m, "Problem",
+      R"(A nonlinear least-squares problem: variables and residual blocks.
 
 Variables are ints. Euclidean values are 1-D arrays, SE(3) poses T_world_body 4 x 4 rigid
 transforms (tangent [omega, v], right perturbation T Exp(xi)), SE(2) poses 3 x 3 homogeneous
-matrices or [x, y, theta] (tangent [omega, vx, vy]). The cost is 1/2 sum rho(|r|^2).)")
-      .def(py::init<>())
+matrices or [x, y, theta] (tangent [omega, vx, vy]). The cost is 1/2 sum rho(|r|^2).)");
+  problem_class.def(py::init<>())
       .def("add_euclidean", &PythonProblem::add_euclidean, py::arg("values"),
            "Adds a Euclidean variable with these initial values (a 1-D array) and returns its id; "
            "a 2-D array adds one per row and returns their ids.")
@@ -311,7 +339,6 @@ matrices or [x, y, theta] (tangent [omega, vx, vy]). The cost is 1/2 sum rho(|r|
            "id.")
       .def("set_constant", &PythonProblem::set_constant, py::arg("variables"),
            py::arg("constant") = true, "Holds a variable (or an array of them) fixed, or frees it.")
-      .def("is_constant", &PythonProblem::is_constant, py::arg("variable"))
       .def("set_eliminable", &PythonProblem::set_eliminable, py::arg("variables"),
            py::arg("eliminable") = true,
            "Marks a variable for elimination by the Schur complement (bundle adjustment's "
@@ -319,11 +346,29 @@ matrices or [x, y, theta] (tangent [omega, vx, vy]). The cost is 1/2 sum rho(|r|
       .def("value", &PythonProblem::value, py::arg("variables"),
            "The variable's value: a 1-D array, a 4 x 4 or a 3 x 3 matrix; for an array of "
            "variables of one kind, their values stacked.")
-      .def("set_value", &PythonProblem::set_value, py::arg("variable"), py::arg("value"))
-      .def("add_rows", &PythonProblem::add_rows, py::arg("residual"), py::arg("variables"),
-           py::kw_only(), py::arg("rows"), py::arg("group") = 1, py::arg("loss") = "none",
-           py::arg("loss_scale") = 1.0, py::arg("loss_per") = "group", py::arg("name") = py::none(),
-           R"(Adds `rows` residual rows evaluated by residual(*values, rows).
+      .def("add_bal_observations", &PythonProblem::add_bal_observations, py::arg("cameras"),
+           py::arg("points"), py::arg("observed"), py::kw_only(), py::arg("loss") = "none",
+           py::arg("loss_scale") = 1.0,
+           "carat's BAL reprojection block for each observation: camera ids (euclidean(9)), point "
+           "ids (euclidean(3)), observed pixels (N x 2); returns the block ids.")
+      .def_property_readonly("num_variables",
+                             [](const PythonProblem& p) { return p.problem().num_variables(); })
+      .def_property_readonly(
+          "num_residual_blocks",
+          [](const PythonProblem& p) { return p.problem().num_residual_blocks(); })
+      .def_property_readonly("num_residual_rows", [](const PythonProblem& p) {
+        return p.problem().num_residual_rows();
+      });
+
+  def_checked_method(problem_class, "is_constant", &PythonProblem::is_constant,
+                     py::arg("variable"));
+  def_checked_method(problem_class, "set_value", &PythonProblem::set_value, py::arg("variable"),
+                     py::arg("value"));
+  def_checked_method(problem_class, "add_rows", &PythonProblem::add_rows, py::arg("residual"),
+                     py::arg("variables"), py::kw_only(), py::arg("rows"), py::arg("group") = 1,
+                     py::arg("loss") = "none", py::arg("loss_scale") = 1.0,
+                     py::arg("loss_per") = "group", py::arg("name") = py::none(),
+                     R"(Adds `rows` residual rows evaluated by residual(*values, rows).
 
 variables: one entry per argument of `residual`: a variable id (every row reads it), or an
 array of rows // group ids (group g reads that variable: a camera and a point per observation).
@@ -335,44 +380,35 @@ manifold, two calls per direction). A parameter named `jacobians` receives False
 that need residuals only. loss: 'none', 'huber' or 'cauchy' with loss_scale, applied to each
 group of `group` rows (loss_per='group', which compresses exactly) or to each residual block
 (loss_per='block'). Returns the ids of the residual blocks added, one per distinct tuple of
-variables.)")
-      .def("add_relative_pose", &PythonProblem::add_relative_pose, py::arg("i"), py::arg("j"),
-           py::arg("T_i_j"), py::arg("information") = py::none(), py::kw_only(),
-           py::arg("loss") = "none", py::arg("loss_scale") = 1.0,
-           "carat's SE(3) relative-pose block between poses i and j (6 x 6 information, "
-           "translation first); returns its id.")
-      .def("add_relative_pose_se2", &PythonProblem::add_relative_pose_se2, py::arg("i"),
-           py::arg("j"), py::arg("T_i_j"), py::arg("information") = py::none(), py::kw_only(),
-           py::arg("loss") = "none", py::arg("loss_scale") = 1.0,
-           "carat's SE(2) relative-pose block (3 x 3 information in x, y, theta order).")
-      .def("add_pose_prior", &PythonProblem::add_pose_prior, py::arg("variable"),
-           py::arg("T_world_prior"), py::arg("information") = py::none(), py::kw_only(),
-           py::arg("loss") = "none", py::arg("loss_scale") = 1.0,
-           "carat's SE(3) pose prior (6 x 6 information, translation first).")
-      .def("add_gicp", &PythonProblem::add_gicp, py::arg("i"), py::arg("j"),
-           py::arg("target_means"), py::arg("target_covariances"), py::arg("source_means"),
-           py::arg("source_covariances"), py::arg("T_target_source") = py::none(), py::kw_only(),
-           py::arg("loss") = "none", py::arg("loss_scale") = 1.0,
-           "carat's GICP block between SE(3) poses i (target) and j (source): N correspondences "
-           "(means N x 3 in metres, covariances N x 3 x 3), covariances fused at T_target_source "
-           "(None: the poses' current relative pose); three rows each. Returns its id.")
-      .def("add_bal_observations", &PythonProblem::add_bal_observations, py::arg("cameras"),
-           py::arg("points"), py::arg("observed"), py::kw_only(), py::arg("loss") = "none",
-           py::arg("loss_scale") = 1.0,
-           "carat's BAL reprojection block for each observation: camera ids (euclidean(9)), point "
-           "ids (euclidean(3)), observed pixels (N x 2); returns the block ids.")
-      .def("cost", &PythonProblem::cost, py::arg("threads") = 1,
-           "The cost 1/2 sum rho(|r|^2) at the current values.")
-      .def("gradient", &PythonProblem::gradient, py::arg("threads") = 1,
-           "The gradient over the free variables' tangents, in variable order.")
-      .def_property_readonly("num_variables",
-                             [](const PythonProblem& p) { return p.problem().num_variables(); })
-      .def_property_readonly(
-          "num_residual_blocks",
-          [](const PythonProblem& p) { return p.problem().num_residual_blocks(); })
-      .def_property_readonly("num_residual_rows", [](const PythonProblem& p) {
-        return p.problem().num_residual_rows();
-      });
+variables.)");
+  def_checked_method(problem_class, "add_relative_pose", &PythonProblem::add_relative_pose,
+                     py::arg("i"), py::arg("j"), py::arg("T_i_j"),
+                     py::arg("information") = py::none(), py::kw_only(), py::arg("loss") = "none",
+                     py::arg("loss_scale") = 1.0,
+                     "carat's SE(3) relative-pose block between poses i and j (6 x 6 information, "
+                     "translation first); returns its id.");
+  def_checked_method(problem_class, "add_relative_pose_se2", &PythonProblem::add_relative_pose_se2,
+                     py::arg("i"), py::arg("j"), py::arg("T_i_j"),
+                     py::arg("information") = py::none(), py::kw_only(), py::arg("loss") = "none",
+                     py::arg("loss_scale") = 1.0,
+                     "carat's SE(2) relative-pose block (3 x 3 information in x, y, theta order).");
+  def_checked_method(problem_class, "add_pose_prior", &PythonProblem::add_pose_prior,
+                     py::arg("variable"), py::arg("T_world_prior"),
+                     py::arg("information") = py::none(), py::kw_only(), py::arg("loss") = "none",
+                     py::arg("loss_scale") = 1.0,
+                     "carat's SE(3) pose prior (6 x 6 information, translation first).");
+  def_checked_method(
+      problem_class, "add_gicp", &PythonProblem::add_gicp, py::arg("i"), py::arg("j"),
+      py::arg("target_means"), py::arg("target_covariances"), py::arg("source_means"),
+      py::arg("source_covariances"), py::arg("T_target_source") = py::none(), py::kw_only(),
+      py::arg("loss") = "none", py::arg("loss_scale") = 1.0,
+      "carat's GICP block between SE(3) poses i (target) and j (source): N correspondences "
+      "(means N x 3 in metres, covariances N x 3 x 3), covariances fused at T_target_source "
+      "(None: the poses' current relative pose); three rows each. Returns its id.");
+  def_checked_method(problem_class, "cost", &PythonProblem::cost, py::arg("threads") = 1,
+                     "The cost 1/2 sum rho(|r|^2) at the current values.");
+  def_checked_method(problem_class, "gradient", &PythonProblem::gradient, py::arg("threads") = 1,
+                     "The gradient over the free variables' tangents, in variable order.");
 
   m.def("solve", &solve_problem, py::arg("problem"),
         R"(Minimizes the problem's cost from its current values and writes the result back.

@@ -272,6 +272,8 @@ def test_bad_arguments_are_named():
         p.add_rows(3, [v], rows=4)
     with pytest.raises(ValueError, match="rows=5 is not a whole number of groups of group=2"):
         p.add_rows(lambda mc, rows: mc, [v], rows=5, group=2)
+    with pytest.raises(ValueError, match=r"rows: must be an integer in \[-2147483648, 2147483647\]"):
+        p.add_rows(lambda mc, rows: mc, [v], rows=2**40)
     with pytest.raises(ValueError, match="add_rows argument 1: variable 7 does not exist"):
         p.add_rows(lambda mc, rows: mc, [7], rows=4)
     with pytest.raises(ValueError, match="add_rows: .*'tukey'"):
