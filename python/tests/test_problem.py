@@ -142,7 +142,7 @@ def relative_pose_residual(T_ij):
     return residual
 
 
-def pose_graph_problems(loss="none"):
+def pose_graph_problems(loss, loss_per):
     start, measured = pose_chain()
     cpp, rows = carat.Problem(), carat.Problem()
     ids = [(cpp.add_se3(T), rows.add_se3(T)) for T in start]
@@ -153,13 +153,14 @@ def pose_graph_problems(loss="none"):
     T_ij = np.array([m[2] for m in measured])
     rows.add_rows(relative_pose_residual(T_ij), [np.array([m[0] for m in measured]),
                                                  np.array([m[1] for m in measured])],
-                  rows=6 * len(measured), group=6, loss=loss, loss_scale=0.5, name="edges")
+                  rows=6 * len(measured), group=6, loss=loss, loss_scale=0.5, loss_per=loss_per,
+                  name="edges")
     return cpp, rows, [k[0] for k in ids], [k[1] for k in ids]
 
 
-@pytest.mark.parametrize("loss", ["none", "huber"])
-def test_pose_graph_rows_match_carats_relative_pose_blocks(loss):
-    cpp, rows, cpp_ids, rows_ids = pose_graph_problems(loss)
+@pytest.mark.parametrize("loss, loss_per", [("none", "group"), ("huber", "group"), ("huber", "block")])
+def test_pose_graph_rows_match_carats_relative_pose_blocks(loss, loss_per):
+    cpp, rows, cpp_ids, rows_ids = pose_graph_problems(loss, loss_per)
     assert rows.num_residual_blocks == 7  # one block per edge (distinct pair of poses)
     assert rows.cost() == pytest.approx(cpp.cost(), rel=1e-12)
     np.testing.assert_allclose(rows.gradient(), cpp.gradient(), rtol=1e-6, atol=1e-6)
@@ -167,6 +168,52 @@ def test_pose_graph_rows_match_carats_relative_pose_blocks(loss):
     assert s_cpp.termination == s_rows.termination == "CONVERGENCE"
     assert s_rows.final_cost == pytest.approx(s_cpp.final_cost, rel=1e-10)
     np.testing.assert_allclose(rows.value(rows_ids), cpp.value(cpp_ids), rtol=0, atol=1e-10)
+
+
+def se2_log_residual(T_ij, information):
+    """RelativePoseSE2Block's residual in numpy: [vx, vy, w] of Log(T_ij^-1 T_i^-1 T_j), whitened."""
+    U = np.linalg.cholesky(information).T  # U^T U = information
+
+    def residual(T_i, T_j, rows):
+        edge = rows[::3] // 3
+        E = np.linalg.inv(T_ij[edge]) @ np.linalg.inv(T_i) @ T_j
+        w = np.arctan2(E[:, 1, 0], E[:, 0, 0])
+        small = np.abs(w) < 1e-9
+        safe = np.where(small, 1.0, w)
+        a = np.where(small, 1.0 - w * w / 6.0, np.sin(safe) / safe)
+        b = np.where(small, w / 2.0, (1.0 - np.cos(safe)) / safe)
+        t = E[:, :2, 2]
+        det = a * a + b * b  # V = [[a, -b], [b, a]], V^-1 = [[a, b], [-b, a]] / det
+        v = np.stack([(a * t[:, 0] + b * t[:, 1]) / det, (-b * t[:, 0] + a * t[:, 1]) / det], axis=1)
+        return (np.concatenate([v, w[:, None]], axis=1) @ U.T).ravel()
+
+    return residual
+
+
+def test_se2_rows_match_carats_relative_pose_se2_blocks():
+    rng = np.random.default_rng(8)
+    truth = [np.array([1.5 * k, 0.4 * k, 0.15 * k]) for k in range(5)]
+
+    def matrix(x, y, theta):
+        return np.array([[np.cos(theta), -np.sin(theta), x], [np.sin(theta), np.cos(theta), y], [0, 0, 1.0]])
+
+    edges = [(k, k + 1) for k in range(4)] + [(0, 4), (1, 3)]
+    information = np.array([[50.0, 5.0, 0.0], [5.0, 40.0, 2.0], [0.0, 2.0, 200.0]])
+    T_ij = np.array([np.linalg.inv(matrix(*truth[i])) @ matrix(*truth[j]) @ matrix(*rng.normal(scale=0.05, size=3))
+                     for i, j in edges])
+    cpp, rows = carat.Problem(), carat.Problem()
+    start = [t + rng.normal(scale=0.1, size=3) for t in truth]
+    ids = [(cpp.add_se2(x), rows.add_se2(matrix(*x))) for x in start]
+    cpp.set_constant(ids[0][0])
+    rows.set_constant(ids[0][1])
+    for (i, j), T in zip(edges, T_ij):
+        cpp.add_relative_pose_se2(ids[i][0], ids[j][0], T, information)
+    rows.add_rows(se2_log_residual(T_ij, information), [np.array([e[0] for e in edges]), np.array([e[1] for e in edges])],
+                  rows=3 * len(edges), group=3)
+    assert rows.cost() == pytest.approx(cpp.cost(), rel=1e-12)
+    carat.solve(cpp, **TIGHT)
+    carat.solve(rows, **TIGHT)
+    np.testing.assert_allclose(rows.value([k[1] for k in ids]), cpp.value([k[0] for k in ids]), rtol=0, atol=1e-10)
 
 
 def test_bundle_adjustment_rows_match_carats_reprojection_blocks():
