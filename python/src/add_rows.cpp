@@ -147,13 +147,21 @@ py::array_t<int> PythonProblem::add_rows(const py::object& function, const py::h
     // A tuple of up to two variables is one 64-bit key; longer ones are strings of their bytes.
     std::unordered_map<std::uint64_t, int> by_pair;
     std::unordered_map<std::string, int> by_bytes;
-    if (num_slots <= 2) {
-      by_pair.reserve(static_cast<std::size_t>(groups));
-    } else {
-      by_bytes.reserve(static_cast<std::size_t>(groups));
-    }
     std::string key(num_slots * sizeof(int), '\0');
+    const auto same_as_previous = [&](int g) {
+      for (std::size_t j = 0; j < num_slots; ++j) {
+        if (variable_of(j, g) != variable_of(j, g - 1)) return false;
+      }
+      return true;
+    };
     for (int g = 0; g < groups; ++g) {
+      // Runs of groups over the same variables (every group when no argument is indexed) need
+      // no look-up.
+      if (g > 0 && same_as_previous(g)) {
+        block_of_group[static_cast<std::size_t>(g)] =
+            block_of_group[static_cast<std::size_t>(g) - 1];
+        continue;
+      }
       const auto next = static_cast<int>(first_group.size());
       bool inserted = false;
       int block = 0;

@@ -11,6 +11,10 @@ namespace carat::python {
 namespace {
 
 constexpr int kChunkRows = 128;
+/// Rows per step of the products over arrays read in place (about 400 KB of a 2-column block).
+constexpr std::size_t kCacheRows = 16384;
+/// Columns up to which J_a^T J_b is formed as dot products of whole columns.
+constexpr int kDotColumns = 4;
 
 using StridedMatrix =
     Eigen::Map<const Eigen::MatrixXd, 0, Eigen::Stride<Eigen::Dynamic, Eigen::Dynamic>>;
@@ -228,27 +232,41 @@ double NumpyRowsBlock::accumulate(ParameterPointers params, Eigen::Ref<Eigen::Ma
     for (std::size_t a = 0; a < dims.size(); ++a) {
       J.push_back(matrix_of(values.jacobian_view(static_cast<int>(a)), n, dims[a]));
     }
-    int column_a = 0;
-    for (std::size_t a = 0; a < dims.size(); ++a) {
-      std::visit(
-          [&](const auto& Ja, const auto& rv) {
-            b_r.segment(column_a, dims[a]).noalias() += Ja.transpose() * rv;
-          },
-          J[a], r);
-      int column_b = column_a;
-      for (std::size_t b = a; b < dims.size(); ++b) {
+    // Chunks of rows that stay in cache while every product reads them: one pass over memory.
+    double cost = 0.0;
+    for (std::size_t begin = 0; begin < n; begin += kCacheRows) {
+      const auto start = static_cast<Eigen::Index>(begin);
+      const auto count = static_cast<Eigen::Index>(std::min(kCacheRows, n - begin));
+      int column_a = 0;
+      for (std::size_t a = 0; a < dims.size(); ++a) {
         std::visit(
-            [&](const auto& Ja, const auto& Jb) {
-              const Eigen::MatrixXd block = Ja.transpose() * Jb;
-              H_r.block(column_a, column_b, dims[a], dims[b]) += block;
-              if (a != b) H_r.block(column_b, column_a, dims[b], dims[a]) += block.transpose();
+            [&](const auto& Ja, const auto& rv) {
+              b_r.segment(column_a, dims[a]).noalias() +=
+                  Ja.middleRows(start, count).transpose().lazyProduct(rv.segment(start, count));
             },
-            J[a], J[b]);
-        column_b += dims[b];
+            J[a], r);
+        int column_b = column_a;
+        for (std::size_t b = a; b < dims.size(); ++b) {
+          std::visit(
+              [&](const auto& Ja, const auto& Jb) {
+                const auto A = Ja.middleRows(start, count).transpose();
+                const auto B = Jb.middleRows(start, count);
+                // A few columns: a handful of long dot products, without a blocked product's
+                // packing; more: the blocked product.
+                const Eigen::MatrixXd block = dims[a] <= kDotColumns && dims[b] <= kDotColumns
+                                                  ? Eigen::MatrixXd(A.lazyProduct(B))
+                                                  : Eigen::MatrixXd(A * B);
+                H_r.block(column_a, column_b, dims[a], dims[b]) += block;
+                if (a != b) H_r.block(column_b, column_a, dims[b], dims[a]) += block.transpose();
+              },
+              J[a], J[b]);
+          column_b += dims[b];
+        }
+        column_a += dims[a];
       }
-      column_a += dims[a];
+      cost += std::visit([&](const auto& rv) { return rv.segment(start, count).squaredNorm(); }, r);
     }
-    return std::visit([](const auto& rv) { return rv.squaredNorm(); }, r);
+    return cost;
   }
   struct Scratch {
     Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> J;

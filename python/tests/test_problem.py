@@ -260,6 +260,34 @@ def test_gicp_block_recovers_the_relative_pose():
     np.testing.assert_allclose(p.value(j), T_target_source, atol=1e-10)
 
 
+@pytest.mark.parametrize("jacobian", ["analytic", "differences"])
+def test_point_alignment_in_numpy_recovers_the_pose(jacobian):
+    """One block of 3 rows per point over one SE(3) pose: r = R p + t - q."""
+    rng = np.random.default_rng(6)
+    p_source = rng.uniform(-3.0, 3.0, size=(40, 3))
+    T_true = se3_exp([0.2, -0.1, 0.3], [1.0, -2.0, 0.5])
+    q_target = p_source @ T_true[:3, :3].T + T_true[:3, 3]
+
+    def residual(T, rows):
+        k = rows[::3] // 3
+        Rp = p_source[k] @ T[:3, :3].T
+        r = (Rp + T[:3, 3] - q_target[k]).ravel()
+        if jacobian == "differences":
+            return r
+        # Right perturbation T Exp([omega, v]): d/d omega = -R [p]x, d/d v = R.
+        px = np.zeros((len(k), 3, 3))
+        px[:, 0, 1], px[:, 0, 2], px[:, 1, 2] = -p_source[k, 2], p_source[k, 1], -p_source[k, 0]
+        px -= px.transpose(0, 2, 1)
+        J = np.concatenate([-T[:3, :3] @ px, np.broadcast_to(T[:3, :3], (len(k), 3, 3))], axis=2)
+        return r, [J]
+
+    p = carat.Problem()
+    v = p.add_se3(np.eye(4))
+    p.add_rows(residual, [v], rows=3 * len(p_source), group=3)
+    carat.solve(p, **TIGHT)
+    np.testing.assert_allclose(p.value(v), T_true, atol=1e-10)
+
+
 # --- Bad callbacks: a clear error naming the block, never a crash or a hang.
 
 
