@@ -141,7 +141,11 @@ py::array_t<int> PythonProblem::add_rows(const py::object& function, const py::h
   const auto variable_of = [&](std::size_t j, int g) {
     return slots[j].indexed ? slots[j].per_group[static_cast<std::size_t>(g)] : slots[j].shared;
   };
-  std::vector<int> block_of_group(static_cast<std::size_t>(groups));
+  // Without an indexed argument every group reads the same variables: one block, group 0's.
+  bool any_indexed = false;
+  for (const RowsSlot& slot : slots) any_indexed = any_indexed || slot.indexed;
+  const int scanned = any_indexed ? groups : 1;
+  std::vector<int> block_of_group(static_cast<std::size_t>(scanned));
   std::vector<int> first_group;  // per block
   {
     // A tuple of up to two variables is one 64-bit key; longer ones are strings of their bytes.
@@ -154,7 +158,7 @@ py::array_t<int> PythonProblem::add_rows(const py::object& function, const py::h
       }
       return true;
     };
-    for (int g = 0; g < groups; ++g) {
+    for (int g = 0; g < scanned; ++g) {
       // Runs of groups over the same variables (every group when no argument is indexed) need
       // no look-up.
       if (g > 0 && same_as_previous(g)) {
@@ -202,10 +206,11 @@ py::array_t<int> PythonProblem::add_rows(const py::object& function, const py::h
   const std::size_t num_blocks = first_group.size();
   // Each block's rows, in group order (a counting sort of the groups by block).
   std::vector<std::size_t> block_start(num_blocks + 1, 0);
-  for (int b : block_of_group) ++block_start[static_cast<std::size_t>(b) + 1];
-  for (std::size_t b = 0; b < num_blocks; ++b) block_start[b + 1] += block_start[b];
-  std::vector<int> grouped(static_cast<std::size_t>(groups));
-  {
+  std::vector<int> grouped;
+  if (any_indexed) {
+    for (int b : block_of_group) ++block_start[static_cast<std::size_t>(b) + 1];
+    for (std::size_t b = 0; b < num_blocks; ++b) block_start[b + 1] += block_start[b];
+    grouped.resize(static_cast<std::size_t>(groups));
     std::vector<std::size_t> fill(block_start.begin(), block_start.end() - 1);
     for (int g = 0; g < groups; ++g) {
       grouped[fill[static_cast<std::size_t>(block_of_group[static_cast<std::size_t>(g)])]++] = g;

@@ -200,6 +200,31 @@ void NumpyRowsBlock::evaluate_rows(ParameterPointers params, std::span<const int
   const std::span<const int> dims = rows_->tangent_dims();
   const bool weighted_rows = weighted();
   const auto D = static_cast<std::size_t>(tangent_dim());
+  bool direct = e.position == nullptr && !weighted_rows && whole_doubles(values.residual_view());
+  for (std::size_t j = 0; direct && jacobian != nullptr && j < dims.size(); ++j) {
+    direct = whole_doubles(values.jacobian_view(static_cast<int>(j)));
+  }
+  if (direct) {  // the first rows of the arrays, in order: copied as blocks
+    const std::size_t m = rows.size();
+    std::visit(
+        [&](const auto& rv) {
+          Eigen::Map<Eigen::VectorXd>(residuals, static_cast<Eigen::Index>(m)) =
+              rv.head(static_cast<Eigen::Index>(m));
+        },
+        vector_of(values.residual_view(), m));
+    if (jacobian == nullptr) return;
+    Eigen::Index column = 0;
+    for (std::size_t j = 0; j < dims.size(); ++j) {
+      Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>, 0,
+                 Eigen::OuterStride<>>
+          out(jacobian + column, static_cast<Eigen::Index>(m), dims[j],
+              Eigen::OuterStride<>(static_cast<Eigen::Index>(D)));
+      std::visit([&](const auto& Jj) { out = Jj; },
+                 matrix_of(values.jacobian_view(static_cast<int>(j)), m, dims[j]));
+      column += dims[j];
+    }
+    return;
+  }
   for (std::size_t q = 0; q < rows.size(); ++q) {
     const std::size_t i = e.at(q);
     const double w = weighted_rows ? values.weight(i) : 1.0;
