@@ -219,7 +219,7 @@ def test_se2_rows_match_carats_relative_pose_se2_blocks():
 def test_bundle_adjustment_rows_match_carats_reprojection_blocks():
     scene = carat.simulate_bal(cameras=3, points=30, observations_per_point=3, seed=2)
     ci, pi, observed = scene["camera_index"], scene["point_index"], scene["observed"]
-    problems = []
+    problems, calls = [], []
     for kind in ("c++", "numpy"):
         p = carat.Problem()
         cameras, points = p.add_euclidean(scene["cameras"]), p.add_euclidean(scene["points"])
@@ -228,6 +228,7 @@ def test_bundle_adjustment_rows_match_carats_reprojection_blocks():
             p.add_bal_observations(cameras[ci], points[pi], observed)
         else:
             def reprojection(camera, point, rows):
+                calls.append(len(rows))
                 image, J_camera, J_point = project(camera, point)
                 return image - observed[rows[::2] // 2], [J_camera, J_point]
 
@@ -242,6 +243,10 @@ def test_bundle_adjustment_rows_match_carats_reprojection_blocks():
     s_cpp, s_rows = carat.solve(cpp, **options), carat.solve(rows, **options)
     assert s_rows.final_cost == pytest.approx(s_cpp.final_cost, rel=1e-12)
     assert s_rows.iterations == s_cpp.iterations
+    # One call evaluates all 90 blocks (one per observation): two calls an iteration at most
+    # (linearization, trial cost), each asked for every row.
+    assert rows.num_residual_blocks == 90
+    assert len(calls) <= 2 * (s_rows.iterations + 1) + 4 and set(calls) == {180}
     np.testing.assert_allclose(rows.value(c2), cpp.value(c1), rtol=1e-10, atol=1e-10)
     np.testing.assert_allclose(rows.value(x2), cpp.value(x1), rtol=1e-10, atol=1e-10)
 
