@@ -8,9 +8,9 @@ packages=(
   libeigen3-dev libsuitesparse-dev libtbb-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libcli11-dev nlohmann-json3-dev libnanoflann-dev
-  # The Python module (pybind11) and its tests and example: Debian's interpreter, numpy, pytest,
-  # matplotlib.
-  python3-dev pybind11-dev python3-numpy python3-pytest python3-matplotlib
+  # The Python module (pybind11) and its tests and examples: Debian's interpreter, numpy, pytest,
+  # matplotlib, scipy (the examples against scipy.optimize.least_squares).
+  python3-dev pybind11-dev python3-numpy python3-pytest python3-matplotlib python3-scipy
   # BLAS/LAPACK for CHOLMOD's supernodal factorization: OpenBLAS, single-threaded
   # (measured faster than ATLAS and reference BLAS on carat's pose-graph benchmark; see README).
   libopenblas0-serial

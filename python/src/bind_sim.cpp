@@ -3,13 +3,16 @@
 #include <pybind11/stl.h>
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
 #include <string>
 #include <vector>
 
 #include "arrays.hpp"
 #include "bindings.hpp"
+#include "carat/base/error.hpp"
 #include "carat/base/machine_memory.hpp"
 #include "carat/registration/frame.hpp"
+#include "carat/sim/bal_scene.hpp"
 #include "carat/sim/pipeline.hpp"
 #include "carat/sim/sequence.hpp"
 #include "carat/sim/world.hpp"
@@ -134,6 +137,68 @@ py::tuple simulate_scans(int frames, int laps, std::uint64_t seed, int beams, in
   return py::make_tuple(scans, array_from_poses(truth));
 }
 
+/// A BAL problem as numpy arrays: cameras (C x 9), points (P x 3), and per observation its
+/// camera and point index and the observed pixels (N x 2).
+py::dict bal_arrays(const BalProblem& bal) {
+  py::array_t<double> cameras({static_cast<py::ssize_t>(bal.cameras.size()), py::ssize_t{9}});
+  for (std::size_t c = 0; c < bal.cameras.size(); ++c) {
+    std::copy_n(bal.cameras[c].data(), 9, cameras.mutable_data() + 9 * c);
+  }
+  py::array_t<double> points({static_cast<py::ssize_t>(bal.points.size()), py::ssize_t{3}});
+  for (std::size_t p = 0; p < bal.points.size(); ++p) {
+    std::copy_n(bal.points[p].data(), 3, points.mutable_data() + 3 * p);
+  }
+  const auto n = static_cast<py::ssize_t>(bal.observations.size());
+  py::array_t<std::int64_t> camera_index(n), point_index(n);
+  py::array_t<double> observed({n, py::ssize_t{2}});
+  for (py::ssize_t k = 0; k < n; ++k) {
+    const BalObservation& o = bal.observations[static_cast<std::size_t>(k)];
+    camera_index.mutable_data()[k] = o.camera;
+    point_index.mutable_data()[k] = o.point;
+    observed.mutable_data()[2 * k] = o.x;
+    observed.mutable_data()[2 * k + 1] = o.y;
+  }
+  py::dict out;
+  out["cameras"] = cameras;
+  out["points"] = points;
+  out["camera_index"] = camera_index;
+  out["point_index"] = point_index;
+  out["observed"] = observed;
+  return out;
+}
+
+py::dict simulate_bal_scene(int cameras, int points, int observations_per_point,
+                            const std::string& layout, double noise, double outliers,
+                            double start_noise, std::uint64_t seed) {
+  BalSimulationOptions options;
+  try {
+    options.layout = parse_bal_layout(layout);
+  } catch (const Error& e) {
+    throw py::value_error(std::string("simulate_bal: layout: ") + e.what());
+  }
+  options.cameras = cameras;
+  options.points = points;
+  options.observations_per_point = observations_per_point;
+  options.pixel_noise_sigma = noise;
+  options.outlier_fraction = outliers;
+  options.camera_rotation_sigma_rad *= start_noise;
+  options.camera_position_sigma_m *= start_noise;
+  options.focal_sigma_relative *= start_noise;
+  options.point_sigma_m *= start_noise;
+  options.seed = seed;
+  const BalScene scene = run_released([&](InterruptCheck&) { return simulate_bal(options); });
+  py::dict out = bal_arrays(scene.problem);
+  const py::dict truth = bal_arrays(scene.truth);
+  out["truth_cameras"] = truth["cameras"];
+  out["truth_points"] = truth["points"];
+  py::array_t<bool> outlier(static_cast<py::ssize_t>(scene.outlier.size()));
+  for (std::size_t k = 0; k < scene.outlier.size(); ++k) {
+    outlier.mutable_data()[k] = scene.outlier[k] != 0;
+  }
+  out["outlier"] = outlier;
+  return out;
+}
+
 }  // namespace
 
 void bind_sim(py::module_& m) {
@@ -164,6 +229,14 @@ Returns a carat.Simulation.)");
               py::arg("seed") = 1, py::arg("beams") = 32, py::arg("circuit_blocks") = 1,
               "Raw scans of a simulated drive: (list of N x 3 float32 arrays in the sensor frame, "
               "ground-truth T_world_frame N x 4 x 4).");
+  def_checked(
+      m, "simulate_bal", &simulate_bal_scene, py::arg("cameras") = 16, py::arg("points") = 1000,
+      py::arg("observations_per_point") = 4, py::arg("layout") = "ring", py::arg("noise") = 1.0,
+      py::arg("outliers") = 0.0, py::arg("start_noise") = 1.0, py::arg("seed") = 1,
+      R"(A synthetic bundle-adjustment problem in the BAL camera model, as `carat simulate-bal`
+writes it (same options, same seed, same numbers). Returns a dict: cameras (C x 9: angle-axis
+w, t, f, k1, k2), points (P x 3), camera_index and point_index (one per observation), observed
+(N x 2 pixels), truth_cameras, truth_points, outlier (N booleans).)");
 }
 
 }  // namespace carat::python

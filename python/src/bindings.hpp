@@ -16,7 +16,9 @@ void bind_registration(pybind11::module_& m);
 void bind_mapping(pybind11::module_& m);
 /// solve_g2o.
 void bind_solve(pybind11::module_& m);
-/// The synthetic world: simulate, simulate_scans.
+/// Problem, solve, compress, solve_recompressed and their summaries.
+void bind_problem(pybind11::module_& m);
+/// The synthetic world: simulate, simulate_scans, simulate_bal.
 void bind_sim(pybind11::module_& m);
 
 }  // namespace carat::python

@@ -16,5 +16,6 @@ PYBIND11_MODULE(_carat, m) {
   carat::python::bind_registration(m);
   carat::python::bind_mapping(m);
   carat::python::bind_solve(m);
+  carat::python::bind_problem(m);
   carat::python::bind_sim(m);
 }

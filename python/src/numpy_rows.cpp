@@ -1,0 +1,485 @@
+#include "numpy_rows.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <numeric>
+#include <utility>
+
+#include "carat/base/error.hpp"
+
+namespace carat::python {
+
+namespace {
+
+std::string shape_text(const py::array& a) {
+  std::string out = "(";
+  for (py::ssize_t d = 0; d < a.ndim(); ++d) {
+    out += (d ? ", " : "") + std::to_string(a.shape(d));
+  }
+  return out + (a.ndim() == 1 ? ",)" : ")");
+}
+
+/// Drops a Python reference with the GIL (or leaks it once the interpreter is gone).
+void drop(py::object& object) {
+  if (!object) return;
+  if (!Py_IsInitialized()) {
+    (void)object.release();
+    return;
+  }
+  py::gil_scoped_acquire gil;
+  object = py::object();
+}
+
+}  // namespace
+
+RowsEvaluation::~RowsEvaluation() { drop(keep_); }
+
+double RowsEvaluation::cost_share(std::size_t i) const {
+  const double r = residuals_.at(i);
+  if (weights_.empty()) return r * r;
+  const std::size_t g = i / static_cast<std::size_t>(group_rows_);
+  const double s = squared_[g];
+  return s > 0.0 ? rho_[g] * (r * r) / s : 0.0;
+}
+
+NumpyRows::NumpyRows(py::object function, std::string name, int group_rows, int groups,
+                     std::vector<RowsSlot> slots, std::vector<RowsVariable> variables,
+                     std::shared_ptr<const LossFunction> group_loss,
+                     std::shared_ptr<CallbackErrors> errors, bool pass_jacobians_flag)
+    : function_(std::move(function)),
+      name_(std::move(name)),
+      group_rows_(group_rows),
+      groups_(groups),
+      slots_(std::move(slots)),
+      variables_(std::move(variables)),
+      group_loss_(std::move(group_loss)),
+      errors_(std::move(errors)),
+      pass_jacobians_flag_(pass_jacobians_flag) {
+  for (const RowsSlot& slot : slots_) {
+    dims_.push_back(slot.tangent);
+    if (!slot.indexed) continue;
+    for (int v : slot.per_group) {
+      if (v != slot.per_group.front()) single_block_ = false;
+    }
+  }
+  std::size_t start = 0;
+  for (const RowsVariable& v : variables_) {
+    variable_start_.push_back(start);
+    start += static_cast<std::size_t>(v.ambient);
+  }
+  if (single_block_) {
+    all_groups_.resize(static_cast<std::size_t>(groups_));
+    std::iota(all_groups_.begin(), all_groups_.end(), 0);
+  } else {
+    users_.assign(static_cast<std::size_t>(groups_), 0);
+  }
+}
+
+NumpyRows::~NumpyRows() {
+  cache_.evaluation.reset();
+  drop(all_rows_);
+  drop(function_);
+}
+
+const double* NumpyRows::value(const Source& source, int slot, int group) const {
+  if (!source.base) return source.params[static_cast<std::size_t>(slot)];
+  const RowsSlot& s = slots_[static_cast<std::size_t>(slot)];
+  const int v = s.indexed ? s.per_group[static_cast<std::size_t>(group)] : s.shared;
+  return source.base + variables_[static_cast<std::size_t>(v)].offset;
+}
+
+void NumpyRows::fail(const std::string& message) const {
+  errors_->record(PyExc_ValueError, message);
+  throw Error(message);
+}
+
+py::object NumpyRows::slot_values(int slot, std::span<const int> groups, const Source& source,
+                                  int direction, double sign) const {
+  const RowsSlot& s = slots_[static_cast<std::size_t>(slot)];
+  std::vector<py::ssize_t> shape = value_shape(s.kind, s.ambient);
+  const auto size = static_cast<std::size_t>(value_size(s.kind, s.ambient));
+  std::vector<double> moved(static_cast<std::size_t>(s.ambient));
+  std::vector<double> delta(static_cast<std::size_t>(s.tangent), 0.0);
+  const auto write = [&](int group, double* out) {
+    const double* x = value(source, slot, group);
+    if (direction < 0) {
+      write_value(s.kind, s.ambient, x, out);
+      return;
+    }
+    const auto d = static_cast<std::size_t>(direction);
+    delta[d] = sign * difference_step(s.kind, s.ambient, x, direction);
+    s.manifold->plus(x, delta.data(), moved.data());
+    write_value(s.kind, s.ambient, moved.data(), out);
+  };
+  if (!s.indexed) {
+    py::array_t<double> out(shape);
+    write(groups.front(), out.mutable_data());
+    return out;
+  }
+  // One value per group, column-major: values[:, e] of every group is contiguous, which is how
+  // whole-array numpy code reads it.
+  const auto count = static_cast<py::ssize_t>(groups.size());
+  shape.insert(shape.begin(), count);
+  py::array_t<double, py::array::f_style> out(shape);
+  double* data = out.mutable_data();
+  if (s.kind == VariableKind::kEuclidean && direction < 0) {  // the stored numbers themselves
+    const auto n = static_cast<std::size_t>(count);
+    for (std::size_t k = 0; k < n; ++k) {
+      const double* x = value(source, slot, groups[k]);
+      for (std::size_t e = 0; e < size; ++e) data[k + n * e] = x[e];
+    }
+    return out;
+  }
+  std::vector<double> one(size);
+  const bool matrix = shape.size() == 3;
+  const auto columns = matrix ? static_cast<std::size_t>(shape[2]) : size;
+  const auto rows_per_value = matrix ? static_cast<std::size_t>(shape[1]) : 1;
+  const auto n = static_cast<std::size_t>(count);
+  for (std::size_t k = 0; k < n; ++k) {
+    write(groups[k], one.data());
+    // (k, r, c) lies at k + n (r + rows c); a vector's element e at k + n e.
+    for (std::size_t r = 0; r < rows_per_value; ++r) {
+      for (std::size_t c = 0; c < columns; ++c) {
+        data[k + n * (r + rows_per_value * c)] = one[r * columns + c];
+      }
+    }
+  }
+  return out;
+}
+
+py::object NumpyRows::invoke(const std::vector<py::object>& arguments, const py::object& rows,
+                             bool jacobians) const {
+  py::tuple args(arguments.size() + 1);
+  for (std::size_t j = 0; j < arguments.size(); ++j) args[j] = arguments[j];
+  args[arguments.size()] = rows;
+  try {
+    if (pass_jacobians_flag_) {
+      py::dict kwargs;
+      kwargs["jacobians"] = jacobians;
+      return function_(*args, **kwargs);
+    }
+    return function_(*args);
+  } catch (py::error_already_set& e) {
+    errors_->record(e);
+    throw Error(name_ + ": its residual function raised " +
+                std::string(py::str(e.type().attr("__name__"))) + ": " +
+                std::string(py::str(e.value())));
+  }
+}
+
+StridedRows NumpyRows::checked_residuals(const py::handle& r, std::size_t num_rows,
+                                         py::list* keep) const {
+  py::array a;
+  try {
+    a = py::module_::import("numpy").attr("asarray")(r);
+  } catch (py::error_already_set&) {
+  }
+  if (!a) {
+    fail(name_ + ": the residual function returned " +
+         std::string(py::str(py::type::of(r).attr("__name__"))) +
+         " for the residuals; expected a float64 array");
+  }
+  if (a.dtype().kind() != 'f' || a.itemsize() != 8) {
+    fail(name_ + ": the residual function returned residuals of dtype " +
+         std::string(py::str(a.dtype())) + "; expected float64");
+  }
+  const auto n = static_cast<py::ssize_t>(num_rows);
+  const auto k = static_cast<py::ssize_t>(group_rows_);
+  const bool flat = a.ndim() == 1 && a.shape(0) == n;
+  const bool grouped = a.ndim() == 2 && a.shape(0) * k == n && a.shape(1) == k;
+  if (!flat && !grouped) {
+    fail(name_ + ": the residual function returned residuals of shape " + shape_text(a) +
+         "; expected (" + std::to_string(n) + ",), one per row asked" +
+         (k > 1 ? " (or (" + std::to_string(n / k) + ", " + std::to_string(k) + "))" : ""));
+  }
+  keep->append(a);
+  const auto* data = static_cast<const char*>(a.data());
+  return flat ? StridedRows::make(data, a.strides(0), 0, 0, 1)
+              : StridedRows::make(data, a.strides(0), a.strides(1), 0, static_cast<std::size_t>(k));
+}
+
+StridedRows NumpyRows::checked_jacobian(const py::handle& J, int slot, std::size_t num_rows,
+                                        py::list* keep) const {
+  const RowsSlot& s = slots_[static_cast<std::size_t>(slot)];
+  const std::string which = "the Jacobian of argument " + std::to_string(slot + 1) + " (" +
+                            describe(s.kind, s.ambient) + ")";
+  py::array a;
+  try {
+    a = py::module_::import("numpy").attr("asarray")(J);
+  } catch (py::error_already_set&) {
+  }
+  if (!a) {
+    fail(name_ + ": the residual function returned " +
+         std::string(py::str(py::type::of(J).attr("__name__"))) + " for " + which +
+         "; expected a float64 array");
+  }
+  if (a.dtype().kind() != 'f' || a.itemsize() != 8) {
+    fail(name_ + ": the residual function returned " + which + " of dtype " +
+         std::string(py::str(a.dtype())) + "; expected float64");
+  }
+  const auto n = static_cast<py::ssize_t>(num_rows);
+  const auto k = static_cast<py::ssize_t>(group_rows_);
+  const auto t = static_cast<py::ssize_t>(s.tangent);
+  const bool plain = a.ndim() == 2 && a.shape(0) == n && a.shape(1) == t;
+  const bool grouped = a.ndim() == 3 && a.shape(0) * k == n && a.shape(1) == k && a.shape(2) == t;
+  const bool column = t == 1 && a.ndim() == 1 && a.shape(0) == n;
+  if (!plain && !grouped && !column) {
+    fail(name_ + ": the residual function returned " + which + " of shape " + shape_text(a) +
+         "; expected (" + std::to_string(n) + ", " + std::to_string(t) +
+         "), a row per row asked and a column per tangent direction");
+  }
+  keep->append(a);
+  const auto* data = static_cast<const char*>(a.data());
+  if (column) return StridedRows::make(data, a.strides(0), 0, 0, 1);
+  if (plain) return StridedRows::make(data, a.strides(0), 0, a.strides(1), 1);
+  return StridedRows::make(data, a.strides(0), a.strides(1), a.strides(2),
+                           static_cast<std::size_t>(k));
+}
+
+void NumpyRows::call(std::span<const int> groups, const Source& source, bool jacobians,
+                     RowsEvaluation* out) const {
+  if (errors_->failed()) {
+    throw Error(name_ + ": not evaluated after an earlier error of a residual function");
+  }
+  const std::size_t k = static_cast<std::size_t>(group_rows_);
+  const std::size_t n = groups.size() * k;
+  py::object rows;
+  if (groups.size() == static_cast<std::size_t>(groups_)) {  // ascending and distinct: all
+    if (!all_rows_) {
+      py::array_t<std::int64_t> all(static_cast<py::ssize_t>(n));
+      std::iota(all.mutable_data(), all.mutable_data() + n, std::int64_t{0});
+      all.attr("setflags")(py::arg("write") = false);
+      all_rows_ = std::move(all);
+    }
+    rows = all_rows_;
+  } else {
+    py::array_t<std::int64_t> some(static_cast<py::ssize_t>(n));
+    std::int64_t* data = some.mutable_data();
+    for (std::size_t g = 0; g < groups.size(); ++g) {
+      for (std::size_t c = 0; c < k; ++c) {
+        data[g * k + c] = static_cast<std::int64_t>(groups[g]) * static_cast<std::int64_t>(k) +
+                          static_cast<std::int64_t>(c);
+      }
+    }
+    rows = std::move(some);
+  }
+  const std::size_t num_slots = slots_.size();
+  std::vector<py::object> arguments(num_slots);
+  for (std::size_t j = 0; j < num_slots; ++j) {
+    arguments[j] = slot_values(static_cast<int>(j), groups, source, -1, 0.0);
+  }
+  const py::object result = invoke(arguments, rows, jacobians);
+  py::object r = result;
+  py::object J = py::none();
+  if (py::isinstance<py::tuple>(result) && py::len(result) == 2) {
+    r = result[py::int_(0)];
+    J = result[py::int_(1)];
+  }
+  py::list keep;
+  out->residuals_ = checked_residuals(r, n, &keep);
+  if (jacobians) {
+    std::vector<py::object> given(num_slots, py::none());
+    if (py::isinstance<py::list>(J) || py::isinstance<py::tuple>(J)) {
+      if (py::len(J) != num_slots) {
+        fail(name_ + ": the residual function returned " + std::to_string(py::len(J)) +
+             " Jacobians for " + std::to_string(num_slots) +
+             " variables; expected one per variable (None: central differences)");
+      }
+      for (std::size_t j = 0; j < num_slots; ++j) given[j] = J[py::int_(j)];
+    } else if (!J.is_none()) {
+      if (num_slots != 1) {
+        fail(name_ + ": the residual function returned one Jacobian for " +
+             std::to_string(num_slots) + " variables; expected a list with one per variable");
+      }
+      given[0] = J;
+    }
+    out->jacobians_.resize(num_slots);
+    bool differences = false;
+    for (std::size_t j = 0; j < num_slots; ++j) {
+      if (given[j].is_none()) {
+        differences = true;
+      } else {
+        out->jacobians_[j] = checked_jacobian(given[j], static_cast<int>(j), n, &keep);
+      }
+    }
+    if (differences) {
+      // The residuals are copied first: the function may fill the same arrays on every call.
+      std::vector<double>& center = out->owned_.emplace_back(n);
+      for (std::size_t i = 0; i < n; ++i) center[i] = out->residuals_.at(i);
+      out->residuals_ =
+          StridedRows::make(reinterpret_cast<const char*>(center.data()), sizeof(double), 0, 0, 1);
+      for (std::size_t j = 0; j < num_slots; ++j) {
+        if (!given[j].is_none()) continue;
+        const RowsSlot& s = slots_[j];
+        const auto t = static_cast<std::size_t>(s.tangent);
+        std::vector<double>& columns = out->owned_.emplace_back(n * t);
+        std::vector<double> steps(groups.size());
+        std::vector<py::object> moved = arguments;
+        for (std::size_t d = 0; d < t; ++d) {
+          py::list scratch;
+          moved[j] = slot_values(static_cast<int>(j), groups, source, static_cast<int>(d), 1.0);
+          const StridedRows plus = checked_residuals(invoke(moved, rows, false), n, &scratch);
+          std::vector<double> plus_values(n);
+          for (std::size_t i = 0; i < n; ++i) plus_values[i] = plus.at(i);
+          moved[j] = slot_values(static_cast<int>(j), groups, source, static_cast<int>(d), -1.0);
+          const StridedRows minus = checked_residuals(invoke(moved, rows, false), n, &scratch);
+          for (std::size_t g = 0; g < groups.size(); ++g) {
+            const double h =
+                difference_step(s.kind, s.ambient, value(source, static_cast<int>(j), groups[g]),
+                                static_cast<int>(d));
+            for (std::size_t c = 0; c < k; ++c) {
+              const std::size_t i = g * k + c;
+              columns[i * t + d] = (plus_values[i] - minus.at(i)) / (2.0 * h);
+            }
+          }
+        }
+        out->jacobians_[j] = StridedRows::make(reinterpret_cast<const char*>(columns.data()),
+                                               static_cast<std::ptrdiff_t>(t * sizeof(double)), 0,
+                                               sizeof(double), 1);
+      }
+    }
+  }
+  out->keep_ = std::move(keep);
+}
+
+void NumpyRows::apply_loss(RowsEvaluation* evaluation) const {
+  if (!group_loss_) return;
+  const std::size_t k = static_cast<std::size_t>(group_rows_);
+  const std::size_t groups = evaluation->num_rows_ / k;
+  evaluation->weights_.resize(groups);
+  evaluation->rho_.resize(groups);
+  evaluation->squared_.resize(groups);
+  for (std::size_t g = 0; g < groups; ++g) {
+    double s = 0.0;
+    for (std::size_t c = 0; c < k; ++c) {
+      const double r = evaluation->residuals_.at(g * k + c);
+      s += r * r;
+    }
+    const LossValue value = group_loss_->evaluate(s);
+    if (std::isfinite(s) &&
+        !(std::isfinite(value.rho) && std::isfinite(value.rho1) && value.rho1 >= 0.0)) {
+      throw Error(name_ + ": the group loss '" + group_loss_->name() +
+                  "' returned rho = " + std::to_string(value.rho) +
+                  ", rho' = " + std::to_string(value.rho1) + " at s = " + std::to_string(s));
+    }
+    evaluation->weights_[g] = std::sqrt(value.rho1);
+    evaluation->rho_[g] = value.rho;
+    evaluation->squared_[g] = s;
+  }
+}
+
+std::shared_ptr<const RowsEvaluation> NumpyRows::evaluate_groups(std::span<const int> groups,
+                                                                 const Source& source,
+                                                                 bool jacobians) const {
+  auto out = std::make_shared<RowsEvaluation>();
+  out->group_rows_ = group_rows_;
+  out->num_rows_ = groups.size() * static_cast<std::size_t>(group_rows_);
+  {
+    py::gil_scoped_acquire gil;
+    call(groups, source, jacobians, out.get());
+  }
+  apply_loss(out.get());
+  return out;
+}
+
+std::shared_ptr<const RowsEvaluation> NumpyRows::evaluate(std::span<const int> groups,
+                                                          ParameterPointers params,
+                                                          bool jacobians) const {
+  return evaluate_groups(groups, Source{params, nullptr}, jacobians);
+}
+
+const double* NumpyRows::common_base(std::span<const int> block_variables,
+                                     ParameterPointers params) const {
+  if (block_variables.size() < 2) return nullptr;  // one pointer proves nothing
+  const auto base_of = [&](std::size_t j) {
+    return reinterpret_cast<std::uintptr_t>(params[j]) -
+           variables_[static_cast<std::size_t>(block_variables[j])].offset * sizeof(double);
+  };
+  const std::uintptr_t base = base_of(0);
+  for (std::size_t j = 1; j < block_variables.size(); ++j) {
+    if (base_of(j) != base) return nullptr;
+  }
+  return reinterpret_cast<const double*>(base);
+}
+
+std::shared_ptr<const RowsEvaluation> NumpyRows::lookup(std::span<const int> block_variables,
+                                                        ParameterPointers params,
+                                                        std::span<const int> groups, bool jacobians,
+                                                        std::vector<std::size_t>* positions) const {
+  positions->resize(groups.size());
+  {
+    std::lock_guard<std::mutex> lock(cache_mutex_);
+    const auto held = [&] {
+      if (!cache_.evaluation || (jacobians && !cache_.jacobians)) return false;
+      for (std::size_t j = 0; j < block_variables.size(); ++j) {
+        const auto v = static_cast<std::size_t>(block_variables[j]);
+        if (std::memcmp(params[j], cache_.values.data() + variable_start_[v],
+                        static_cast<std::size_t>(variables_[v].ambient) * sizeof(double)) != 0) {
+          return false;
+        }
+      }
+      for (int g : groups) {
+        if (cache_.group_position[static_cast<std::size_t>(g)] < 0) return false;
+      }
+      return true;
+    };
+    const bool hit = held();
+    const double* base = hit ? nullptr : common_base(block_variables, params);
+    if (base != nullptr) {
+      std::vector<int> wanted;
+      {
+        std::lock_guard<std::mutex> users(users_mutex_);
+        std::size_t next = 0;
+        for (int g = 0; g < groups_; ++g) {
+          const bool asked = next < groups.size() && groups[next] == g;
+          if (asked) ++next;
+          if (asked || users_[static_cast<std::size_t>(g)] > 0) wanted.push_back(g);
+        }
+      }
+      Cache fresh;
+      fresh.evaluation = evaluate_groups(wanted, Source{{}, base}, jacobians);
+      fresh.jacobians = jacobians;
+      fresh.values.resize(variable_start_.empty()
+                              ? 0
+                              : variable_start_.back() +
+                                    static_cast<std::size_t>(variables_.back().ambient));
+      for (std::size_t v = 0; v < variables_.size(); ++v) {
+        std::copy_n(base + variables_[v].offset, variables_[v].ambient,
+                    fresh.values.data() + variable_start_[v]);
+      }
+      fresh.group_position.assign(static_cast<std::size_t>(groups_), -1);
+      for (std::size_t w = 0; w < wanted.size(); ++w) {
+        fresh.group_position[static_cast<std::size_t>(wanted[w])] =
+            static_cast<std::int64_t>(w) * group_rows_;
+      }
+      std::swap(cache_, fresh);
+    }
+    if (hit || base != nullptr) {
+      for (std::size_t q = 0; q < groups.size(); ++q) {
+        (*positions)[q] =
+            static_cast<std::size_t>(cache_.group_position[static_cast<std::size_t>(groups[q])]);
+      }
+      return cache_.evaluation;
+    }
+  }
+  // Values that need not lie in an array of the problem's layout: these groups alone.
+  for (std::size_t q = 0; q < groups.size(); ++q) {
+    (*positions)[q] = q * static_cast<std::size_t>(group_rows_);
+  }
+  return evaluate_groups(groups, Source{params, nullptr}, jacobians);
+}
+
+void NumpyRows::acquire(std::span<const int> groups) const {
+  if (single_block_) return;
+  std::lock_guard<std::mutex> lock(users_mutex_);
+  for (int g : groups) ++users_[static_cast<std::size_t>(g)];
+}
+
+void NumpyRows::release(std::span<const int> groups) const noexcept {
+  if (single_block_) return;
+  std::lock_guard<std::mutex> lock(users_mutex_);
+  for (int g : groups) --users_[static_cast<std::size_t>(g)];
+}
+
+}  // namespace carat::python

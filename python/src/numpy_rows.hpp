@@ -1,0 +1,249 @@
+#pragma once
+
+/// Residual rows a user writes in numpy: one Python function evaluates any set of whole groups of
+/// rows in one call (never one call per row), with one value per variable and the rows asked,
+/// and returns the residuals and one Jacobian per variable in tangent columns (or the residuals
+/// alone: carat then takes central differences through each manifold, two calls per tangent
+/// direction). The GIL is held only around those calls.
+///
+/// A NumpyRows is what one Problem.add_rows() call adds: G groups of k rows (row r is component
+/// r % k of group r / k) over S argument slots. A slot is *shared* (one variable for every group)
+/// or *indexed* (a variable per group, e.g. the camera and the point of each BA observation);
+/// groups with the same variables form one residual block (numpy_rows_block.hpp). When there are
+/// several such blocks, evaluating them one by one would cost a Python call per block, so the
+/// batch keeps the last evaluation of all its active groups and serves every block from it while
+/// that block's variables hold the same values (see lookup()).
+///
+/// The Python function's result is checked (a tuple (r, [J_1, ..., J_S]) or r alone; float64;
+/// r of k * n values, J_j of k * n rows by tangent_j columns; a None Jacobian is taken by
+/// differences); a failure, or an exception the function raises, is kept in the problem's
+/// CallbackErrors (re-raised by the Python call into carat) and thrown to carat as carat::Error
+/// naming the rows' name. Non-finite values pass through: carat rejects a trial step there and
+/// names the block and row at the start of a solve.
+
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "callback_errors.hpp"
+#include "carat/solver/loss_function.hpp"
+#include "carat/solver/residual_block.hpp"
+#include "carat/solver/variable_id.hpp"
+#include "variable_values.hpp"
+
+namespace carat::python {
+
+namespace py = pybind11;
+
+/// A variable the rows read: its id and where its value lies in the problem's storage.
+struct RowsVariable {
+  VariableId id;           ///< the problem's variable
+  std::size_t offset = 0;  ///< Problem::value_offset(id), doubles
+  int ambient = 0;         ///< doubles stored
+};
+
+/// One argument of the residual function (after which come the rows).
+struct RowsSlot {
+  VariableKind kind = VariableKind::kEuclidean;  ///< how its values are shown
+  int ambient = 0;                               ///< doubles stored per value
+  int tangent = 0;                               ///< columns of its Jacobian
+  std::shared_ptr<const Manifold> manifold;      ///< for central differences
+  bool indexed = false;                          ///< a variable per group (else `shared`)
+  int shared = -1;                               ///< the variable (index into variables) if shared
+  std::vector<int> per_group;                    ///< each group's variable if indexed
+};
+
+/// A read-only view of rows of numbers in any strided layout: row i (component i % k of group
+/// i / k), column c at data + (i / k) * group + (i % k) * component + c * column bytes. Arrays a
+/// user builds one coordinate at a time, e.g. J of shape (k, t, n) returned as
+/// J.transpose(2, 0, 1), are read in place.
+struct StridedRows {
+  const char* data = nullptr;    ///< first number
+  std::ptrdiff_t group = 0;      ///< bytes between groups (between rows when k == 1)
+  std::ptrdiff_t component = 0;  ///< bytes between the rows of a group
+  std::ptrdiff_t column = 0;     ///< bytes between columns
+  std::size_t group_rows = 1;    ///< k; 1 when rows are evenly spaced (then `group` apart)
+
+  /// Rows of k in a group: evenly spaced rows become one stride.
+  static StridedRows make(const char* data, std::ptrdiff_t group, std::ptrdiff_t component,
+                          std::ptrdiff_t column, std::size_t k) {
+    if (k == 1 || group == static_cast<std::ptrdiff_t>(k) * component) {
+      return {data, k == 1 ? group : component, 0, column, 1};
+    }
+    return {data, group, component, column, k};
+  }
+  /// Bytes between consecutive rows when they are evenly spaced (group_rows == 1).
+  std::ptrdiff_t row_stride() const { return group; }
+  /// Where row i starts.
+  const char* row(std::size_t i) const {
+    return data + (group_rows == 1 ? static_cast<std::ptrdiff_t>(i) * group
+                                   : static_cast<std::ptrdiff_t>(i / group_rows) * group +
+                                         static_cast<std::ptrdiff_t>(i % group_rows) * component);
+  }
+  /// Column c of the row starting at `start`.
+  double in_row(const char* start, int c) const {
+    return *reinterpret_cast<const double*>(start + static_cast<std::ptrdiff_t>(c) * column);
+  }
+  /// The number at row i, column c.
+  double at(std::size_t i, int c = 0) const { return in_row(row(i), c); }
+};
+
+/// Residuals (and Jacobians) of some whole groups of rows, as the Python function returned them
+/// (its arrays are read in place), with each group's loss weight.
+class RowsEvaluation {
+ public:
+  RowsEvaluation() = default;
+  RowsEvaluation(const RowsEvaluation&) = delete;
+  RowsEvaluation& operator=(const RowsEvaluation&) = delete;
+  ~RowsEvaluation();
+
+  /// Rows held (whole groups).
+  std::size_t num_rows() const { return num_rows_; }
+  /// Whether Jacobians were evaluated.
+  bool has_jacobians() const { return !jacobians_.empty(); }
+  /// Row i's residual, without the loss weight.
+  double residual(std::size_t i) const { return residuals_.at(i); }
+  /// Column c of row i of slot j's Jacobian, without the loss weight.
+  double jacobian(int j, std::size_t i, int c) const {
+    return jacobians_[static_cast<std::size_t>(j)].at(i, c);
+  }
+  /// The view of slot j's Jacobian.
+  const StridedRows& jacobian_view(int j) const { return jacobians_[static_cast<std::size_t>(j)]; }
+  /// The view of the residuals.
+  const StridedRows& residual_view() const { return residuals_; }
+  /// sqrt(rho'(s_g)) of the group of row i (1 without a group loss).
+  double weight(std::size_t i) const {
+    return weights_.empty() ? 1.0 : weights_[i / static_cast<std::size_t>(group_rows_)];
+  }
+  /// Row i's share of its group's cost: r_i^2 without a loss, rho(s_g) r_i^2 / s_g with one.
+  double cost_share(std::size_t i) const;
+  /// Whether a group loss weighted the rows.
+  bool weighted() const { return !weights_.empty(); }
+
+ private:
+  friend class NumpyRows;
+  int group_rows_ = 1;
+  std::size_t num_rows_ = 0;
+  StridedRows residuals_;
+  std::vector<StridedRows> jacobians_;      // one per slot, empty without Jacobians
+  std::vector<double> weights_;             // per group: sqrt(rho'(s_g)); empty: no loss
+  std::vector<double> rho_, squared_;       // per group: rho(s_g), s_g (with a loss)
+  std::vector<std::vector<double>> owned_;  // arrays carat computed (differences)
+  py::object keep_;                         // the Python arrays read in place
+};
+
+/// The rows of one add_rows() call and the Python function that evaluates them.
+class NumpyRows {
+ public:
+  /// `function` is called as function(*slot_values, rows[, jacobians=bool]) (the keyword when
+  /// `pass_jacobians_flag`); `groups` groups of `group_rows` rows; the group loss may be null.
+  NumpyRows(py::object function, std::string name, int group_rows, int groups,
+            std::vector<RowsSlot> slots, std::vector<RowsVariable> variables,
+            std::shared_ptr<const LossFunction> group_loss, std::shared_ptr<CallbackErrors> errors,
+            bool pass_jacobians_flag);
+  NumpyRows(const NumpyRows&) = delete;
+  NumpyRows& operator=(const NumpyRows&) = delete;
+  ~NumpyRows();
+
+  /// The name messages give the rows.
+  const std::string& name() const { return name_; }
+  /// Rows per group (k).
+  int group_rows() const { return group_rows_; }
+  /// Groups (G).
+  int num_groups() const { return groups_; }
+  /// Argument slots.
+  const std::vector<RowsSlot>& slots() const { return slots_; }
+  /// Tangent dimension of each slot.
+  std::span<const int> tangent_dims() const { return dims_; }
+  /// The variables the slots name.
+  const std::vector<RowsVariable>& variables() const { return variables_; }
+  /// The loss applied to each group, or null.
+  const std::shared_ptr<const LossFunction>& group_loss() const { return group_loss_; }
+  /// Whether every group has the same variables (one block, evaluated directly).
+  bool single_block() const { return single_block_; }
+  /// 0, 1, ..., G - 1 (a single block's groups; empty otherwise).
+  std::span<const int> all_groups() const { return all_groups_; }
+
+  /// Evaluates the groups `groups` (ascending, distinct) at `params` (one block's values in slot
+  /// order, shared by all those groups); called without the GIL. Throws carat::Error (the
+  /// Python exception kept in the CallbackErrors) when the function fails.
+  std::shared_ptr<const RowsEvaluation> evaluate(std::span<const int> groups,
+                                                 ParameterPointers params, bool jacobians) const;
+
+  /// For a block of a batch of several blocks (`block_variables`: its variable per slot): an
+  /// evaluation holding `groups` (ascending) at `params`, and in positions[k] the row where
+  /// group groups[k] starts in it. Served from the last evaluation while the block's variables
+  /// hold the values it was made at; otherwise, when `params` lie in one array of the problem's
+  /// layout (every slot's pointer at its variable's offset from one base, which carat's solver,
+  /// evaluation and compression pass), every active group is evaluated at that array's values in
+  /// one call and kept; otherwise (e.g. a checker's perturbed copies) `groups` alone at `params`.
+  std::shared_ptr<const RowsEvaluation> lookup(std::span<const int> block_variables,
+                                               ParameterPointers params,
+                                               std::span<const int> groups, bool jacobians,
+                                               std::vector<std::size_t>* positions) const;
+
+  /// Marks `groups` as used by one more block (lookup() evaluates the groups some block uses).
+  void acquire(std::span<const int> groups) const;
+  /// Undoes acquire().
+  void release(std::span<const int> groups) const noexcept;
+
+ private:
+  /// Where one evaluation reads its values: one block's parameters (every group the same) or an
+  /// array in the problem's layout.
+  struct Source {
+    ParameterPointers params;
+    const double* base = nullptr;
+  };
+  const double* value(const Source& source, int slot, int group) const;
+  std::shared_ptr<const RowsEvaluation> evaluate_groups(std::span<const int> groups,
+                                                        const Source& source, bool jacobians) const;
+  /// With the GIL: the arguments, the call, the checks, differences where needed.
+  void call(std::span<const int> groups, const Source& source, bool jacobians,
+            RowsEvaluation* out) const;
+  py::object invoke(const std::vector<py::object>& arguments, const py::object& rows,
+                    bool jacobians) const;
+  py::object slot_values(int slot, std::span<const int> groups, const Source& source, int direction,
+                         double sign) const;
+  StridedRows checked_residuals(const py::handle& r, std::size_t num_rows, py::list* keep) const;
+  StridedRows checked_jacobian(const py::handle& J, int slot, std::size_t num_rows,
+                               py::list* keep) const;
+  [[noreturn]] void fail(const std::string& message) const;
+  void apply_loss(RowsEvaluation* evaluation) const;
+  const double* common_base(std::span<const int> block_variables, ParameterPointers params) const;
+
+  py::object function_;
+  std::string name_;
+  int group_rows_ = 1;
+  int groups_ = 0;
+  std::vector<RowsSlot> slots_;
+  std::vector<int> dims_;
+  std::vector<RowsVariable> variables_;
+  std::shared_ptr<const LossFunction> group_loss_;
+  std::shared_ptr<CallbackErrors> errors_;
+  bool pass_jacobians_flag_ = false;
+  bool single_block_ = true;
+  std::vector<int> all_groups_;
+  mutable py::object all_rows_;  // 0 .. G k - 1 as a read-only int64 array, made on first use
+
+  // lookup()'s last evaluation, the values it was made at and where each group lies in it.
+  struct Cache {
+    std::shared_ptr<const RowsEvaluation> evaluation;
+    std::vector<double> values;                // each variable at variable_start_[v]
+    std::vector<std::int64_t> group_position;  // first row of each group, -1: not held
+    bool jacobians = false;
+  };
+  mutable std::mutex cache_mutex_;
+  mutable Cache cache_;
+  mutable std::mutex users_mutex_;           // never held while waiting for the GIL
+  mutable std::vector<int> users_;           // per group: blocks that use it
+  std::vector<std::size_t> variable_start_;  // where each variable's values lie in Cache::values
+};
+
+}  // namespace carat::python

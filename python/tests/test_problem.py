@@ -1,0 +1,394 @@
+"""carat.Problem from numpy: residual rows written in numpy against carat's C++ blocks and dense
+references on the same problems, robust losses, compression, covariance, and bad callbacks."""
+
+import os
+import pathlib
+import subprocess
+import sys
+import textwrap
+import traceback
+
+import numpy as np
+import pytest
+
+import carat
+from conftest import se3_exp
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[2] / "examples" / "python"))
+from bal_numpy import project  # noqa: E402
+
+# Tolerances tight enough that the solves below stop at the optimum to rounding.
+TIGHT = dict(function_tolerance=1e-15, gradient_tolerance=1e-14, parameter_tolerance=1e-15,
+             max_iterations=100)
+
+
+def curve_data(n=200, seed=3):
+    rng = np.random.default_rng(seed)
+    x = np.linspace(0.0, 5.0, n, endpoint=False)
+    return x, np.exp(0.3 * x + 0.1) + rng.normal(scale=0.2, size=n)
+
+
+def curve_residual(X, Y):
+    def residual(mc, rows):
+        x, y = X[rows], Y[rows]
+        e = np.exp(mc[0] * x + mc[1])
+        return y - e, [np.stack([-x * e, -e], axis=1)]
+
+    return residual
+
+
+def dense_gauss_newton(X, Y, mc):
+    for _ in range(100):
+        e = np.exp(mc[0] * X + mc[1])
+        r, J = Y - e, np.stack([-X * e, -e], axis=1)
+        step = np.linalg.solve(J.T @ J, -J.T @ r)
+        mc = mc + step
+        if np.abs(step).max() < 1e-15:
+            break
+    return mc, J
+
+
+def curve_problem(X, Y, residual=None, **rows_options):
+    p = carat.Problem()
+    v = p.add_euclidean(np.zeros(2))
+    p.add_rows(residual or curve_residual(X, Y), [v], rows=len(X), **rows_options)
+    return p, v
+
+
+def test_curve_fit_reaches_the_dense_gauss_newton_optimum():
+    X, Y = curve_data()
+    p, v = curve_problem(X, Y)
+    s = carat.solve(p, **TIGHT)
+    assert s.termination == "CONVERGENCE"
+    reference, _ = dense_gauss_newton(X, Y, np.array([0.3, 0.1]))
+    np.testing.assert_allclose(p.value(v), reference, rtol=1e-10, atol=0)
+    r = Y - np.exp(reference[0] * X + reference[1])
+    assert s.final_cost == pytest.approx(0.5 * r @ r, rel=1e-12)
+    assert "iter" in s.full_report() and s.iterations >= 1
+
+
+def test_residuals_alone_get_central_differences_to_the_same_optimum():
+    X, Y = curve_data()
+    p, v = curve_problem(X, Y, residual=lambda mc, rows: Y[rows] - np.exp(mc[0] * X[rows] + mc[1]))
+    carat.solve(p, **TIGHT)
+    reference, _ = dense_gauss_newton(X, Y, np.array([0.3, 0.1]))
+    np.testing.assert_allclose(p.value(v), reference, rtol=1e-10, atol=0)
+
+
+def test_covariance_is_the_inverse_gauss_newton_hessian():
+    X, Y = curve_data()
+    p, v = curve_problem(X, Y)
+    carat.solve(p, **TIGHT)
+    _, J = dense_gauss_newton(X, Y, p.value(v))
+    np.testing.assert_allclose(carat.covariance(p).block(v), np.linalg.inv(J.T @ J), rtol=1e-9)
+
+
+def test_compressed_solves_reach_the_full_optimum_and_compression_is_exact():
+    X, Y = curve_data(n=600)
+    full, v = curve_problem(X, Y)
+    carat.solve(full, **TIGHT)
+    # kRecompress stops once the full cost no longer decreases beyond its rounding: the cost is
+    # the optimum's to 1e-12, the values (flat directions of the cost) to 1e-8.
+    for mode, rtol in (("surrogate", 1e-10), ("auto", 1e-10), ("recompress", 1e-8)):
+        p, w = curve_problem(X, Y)
+        s = carat.solve_recompressed(p, mode=mode, **TIGHT)
+        np.testing.assert_allclose(p.value(w), full.value(v), rtol=rtol, atol=0)
+        assert s.final_cost == pytest.approx(full.cost(), rel=1e-12)
+    # An exact coreset reproduces the cost and gradient at the point it was built at, robust
+    # losses per group included.
+    p, w = curve_problem(X, Y, loss="cauchy", loss_scale=0.1)
+    p.set_value(w, np.array([0.2, 0.3]))
+    cost, gradient = p.cost(), p.gradient()
+    report = carat.compress(p)
+    assert report.rows_after < report.rows_before == 600
+    assert p.cost() == pytest.approx(cost, rel=1e-10)
+    np.testing.assert_allclose(p.gradient(), gradient, rtol=1e-9)
+    report.restore()
+    assert p.num_residual_rows == 600
+
+
+def pose_chain(n=6, seed=5):
+    """Poses on a gently turning line, noisy odometry plus two loop closures (i, j, T_i_j)."""
+    rng = np.random.default_rng(seed)
+    truth = [se3_exp([0.0, 0.0, 0.1 * k], [2.0 * k, 0.3 * k, 0.0]) for k in range(n)]
+    edges = [(k, k + 1) for k in range(n - 1)] + [(0, n - 1), (1, n - 2)]
+    measured = []
+    for i, j in edges:
+        noise = se3_exp(rng.normal(scale=0.01, size=3), rng.normal(scale=0.05, size=3))
+        measured.append((i, j, np.linalg.inv(truth[i]) @ truth[j] @ noise))
+    start = [truth[0]]
+    for k in range(1, n):
+        start.append(start[-1] @ measured[k - 1][2])
+    return start, measured
+
+
+INFORMATION = np.diag([100.0, 100.0, 100.0, 400.0, 400.0, 400.0])
+
+
+def relative_pose_residual(T_ij):
+    """RelativePoseBlock's residual in numpy, one group of 6 rows per edge."""
+    U = np.sqrt(np.diag(INFORMATION))
+
+    def residual(T_i, T_j, rows):
+        edge = rows[::6] // 6
+        R_i, R_j, t_i, t_j = T_i[:, :3, :3], T_j[:, :3, :3], T_i[:, :3, 3], T_j[:, :3, 3]
+        e_t = np.einsum("gba,gb->ga", R_i, t_j - t_i) - T_ij[edge, :3, 3]
+        M = np.einsum("gba,gcb,gcd->gad", T_ij[edge, :3, :3], R_i, R_j)
+        w = np.sqrt(1.0 + np.trace(M, axis1=1, axis2=2))  # 2 cos(angle / 2) > 0 here
+        e_r = np.stack([M[:, 2, 1] - M[:, 1, 2], M[:, 0, 2] - M[:, 2, 0], M[:, 1, 0] - M[:, 0, 1]],
+                       axis=1) / w[:, None]
+        return (np.concatenate([e_t, e_r], axis=1) * U).ravel()
+
+    return residual
+
+
+def pose_graph_problems(loss, loss_per):
+    start, measured = pose_chain()
+    cpp, rows = carat.Problem(), carat.Problem()
+    ids = [(cpp.add_se3(T), rows.add_se3(T)) for T in start]
+    for p, k in ((cpp, 0), (rows, 1)):
+        p.set_constant(ids[0][k])
+    for i, j, T_ij in measured:
+        cpp.add_relative_pose(ids[i][0], ids[j][0], T_ij, INFORMATION, loss=loss, loss_scale=0.5)
+    T_ij = np.array([m[2] for m in measured])
+    rows.add_rows(relative_pose_residual(T_ij), [np.array([m[0] for m in measured]),
+                                                 np.array([m[1] for m in measured])],
+                  rows=6 * len(measured), group=6, loss=loss, loss_scale=0.5, loss_per=loss_per,
+                  name="edges")
+    return cpp, rows, [k[0] for k in ids], [k[1] for k in ids]
+
+
+@pytest.mark.parametrize("loss, loss_per", [("none", "group"), ("huber", "group"), ("huber", "block")])
+def test_pose_graph_rows_match_carats_relative_pose_blocks(loss, loss_per):
+    cpp, rows, cpp_ids, rows_ids = pose_graph_problems(loss, loss_per)
+    assert rows.num_residual_blocks == 7  # one block per edge (distinct pair of poses)
+    assert rows.cost() == pytest.approx(cpp.cost(), rel=1e-12)
+    np.testing.assert_allclose(rows.gradient(), cpp.gradient(), rtol=1e-6, atol=1e-6)
+    s_cpp, s_rows = carat.solve(cpp, **TIGHT), carat.solve(rows, **TIGHT)
+    assert s_cpp.termination == s_rows.termination == "CONVERGENCE"
+    assert s_rows.final_cost == pytest.approx(s_cpp.final_cost, rel=1e-10)
+    np.testing.assert_allclose(rows.value(rows_ids), cpp.value(cpp_ids), rtol=0, atol=1e-10)
+
+
+def se2_log_residual(T_ij, information):
+    """RelativePoseSE2Block's residual in numpy: [vx, vy, w] of Log(T_ij^-1 T_i^-1 T_j), whitened."""
+    U = np.linalg.cholesky(information).T  # U^T U = information
+
+    def residual(T_i, T_j, rows):
+        edge = rows[::3] // 3
+        E = np.linalg.inv(T_ij[edge]) @ np.linalg.inv(T_i) @ T_j
+        w = np.arctan2(E[:, 1, 0], E[:, 0, 0])
+        small = np.abs(w) < 1e-9
+        safe = np.where(small, 1.0, w)
+        a = np.where(small, 1.0 - w * w / 6.0, np.sin(safe) / safe)
+        b = np.where(small, w / 2.0, (1.0 - np.cos(safe)) / safe)
+        t = E[:, :2, 2]
+        det = a * a + b * b  # V = [[a, -b], [b, a]], V^-1 = [[a, b], [-b, a]] / det
+        v = np.stack([(a * t[:, 0] + b * t[:, 1]) / det, (-b * t[:, 0] + a * t[:, 1]) / det], axis=1)
+        return (np.concatenate([v, w[:, None]], axis=1) @ U.T).ravel()
+
+    return residual
+
+
+def test_se2_rows_match_carats_relative_pose_se2_blocks():
+    rng = np.random.default_rng(8)
+    truth = [np.array([1.5 * k, 0.4 * k, 0.15 * k]) for k in range(5)]
+
+    def matrix(x, y, theta):
+        return np.array([[np.cos(theta), -np.sin(theta), x], [np.sin(theta), np.cos(theta), y], [0, 0, 1.0]])
+
+    edges = [(k, k + 1) for k in range(4)] + [(0, 4), (1, 3)]
+    information = np.array([[50.0, 5.0, 0.0], [5.0, 40.0, 2.0], [0.0, 2.0, 200.0]])
+    T_ij = np.array([np.linalg.inv(matrix(*truth[i])) @ matrix(*truth[j]) @ matrix(*rng.normal(scale=0.05, size=3))
+                     for i, j in edges])
+    cpp, rows = carat.Problem(), carat.Problem()
+    start = [t + rng.normal(scale=0.1, size=3) for t in truth]
+    ids = [(cpp.add_se2(x), rows.add_se2(matrix(*x))) for x in start]
+    cpp.set_constant(ids[0][0])
+    rows.set_constant(ids[0][1])
+    for (i, j), T in zip(edges, T_ij):
+        cpp.add_relative_pose_se2(ids[i][0], ids[j][0], T, information)
+    rows.add_rows(se2_log_residual(T_ij, information), [np.array([e[0] for e in edges]), np.array([e[1] for e in edges])],
+                  rows=3 * len(edges), group=3)
+    assert rows.cost() == pytest.approx(cpp.cost(), rel=1e-12)
+    carat.solve(cpp, **TIGHT)
+    carat.solve(rows, **TIGHT)
+    np.testing.assert_allclose(rows.value([k[1] for k in ids]), cpp.value([k[0] for k in ids]), rtol=0, atol=1e-10)
+
+
+def test_bundle_adjustment_rows_match_carats_reprojection_blocks():
+    scene = carat.simulate_bal(cameras=3, points=30, observations_per_point=3, seed=2)
+    ci, pi, observed = scene["camera_index"], scene["point_index"], scene["observed"]
+    problems, calls = [], []
+    for kind in ("c++", "numpy"):
+        p = carat.Problem()
+        cameras, points = p.add_euclidean(scene["cameras"]), p.add_euclidean(scene["points"])
+        p.set_eliminable(points)
+        if kind == "c++":
+            p.add_bal_observations(cameras[ci], points[pi], observed)
+        else:
+            def reprojection(camera, point, rows):
+                calls.append(len(rows))
+                image, J_camera, J_point = project(camera, point)
+                return image - observed[rows[::2] // 2], [J_camera, J_point]
+
+            p.add_rows(reprojection, [cameras[ci], points[pi]], rows=2 * len(ci), group=2)
+        problems.append((p, cameras, points))
+    (cpp, c1, x1), (rows, c2, x2) = problems
+    assert rows.cost() == pytest.approx(cpp.cost(), rel=1e-12)
+    np.testing.assert_allclose(rows.gradient(), cpp.gradient(), rtol=1e-9, atol=1e-9)
+    # Stopped before the cost changes only by rounding: past that point, steps along the
+    # similarity gauge (which leaves the cost unchanged) follow the rounding of each Jacobian.
+    options = dict(TIGHT, function_tolerance=1e-10)
+    s_cpp, s_rows = carat.solve(cpp, **options), carat.solve(rows, **options)
+    assert s_rows.final_cost == pytest.approx(s_cpp.final_cost, rel=1e-12)
+    assert s_rows.iterations == s_cpp.iterations
+    # One call evaluates all 90 blocks (one per observation): two calls an iteration at most
+    # (linearization, trial cost), each asked for every row.
+    assert rows.num_residual_blocks == 90
+    assert len(calls) <= 2 * (s_rows.iterations + 1) + 4 and set(calls) == {180}
+    np.testing.assert_allclose(rows.value(c2), cpp.value(c1), rtol=1e-10, atol=1e-10)
+    np.testing.assert_allclose(rows.value(x2), cpp.value(x1), rtol=1e-10, atol=1e-10)
+
+
+def test_gicp_block_recovers_the_relative_pose():
+    rng = np.random.default_rng(4)
+    target = rng.uniform(-5.0, 5.0, size=(60, 3))
+    T_target_source = se3_exp([0.05, -0.02, 0.1], [0.3, -0.2, 0.1])
+    source = (target - T_target_source[:3, 3]) @ T_target_source[:3, :3]  # exact correspondences
+    covariances = np.tile(np.diag([0.01, 0.02, 0.03]), (60, 1, 1))
+    p = carat.Problem()
+    i, j = p.add_se3(np.eye(4)), p.add_se3(np.eye(4))
+    p.set_constant(i)
+    p.add_gicp(i, j, target, covariances, source, covariances)
+    carat.solve(p, **TIGHT)
+    np.testing.assert_allclose(p.value(j), T_target_source, atol=1e-10)
+
+
+@pytest.mark.parametrize("jacobian", ["analytic", "differences"])
+def test_point_alignment_in_numpy_recovers_the_pose(jacobian):
+    """One block of 3 rows per point over one SE(3) pose: r = R p + t - q."""
+    rng = np.random.default_rng(6)
+    p_source = rng.uniform(-3.0, 3.0, size=(40, 3))
+    T_true = se3_exp([0.2, -0.1, 0.3], [1.0, -2.0, 0.5])
+    q_target = p_source @ T_true[:3, :3].T + T_true[:3, 3]
+
+    def residual(T, rows):
+        k = rows[::3] // 3
+        Rp = p_source[k] @ T[:3, :3].T
+        r = (Rp + T[:3, 3] - q_target[k]).ravel()
+        if jacobian == "differences":
+            return r
+        # Right perturbation T Exp([omega, v]): d/d omega = -R [p]x, d/d v = R.
+        px = np.zeros((len(k), 3, 3))
+        px[:, 0, 1], px[:, 0, 2], px[:, 1, 2] = -p_source[k, 2], p_source[k, 1], -p_source[k, 0]
+        px -= px.transpose(0, 2, 1)
+        J = np.concatenate([-T[:3, :3] @ px, np.broadcast_to(T[:3, :3], (len(k), 3, 3))], axis=2)
+        return r, [J]
+
+    p = carat.Problem()
+    v = p.add_se3(np.eye(4))
+    p.add_rows(residual, [v], rows=3 * len(p_source), group=3)
+    carat.solve(p, **TIGHT)
+    np.testing.assert_allclose(p.value(v), T_true, atol=1e-10)
+
+
+# --- Bad callbacks: a clear error naming the block, never a crash or a hang.
+
+
+def test_an_exception_in_a_residual_reaches_the_user_with_its_traceback():
+    X, Y = curve_data()
+
+    def broken_residual(mc, rows):
+        return {}["no such key"]
+
+    p, _ = curve_problem(X, Y, residual=broken_residual)
+    with pytest.raises(KeyError) as raised:
+        carat.solve(p)
+    frames = [frame.name for frame in traceback.extract_tb(raised.value.__traceback__)]
+    assert "broken_residual" in frames
+
+
+@pytest.mark.parametrize(
+    "returned, message",
+    [
+        (lambda n: np.zeros(n - 1), r"curve: the residual function returned residuals of shape \(199,\); "
+                                    r"expected \(200,\), one per row asked"),
+        (lambda n: np.zeros(n, dtype=np.float32), "curve: the residual function returned residuals of "
+                                                  "dtype float32; expected float64"),
+        (lambda n: (np.zeros(n), [np.zeros((n, 3))]), r"curve: the residual function returned the "
+                                                      r"Jacobian of argument 1 \(euclidean\(2\)\) of shape "
+                                                      r"\(200, 3\); expected \(200, 2\)"),
+        (lambda n: (np.zeros(n), [np.zeros((n, 2)), np.zeros((n, 2))]),
+         "curve: the residual function returned 2 Jacobians for 1 variables"),
+        (lambda n: "residuals", "curve: the residual function returned residuals of dtype <U9"),
+    ],
+)
+def test_a_residual_of_the_wrong_shape_or_dtype_is_a_value_error_naming_the_block(returned, message):
+    p, _ = curve_problem(*curve_data(), residual=lambda mc, rows: returned(len(rows)), name="curve")
+    with pytest.raises(ValueError, match=message):
+        carat.solve(p)
+    with pytest.raises(ValueError, match=message):  # the same again: the problem stays usable
+        carat.solve(p)
+
+
+def test_a_non_finite_residual_is_a_carat_error_naming_the_block_and_row():
+    X, Y = curve_data()
+
+    def residual(mc, rows):
+        r, J = curve_residual(X, Y)(mc, rows)
+        r[rows == 17] = np.nan
+        return r, J
+
+    p, _ = curve_problem(X, Y, residual=residual, name="curve")
+    with pytest.raises(carat.Error, match=r"curve.*row 17"):
+        carat.solve(p)
+
+
+def test_bad_arguments_are_named():
+    p = carat.Problem()
+    v = p.add_euclidean(np.zeros(2))
+    with pytest.raises(TypeError, match="not callable"):
+        p.add_rows(3, [v], rows=4)
+    with pytest.raises(ValueError, match="rows=5 is not a whole number of groups of group=2"):
+        p.add_rows(lambda mc, rows: mc, [v], rows=5, group=2)
+    with pytest.raises(ValueError, match=r"rows: must be an integer in \[-2147483648, 2147483647\]"):
+        p.add_rows(lambda mc, rows: mc, [v], rows=2**40)
+    with pytest.raises(ValueError, match="add_rows argument 1: variable 7 does not exist"):
+        p.add_rows(lambda mc, rows: mc, [7], rows=4)
+    with pytest.raises(ValueError, match="add_rows: .*'tukey'"):
+        p.add_rows(lambda mc, rows: mc, [v], rows=4, loss="tukey")
+    with pytest.raises(TypeError, match="unexpected keyword argument 'max_iteration'"):
+        carat.solve(p, max_iteration=3)
+
+
+def test_ctrl_c_in_a_slow_residual_ends_the_solve():
+    script = textwrap.dedent(
+        """
+        import os, signal, threading, time
+        import numpy as np
+        import carat
+        def slow(mc, rows):
+            time.sleep(0.05)
+            return np.full(len(rows), np.exp(-mc[0]))  # its minimum lies at infinity
+        p = carat.Problem()
+        v = p.add_euclidean(np.zeros(1))
+        p.add_rows(slow, [v], rows=10)
+        threading.Timer(0.5, lambda: os.kill(os.getpid(), signal.SIGINT)).start()
+        start = time.monotonic()
+        try:
+            carat.solve(p, max_iterations=100000, function_tolerance=0, gradient_tolerance=0,
+                        parameter_tolerance=0)
+            print("finished")
+        except KeyboardInterrupt:
+            print("interrupted after %.1f s" % (time.monotonic() - start))
+        print("usable", p.cost() > 0.0)
+        """
+    )
+    run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                         env=dict(os.environ), timeout=120)
+    assert run.returncode == 0, run.stderr
+    lines = run.stdout.split("\n")
+    assert lines[0].startswith("interrupted after"), run.stdout
+    assert float(lines[0].split()[2]) < 5.0
+    assert lines[1] == "usable True"
