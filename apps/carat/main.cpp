@@ -57,7 +57,10 @@ int main(int argc, char** argv) {
       names += (names.empty() ? "" : ", ") + sub->get_name();
     }
     if (!known) {
-      if (quiet) return 2;
+      // Every rank parses the same arguments and fails alike: the other ranks end quietly with
+      // status 0 and leave the message and the status to rank 0 (a rank ending non-zero first
+      // would have mpirun kill rank 0 before it prints).
+      if (quiet) return 0;
       std::fprintf(stderr, "carat: usage error: unknown subcommand %s (valid: %s)\n",
                    carat::quote_bytes(argv[1]).c_str(), names.c_str());
       return 2;
@@ -75,7 +78,7 @@ int main(int argc, char** argv) {
     if (!quiet) {
       std::fprintf(stderr, "carat: usage error: %s (see --help)\n", one_line(e.what()).c_str());
     }
-    return 2;
+    return quiet ? 0 : 2;  // rank 0 reports it (as for an unknown subcommand above)
   }
   if (quiet) {
     const CLI::App& root = app;
@@ -92,7 +95,7 @@ int main(int argc, char** argv) {
     status = registry.run_selected();
   } catch (const carat::cli::UsageError& e) {
     report(std::string("usage error: ") + e.what());
-    status = 2;
+    status = quiet ? 0 : 2;  // the same on every rank: rank 0 reports it, with the status
   } catch (const std::bad_alloc&) {
     report("error: out of memory (the inputs or options need more memory than this machine has)");
     status = 1;
