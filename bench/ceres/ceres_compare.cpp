@@ -33,6 +33,7 @@
 #include "carat/residuals/pose_graph_se2.hpp"
 #include "carat/solver/se2.hpp"
 #include "carat/solver/solve.hpp"
+#include "json_child.hpp"
 #include "pose_graph_error.hpp"
 
 namespace {
@@ -281,17 +282,7 @@ nlohmann::json run_carat(const carat::PoseGraphSE2& graph) {
 /// and friends resolve to in that process.
 nlohmann::json run_child(const std::string& self, const std::string& solver,
                          const std::string& file, const std::string& preload) {
-  std::string command;
-  if (!preload.empty()) command += "LD_PRELOAD='" + preload + "' ";
-  command += "'" + self + "' --solver " + solver + " '" + file + "'";
-  FILE* pipe = popen(command.c_str(), "r");
-  if (!pipe) return {{"error", "cannot start " + command}};
-  std::string out;
-  char buffer[4096];
-  while (std::fgets(buffer, sizeof(buffer), pipe)) out += buffer;
-  const int status = pclose(pipe);
-  if (status != 0 || out.empty()) return {{"error", "child failed: " + command}};
-  return nlohmann::json::parse(out);
+  return run_json_child("'" + self + "' --solver " + solver + " '" + file + "'", preload);
 }
 
 int main(int argc, char** argv) {

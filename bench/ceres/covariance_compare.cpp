@@ -39,6 +39,7 @@
 #include "carat/solver/covariance.hpp"
 #include "carat/solver/se3.hpp"
 #include "carat/solver/solve.hpp"
+#include "json_child.hpp"
 #include "pose_graph_error.hpp"
 
 namespace {
@@ -201,18 +202,9 @@ nlohmann::json run_ceres(const carat::PoseGraph& graph, const std::string& poses
 nlohmann::json run_child(const std::string& self, const std::string& solver,
                          const std::string& file, const std::string& poses,
                          const std::string& blocks, const std::string& preload) {
-  std::string command;
-  if (!preload.empty()) command += "LD_PRELOAD='" + preload + "' ";
-  command += "'" + self + "' --solver " + solver + " --poses '" + poses + "' --blocks '" + blocks +
-             "' '" + file + "'";
-  FILE* pipe = popen(command.c_str(), "r");
-  if (!pipe) return {{"error", "cannot start " + command}};
-  std::string out;
-  char buffer[4096];
-  while (std::fgets(buffer, sizeof(buffer), pipe)) out += buffer;
-  const int status = pclose(pipe);
-  if (status != 0 || out.empty()) return {{"error", "child failed: " + command}};
-  return nlohmann::json::parse(out);
+  return run_json_child("'" + self + "' --solver " + solver + " --poses '" + poses +
+                            "' --blocks '" + blocks + "' '" + file + "'",
+                        preload);
 }
 
 /// Largest |A_i - B_i|_F / |B_i|_F over the free poses (B_i nonzero).
