@@ -55,8 +55,14 @@ function(carat_set_warnings target)
   if(CARAT_NATIVE)
     target_compile_options(${target} PRIVATE -march=native)
   endif()
-  if(CARAT_BUILD_FUZZERS)
+  # Coverage feedback for libFuzzer in the libraries the fuzzers drive (tests and apps built in
+  # the same tree need only the sanitizers).
+  get_target_property(_type ${target} TYPE)
+  if(CARAT_BUILD_FUZZERS AND _type STREQUAL "STATIC_LIBRARY")
     target_compile_options(${target} PRIVATE -fsanitize=fuzzer-no-link,address,undefined -fno-sanitize-recover=all)
+  elseif(CARAT_BUILD_FUZZERS AND NOT CARAT_SANITIZE)
+    target_compile_options(${target} PRIVATE -fsanitize=address,undefined -fno-sanitize-recover=all)
+    target_link_options(${target} PRIVATE -fsanitize=address,undefined)
   endif()
   if(CARAT_SANITIZE)
     target_compile_options(${target} PRIVATE -fsanitize=address,undefined -fno-omit-frame-pointer

@@ -21,6 +21,11 @@ packages=(
 if [[ "${CARAT_WITH_CERES:-0}" == "1" ]]; then
   packages+=(libceres-dev)
 fi
+# Clang and its sanitizer runtimes, for the sanitizer and fuzzer builds (scripts/test-sanitize.sh,
+# scripts/fuzz.sh).
+if [[ "${CARAT_WITH_CLANG:-0}" == "1" ]]; then
+  packages+=(clang libclang-rt-14-dev)
+fi
 
 SUDO=""
 if [[ "$(id -u)" != "0" ]]; then SUDO="sudo"; fi

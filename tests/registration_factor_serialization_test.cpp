@@ -21,6 +21,7 @@
 #include "carat/registration/factor_serialization.hpp"
 #include "carat/registration/frame_store.hpp"
 #include "carat/registration/global_registration.hpp"
+#include "carat/registration/option_serialization.hpp"
 #include "carat/residuals/block_serialization.hpp"
 #include "carat/residuals/relative_pose_block.hpp"
 #include "carat/sim/pipeline.hpp"
@@ -245,6 +246,143 @@ TEST(FactorBytesBadInputTest, BlocksWithoutAByteFormAreRefused) {
               ::testing::ThrowsMessage<Error>(HasSubstr("no byte form")));
   EXPECT_THAT([] { serialize_factor(RegistrationFactor{}); },
               ::testing::ThrowsMessage<Error>(HasSubstr("no block")));
+}
+
+/// Registration options with every field away from its default (the callbacks set).
+GlobalRegistrationOptions unusual_options() {
+  GlobalRegistrationOptions o;
+  o.sampling = ResidualSampling::kLossless;
+  o.residuals = 57;
+  o.max_correspondence_distance = 0.75;
+  o.min_correspondences = 31;
+  o.seed = 0xfedcba9876543210ull;
+  o.num_threads = 3;
+  o.factor_cauchy_scale = 0.125;
+  o.factor_excess_cauchy_scale = 0.0625;
+  o.rounds = 4;
+  o.round_translation_tolerance = 2e-3;
+  o.round_rotation_tolerance = 3e-4;
+  o.covariance = true;
+  o.iteration_callback = [](const IterationSummary&, std::span<const Eigen::Isometry3d>) {
+    return CallbackResult::kContinue;
+  };
+  SolverOptions& v = o.solver;
+  v.method = Method::kGaussNewton;
+  v.ordering = Ordering::kMetis;
+  v.linear_solver = LinearSolver::kCholesky;
+  v.max_linear_system_bytes = 1e9;
+  v.max_iterations = 7;
+  v.function_tolerance = 1e-5;
+  v.gradient_tolerance = 1e-9;
+  v.parameter_tolerance = 1e-7;
+  v.initial_trust_region_radius = 1e3;
+  v.max_trust_region_radius = 1e15;
+  v.max_trust_region_growth = 8.0;
+  v.min_trust_region_radius = 1e-30;
+  v.min_relative_decrease = 2e-3;
+  v.min_lm_diagonal = 1e-5;
+  v.max_lm_diagonal = 1e30;
+  v.reuse_factorization = !v.reuse_factorization;
+  v.factor_reuse_ratio = 1.2;
+  v.num_threads = 5;
+  v.record_iterations = !v.record_iterations;
+  v.iteration_callback = [](const IterationSummary&) { return CallbackResult::kAbort; };
+  v.update_state_every_iteration = !v.update_state_every_iteration;
+  v.check_blocks = !v.check_blocks;
+  return o;
+}
+
+std::vector<std::byte> option_bytes(const GlobalRegistrationOptions& options) {
+  std::vector<std::byte> bytes;
+  ByteWriter out(bytes);
+  write_options(out, options);
+  return bytes;
+}
+
+TEST(OptionBytesTest, EveryFieldButTheCallbacksRoundTrips) {
+  const GlobalRegistrationOptions sent = unusual_options();
+  const std::vector<std::byte> bytes = option_bytes(sent);
+  ByteReader in(bytes, "options");
+  const GlobalRegistrationOptions got = read_global_registration_options(in);
+  in.expect_end();
+  EXPECT_EQ(got.sampling, sent.sampling);
+  EXPECT_EQ(got.residuals, sent.residuals);
+  EXPECT_EQ(got.max_correspondence_distance, sent.max_correspondence_distance);
+  EXPECT_EQ(got.min_correspondences, sent.min_correspondences);
+  EXPECT_EQ(got.seed, sent.seed);
+  EXPECT_EQ(got.num_threads, sent.num_threads);
+  EXPECT_EQ(got.factor_cauchy_scale, sent.factor_cauchy_scale);
+  EXPECT_EQ(got.factor_excess_cauchy_scale, sent.factor_excess_cauchy_scale);
+  EXPECT_EQ(got.rounds, sent.rounds);
+  EXPECT_EQ(got.round_translation_tolerance, sent.round_translation_tolerance);
+  EXPECT_EQ(got.round_rotation_tolerance, sent.round_rotation_tolerance);
+  EXPECT_EQ(got.covariance, sent.covariance);
+  EXPECT_FALSE(got.iteration_callback);
+  const SolverOptions &a = got.solver, &b = sent.solver;
+  EXPECT_EQ(a.method, b.method);
+  EXPECT_EQ(a.ordering, b.ordering);
+  EXPECT_EQ(a.linear_solver, b.linear_solver);
+  EXPECT_EQ(a.max_linear_system_bytes, b.max_linear_system_bytes);
+  EXPECT_EQ(a.max_iterations, b.max_iterations);
+  EXPECT_EQ(a.function_tolerance, b.function_tolerance);
+  EXPECT_EQ(a.gradient_tolerance, b.gradient_tolerance);
+  EXPECT_EQ(a.parameter_tolerance, b.parameter_tolerance);
+  EXPECT_EQ(a.initial_trust_region_radius, b.initial_trust_region_radius);
+  EXPECT_EQ(a.max_trust_region_radius, b.max_trust_region_radius);
+  EXPECT_EQ(a.max_trust_region_growth, b.max_trust_region_growth);
+  EXPECT_EQ(a.min_trust_region_radius, b.min_trust_region_radius);
+  EXPECT_EQ(a.min_relative_decrease, b.min_relative_decrease);
+  EXPECT_EQ(a.min_lm_diagonal, b.min_lm_diagonal);
+  EXPECT_EQ(a.max_lm_diagonal, b.max_lm_diagonal);
+  EXPECT_EQ(a.reuse_factorization, b.reuse_factorization);
+  EXPECT_EQ(a.factor_reuse_ratio, b.factor_reuse_ratio);
+  EXPECT_EQ(a.num_threads, b.num_threads);
+  EXPECT_EQ(a.record_iterations, b.record_iterations);
+  EXPECT_FALSE(a.iteration_callback);
+  EXPECT_EQ(a.update_state_every_iteration, b.update_state_every_iteration);
+  EXPECT_EQ(a.check_blocks, b.check_blocks);
+  // Read back and written again: the same bytes.
+  EXPECT_EQ(option_bytes(got), bytes);
+
+  ReadOptions read;
+  read.drop_non_finite = true;
+  read.max_points = 12345;
+  PreprocessOptions preprocess;
+  preprocess.voxel_size = 0.3;
+  preprocess.covariance_neighbors = 12;
+  preprocess.min_points = 40;
+  preprocess.num_threads = 2;
+  std::vector<std::byte> more;
+  ByteWriter out(more);
+  write_options(out, read);
+  write_options(out, preprocess);
+  ByteReader back(more, "frame options");
+  const ReadOptions read_got = read_read_options(back);
+  const PreprocessOptions preprocess_got = read_preprocess_options(back);
+  back.expect_end();
+  EXPECT_EQ(read_got.drop_non_finite, true);
+  EXPECT_EQ(read_got.max_points, 12345u);
+  EXPECT_EQ(preprocess_got.voxel_size, 0.3);
+  EXPECT_EQ(preprocess_got.covariance_neighbors, 12);
+  EXPECT_EQ(preprocess_got.min_points, 40);
+  EXPECT_EQ(preprocess_got.num_threads, 2);
+}
+
+TEST(OptionBytesTest, TruncatedOrGarbledBytesAreRefused) {
+  const std::vector<std::byte> bytes = option_bytes(unusual_options());
+  for (std::size_t size = 0; size < bytes.size(); ++size) {
+    ByteReader in(std::span<const std::byte>(bytes).first(size), "options from rank 0");
+    EXPECT_THROW(read_global_registration_options(in), Error) << size << " bytes";
+  }
+  std::vector<std::byte> bad = bytes;
+  bad[0] = std::byte{9};  // sampling: no such value
+  ByteReader in(bad, "options from rank 0");
+  try {
+    read_global_registration_options(in);
+    FAIL() << "a sampling of 9 was read";
+  } catch (const Error& e) {
+    EXPECT_THAT(e.what(), ::testing::HasSubstr("options from rank 0: garbled: sampling 9"));
+  }
 }
 
 }  // namespace

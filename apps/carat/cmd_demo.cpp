@@ -371,7 +371,7 @@ void register_demo(CLI::App& app, CommandRegistry& registry) {
       ->check(integer_in(0, 1024))
       ->capture_default_str();
   cmd->add_flag("--json", args->json, "print one JSON object instead of the report");
-  registry.add(cmd, [args, gre_cauchy, excess] {
+  registry.add(cmd, [args, excess] {
     DemoArgs settled = *args;
     if (settled.paper) {
       settled.rounds = 1;

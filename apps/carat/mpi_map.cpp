@@ -15,6 +15,7 @@
 #include "carat/base/stopwatch.hpp"
 #include "carat/registration/factor_serialization.hpp"
 #include "carat/registration/frame_store.hpp"
+#include "carat/registration/option_serialization.hpp"
 #include "cli_support.hpp"
 #include "mpi_launch.hpp"
 
@@ -49,19 +50,10 @@ std::vector<std::byte> encode_job(const MpiFrameSource& source,
     out.put_string(file.name);
     out.put(static_cast<std::uint8_t>(file.bin_format));
   }
-  out.put(static_cast<std::uint8_t>(source.read.drop_non_finite));
-  out.put(static_cast<std::uint64_t>(source.read.max_points));
-  out.put(source.preprocess.voxel_size);
-  out.put(source.preprocess.covariance_neighbors);
-  out.put(source.preprocess.min_points);
+  write_options(out, source.read);
+  write_options(out, source.preprocess);
   out.put(static_cast<std::uint64_t>(source.max_bytes));
-  out.put(static_cast<std::uint8_t>(options.sampling));
-  out.put(options.residuals);
-  out.put(options.max_correspondence_distance);
-  out.put(options.min_correspondences);
-  out.put(options.seed);
-  out.put(options.factor_cauchy_scale);
-  out.put(options.factor_excess_cauchy_scale);
+  write_options(out, options);
   out.put(static_cast<std::uint64_t>(pairs.size()));
   out.put_array(pairs);
   out.put(static_cast<std::uint64_t>(T_world_frame.size()));
@@ -87,19 +79,10 @@ BuildJob decode_job(std::span<const std::byte> bytes) {
     file.bin_format = static_cast<KittiFormat>(in.get<std::uint8_t>());
     job.source.files.push_back(std::move(file));
   }
-  job.source.read.drop_non_finite = in.get<std::uint8_t>() != 0;
-  job.source.read.max_points = static_cast<std::size_t>(in.get<std::uint64_t>());
-  job.source.preprocess.voxel_size = in.get<double>();
-  job.source.preprocess.covariance_neighbors = in.get<int>();
-  job.source.preprocess.min_points = in.get<int>();
+  job.source.read = read_read_options(in);
+  job.source.preprocess = read_preprocess_options(in);
   job.source.max_bytes = static_cast<std::size_t>(in.get<std::uint64_t>());
-  job.options.sampling = static_cast<ResidualSampling>(in.get<std::uint8_t>());
-  job.options.residuals = in.get<int>();
-  job.options.max_correspondence_distance = in.get<double>();
-  job.options.min_correspondences = in.get<int>();
-  job.options.seed = in.get<std::uint64_t>();
-  job.options.factor_cauchy_scale = in.get<double>();
-  job.options.factor_excess_cauchy_scale = in.get<double>();
+  job.options = read_global_registration_options(in);
   job.pairs = in.get_array<FramePair>(static_cast<std::size_t>(in.get<std::uint64_t>()));
   const auto poses = in.get<std::uint64_t>();
   if (poses > in.remaining() / (16 * sizeof(double))) in.garbled("pose count");

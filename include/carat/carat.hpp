@@ -6,6 +6,7 @@
 #include <carat/base/atomic_file.hpp>
 #include <carat/base/byte_stream.hpp>
 #include <carat/base/error.hpp>
+#include <carat/base/field_count.hpp>
 #include <carat/base/input_file.hpp>
 #include <carat/base/interruption.hpp>
 #include <carat/base/machine_memory.hpp>
@@ -39,6 +40,7 @@
 #include <carat/registration/kdtree.hpp>
 #include <carat/registration/loop_closure.hpp>
 #include <carat/registration/odometry.hpp>
+#include <carat/registration/option_serialization.hpp>
 #include <carat/registration/overlap.hpp>
 #include <carat/registration/pair_registration.hpp>
 #include <carat/registration/point_cloud.hpp>

@@ -15,6 +15,7 @@
 #include <utility>
 
 #include "carat/base/error.hpp"
+#include "carat/base/field_count.hpp"
 #include "carat/base/stopwatch.hpp"
 #include "carat/coreset/compress.hpp"
 #include "carat/coreset/row_coreset.hpp"
@@ -109,23 +110,10 @@ void accumulate_round(const SolverSummary& summary, const RegistrationFactorStat
     out->stats = stats;
     return;
   }
-  SolverSummary& total = out->summary;
-  total.termination = summary.termination;
-  total.message = summary.message;
-  total.final_cost = summary.final_cost;
-  total.num_iterations += summary.num_iterations;
-  total.num_successful_steps += summary.num_successful_steps;
-  total.num_unsuccessful_steps += summary.num_unsuccessful_steps;
-  total.num_linear_solver_failures += summary.num_linear_solver_failures;
-  total.time.linearize_s += summary.time.linearize_s;
-  total.time.cost_s += summary.time.cost_s;
-  total.time.assembly_s += summary.time.assembly_s;
-  total.time.symbolic_s += summary.time.symbolic_s;
-  total.time.numeric_s += summary.time.numeric_s;
-  total.time.solve_s += summary.time.solve_s;
-  total.time.total_s += summary.time.total_s;
-  total.iterations.insert(total.iterations.end(), summary.iterations.begin(),
-                          summary.iterations.end());
+  merge_later_solve(out->summary, summary);
+  static_assert(field_count<RegistrationFactorStats>() == 8,
+                "accumulate_round: merge the new field");
+  out->stats.num_factors = stats.num_factors;
   out->stats.correspondence_s += stats.correspondence_s;
   out->stats.compression_s += stats.compression_s;
   out->stats.minimum_s += stats.minimum_s;

@@ -4,6 +4,10 @@
 #include <cstdio>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <utility>
+#include <vector>
+
+#include "carat/base/field_count.hpp"
 
 namespace carat {
 namespace {
@@ -147,6 +151,56 @@ std::string SolverSummary::to_json() const {
   }
   j["iteration_rows"] = rows;
   return j.dump();
+}
+
+// merge_later_solve() is written for these members: a new one must be merged there (or left as
+// `later`'s on purpose), and the count here raised.
+static_assert(field_count<SolverSummary>() == 24, "merge_later_solve: merge the new field");
+static_assert(field_count<TimeBreakdown>() == 8, "merge_later_solve: sum the new stage time");
+static_assert(field_count<IterationSummary>() == 12, "merge_later_solve: continue the new field");
+
+void merge_later_solve(SolverSummary& total, const SolverSummary& later) {
+  if (total.num_iterations == 0 && total.iterations.empty()) {
+    total = later;
+    return;
+  }
+  // The end state and what describes the problem and the setup: the later solve's.
+  const double initial_cost = total.initial_cost;
+  const int iterations = total.num_iterations + later.num_iterations;
+  const int successful = total.num_successful_steps + later.num_successful_steps;
+  const int unsuccessful = total.num_unsuccessful_steps + later.num_unsuccessful_steps;
+  const int reused = total.num_reused_factorizations + later.num_reused_factorizations;
+  const int refused = total.num_refused_reuses + later.num_refused_reuses;
+  const int failures = total.num_linear_solver_failures + later.num_linear_solver_failures;
+  TimeBreakdown time = total.time;
+  time.linearize_s += later.time.linearize_s;
+  time.cost_s += later.time.cost_s;
+  time.assembly_s += later.time.assembly_s;
+  time.symbolic_s += later.time.symbolic_s;
+  time.numeric_s += later.time.numeric_s;
+  time.solve_s += later.time.solve_s;
+  time.schur_s += later.time.schur_s;
+  time.total_s += later.time.total_s;
+  std::vector<IterationSummary> rows = std::move(total.iterations);
+  // Rows go on from the last one's number and cumulative time.
+  const int first_number = rows.empty() ? 0 : rows.back().iteration + 1;
+  const double elapsed_s = rows.empty() ? 0.0 : rows.back().cumulative_time_s;
+  rows.reserve(rows.size() + later.iterations.size());
+  for (IterationSummary row : later.iterations) {
+    row.iteration += first_number;
+    row.cumulative_time_s += elapsed_s;
+    rows.push_back(row);
+  }
+  total = later;
+  total.initial_cost = initial_cost;
+  total.num_iterations = iterations;
+  total.num_successful_steps = successful;
+  total.num_unsuccessful_steps = unsuccessful;
+  total.num_reused_factorizations = reused;
+  total.num_refused_reuses = refused;
+  total.num_linear_solver_failures = failures;
+  total.time = time;
+  total.iterations = std::move(rows);
 }
 
 }  // namespace carat

@@ -86,4 +86,12 @@ struct SolverSummary {
   std::string to_json() const;
 };
 
+/// Adds `later`, a later solve of the same job (e.g. the next round of a registration that
+/// re-searches its correspondences), to `total`: step counts and stage times are summed; the
+/// iteration rows are appended, numbered on and with cumulative times continued; the end state
+/// (termination, message, final cost) and what describes the problem and the setup (sizes, bytes,
+/// threads, method, linear solver, growth) are `later`'s; the initial cost stays `total`'s.
+/// A `total` with no iterations yet (`num_iterations == 0` and no rows) becomes `later`.
+void merge_later_solve(SolverSummary& total, const SolverSummary& later);
+
 }  // namespace carat
