@@ -20,6 +20,18 @@ function(carat_add_module)
     target_compile_features(${_target} PUBLIC cxx_std_20)
     target_link_libraries(${_target} PUBLIC ${ARG_DEPS} PRIVATE ${ARG_PRIVATE_DEPS})
     carat_set_warnings(${_target})
+    if(CARAT_BUILD_FUZZERS)
+      # libFuzzer's coverage feedback where the fuzzers aim: the file formats (src/io/) and base
+      # (files, byte streams). Elsewhere its comparison hooks would only slow the code (the
+      # tests built in the same tree run it) and its compile.
+      file(GLOB _fuzzed CONFIGURE_DEPENDS "${CMAKE_CURRENT_SOURCE_DIR}/src/io/*.cpp")
+      if(ARG_NAME STREQUAL "base")
+        set(_fuzzed ${_sources})
+      endif()
+      if(_fuzzed)
+        set_property(SOURCE ${_fuzzed} APPEND PROPERTY COMPILE_OPTIONS -fsanitize=fuzzer-no-link)
+      endif()
+    endif()
   else()
     # A module with headers only (or none yet).
     add_library(${_target} INTERFACE)
@@ -55,14 +67,14 @@ function(carat_set_warnings target)
   if(CARAT_NATIVE)
     target_compile_options(${target} PRIVATE -march=native)
   endif()
-  # Coverage feedback for libFuzzer in the libraries the fuzzers drive (tests and apps built in
-  # the same tree need only the sanitizers).
+  # A fuzzer tree without CARAT_SANITIZE: the sanitizers the fuzzers link with (libFuzzer's
+  # coverage hooks go on the parsers' sources only: carat_add_module()).
   get_target_property(_type ${target} TYPE)
-  if(CARAT_BUILD_FUZZERS AND _type STREQUAL "STATIC_LIBRARY")
-    target_compile_options(${target} PRIVATE -fsanitize=fuzzer-no-link,address,undefined -fno-sanitize-recover=all)
-  elseif(CARAT_BUILD_FUZZERS AND NOT CARAT_SANITIZE)
+  if(CARAT_BUILD_FUZZERS AND NOT CARAT_SANITIZE)
     target_compile_options(${target} PRIVATE -fsanitize=address,undefined -fno-sanitize-recover=all)
-    target_link_options(${target} PRIVATE -fsanitize=address,undefined)
+    if(NOT _type STREQUAL "STATIC_LIBRARY")
+      target_link_options(${target} PRIVATE -fsanitize=address,undefined)
+    endif()
   endif()
   if(CARAT_SANITIZE)
     target_compile_options(${target} PRIVATE -fsanitize=address,undefined -fno-omit-frame-pointer

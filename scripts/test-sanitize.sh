@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Builds carat's tests with AddressSanitizer + UndefinedBehaviorSanitizer (build-asan/, Clang) and
 # runs them; any sanitizer report fails the run. The same tree holds the parsers' libFuzzer targets
-# (the libraries carry libFuzzer's coverage hooks), so scripts/fuzz.sh can run them from here:
+# (the file formats' sources carry libFuzzer's coverage hooks), so scripts/fuzz.sh can run them here:
 # CARAT_FUZZ_BUILD_DIR=build-asan bash scripts/fuzz.sh.
 set -euo pipefail
 cd "$(dirname "$0")/.."
