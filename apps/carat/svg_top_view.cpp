@@ -1,4 +1,4 @@
-#include "svg.hpp"
+#include "svg_top_view.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -7,16 +7,11 @@
 #include <sstream>
 #include <utility>
 
-#include "carat/base/atomic_file.hpp"
 #include "carat/base/error.hpp"
+#include "svg_document.hpp"
 
 namespace carat::cli {
 namespace {
-
-constexpr double kWidth = 800.0;
-constexpr double kHeight = 640.0;
-constexpr double kMargin = 50.0;
-constexpr double kLegendWidth = 180.0;
 
 /// Maps world x/y (metres) into the drawing area, keeping the aspect ratio.
 class Viewport {
@@ -30,11 +25,11 @@ class Viewport {
     }
     if (points.empty()) lo = hi = Eigen::Vector2d::Zero();
     const double span = std::max({hi.x() - lo.x(), hi.y() - lo.y(), 1.0});
-    const double area_w = kWidth - 2 * kMargin - kLegendWidth;
-    const double area_h = kHeight - 2 * kMargin;
+    const double area_w = kSvgWidth - 2 * kSvgMargin - kSvgLegendWidth;
+    const double area_h = kSvgHeight - 2 * kSvgMargin;
     scale_ = std::min(area_w, area_h) / span;
     center_ = 0.5 * (lo + hi);
-    origin_ = Eigen::Vector2d(kMargin + area_w / 2, kMargin + area_h / 2);
+    origin_ = Eigen::Vector2d(kSvgMargin + area_w / 2, kSvgMargin + area_h / 2);
   }
   Eigen::Vector2d operator()(const Eigen::Vector3d& p) const {
     return {origin_.x() + (p.x() - center_.x()) * scale_,
@@ -47,44 +42,25 @@ class Viewport {
   Eigen::Vector2d center_, origin_;
 };
 
-std::string escape(const std::string& text) {
-  std::string out;
-  for (char c : text) {
-    if (c == '<')
-      out += "&lt;";
-    else if (c == '>')
-      out += "&gt;";
-    else if (c == '&')
-      out += "&amp;";
-    else
-      out += c;
-  }
-  return out;
-}
-
-std::string header(const std::string& title) {
-  std::ostringstream s;
-  s << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << kWidth << "\" height=\"" << kHeight
-    << "\" viewBox=\"0 0 " << kWidth << ' ' << kHeight << "\" font-family=\"sans-serif\">\n"
-    << "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n"
-    << "<text x=\"" << kWidth / 2 << "\" y=\"28\" text-anchor=\"middle\" font-size=\"18\">"
-    << escape(title) << "</text>\n";
-  return s.str();
-}
-
-/// A scale bar of a round length near 1/5 of the drawing.
-std::string scale_bar(const Viewport& view) {
-  const double target = (kWidth - 2 * kMargin - kLegendWidth) / 5 / view.scale();
+/// The largest of 1, 2, 5 times a power of ten that is at most `target` (metres).
+double round_length(double target) {
   const double magnitude = std::pow(10.0, std::floor(std::log10(target)));
   double length = magnitude;
   for (double m : {2.0, 5.0, 10.0})
     if (m * magnitude <= target) length = m * magnitude;
+  return length;
+}
+
+/// A scale bar of a round length near 1/5 of the drawing.
+std::string scale_bar(const Viewport& view) {
+  const double length =
+      round_length((kSvgWidth - 2 * kSvgMargin - kSvgLegendWidth) / 5 / view.scale());
   const double pixels = length * view.scale();
-  const double y = kHeight - 20;
+  const double y = kSvgHeight - 20;
   std::ostringstream s;
-  s << "<line x1=\"" << kMargin << "\" y1=\"" << y << "\" x2=\"" << kMargin + pixels << "\" y2=\""
-    << y << "\" stroke=\"black\" stroke-width=\"2\"/>\n"
-    << "<text x=\"" << kMargin + pixels + 6 << "\" y=\"" << y + 4 << "\" font-size=\"12\">"
+  s << "<line x1=\"" << kSvgMargin << "\" y1=\"" << y << "\" x2=\"" << kSvgMargin + pixels
+    << "\" y2=\"" << y << "\" stroke=\"black\" stroke-width=\"2\"/>\n"
+    << "<text x=\"" << kSvgMargin + pixels + 6 << "\" y=\"" << y + 4 << "\" font-size=\"12\">"
     << length << " m</text>\n";
   return s.str();
 }
@@ -112,8 +88,8 @@ std::string trajectories_svg(const std::string& title, std::span<const SvgTrajec
     for (const auto& T : line.poses) all.push_back(T.translation().head<2>());
   const Viewport view(all);
   std::ostringstream s;
-  s << header(title);
-  double legend_y = kMargin + 10;
+  s << svg_header(title);
+  double legend_y = kSvgMargin + 10;
   for (const auto& line : lines) {
     s << "<polyline fill=\"none\" stroke=\"" << line.colour << "\" stroke-width=\"1.6\""
       << (line.dashed ? " stroke-dasharray=\"6 4\"" : "") << " points=\"";
@@ -122,12 +98,12 @@ std::string trajectories_svg(const std::string& title, std::span<const SvgTrajec
       s << p.x() << ',' << p.y() << ' ';
     }
     s << "\"/>\n";
-    const double x = kWidth - kLegendWidth;
+    const double x = kSvgWidth - kSvgLegendWidth;
     s << "<line x1=\"" << x << "\" y1=\"" << legend_y << "\" x2=\"" << x + 24 << "\" y2=\""
       << legend_y << "\" stroke=\"" << line.colour << "\" stroke-width=\"3\""
       << (line.dashed ? " stroke-dasharray=\"6 4\"" : "") << "/>\n"
       << "<text x=\"" << x + 30 << "\" y=\"" << legend_y + 4 << "\" font-size=\"12\">"
-      << escape(line.label) << "</text>\n";
+      << svg_escape(line.label) << "</text>\n";
     legend_y += 20;
   }
   s << scale_bar(view) << "</svg>\n";
@@ -153,7 +129,7 @@ std::string graph_svg(const std::string& title, std::span<const Eigen::Isometry3
     return (std::log10(v) - log_lo) / (log_hi - log_lo);
   };
   std::ostringstream s;
-  s << header(title);
+  s << svg_header(title);
   std::vector<SvgEdge> sorted(edges.begin(), edges.end());
   std::sort(sorted.begin(), sorted.end(),
             [](const SvgEdge& a, const SvgEdge& b) { return a.value < b.value; });  // red on top
@@ -171,7 +147,7 @@ std::string graph_svg(const std::string& title, std::span<const Eigen::Isometry3
     s << "<circle cx=\"" << p.x() << "\" cy=\"" << p.y() << "\" r=\"2.2\" fill=\"black\"/>\n";
   }
   // Colour bar.
-  const double x = kWidth - kLegendWidth + 10, top = kMargin + 20, height = 200;
+  const double x = kSvgWidth - kSvgLegendWidth + 10, top = kSvgMargin + 20, height = 200;
   for (int k = 0; k < 50; ++k) {
     s << "<rect x=\"" << x << "\" y=\"" << top + height * (49 - k) / 50
       << "\" width=\"16\" height=\"" << height / 50 + 0.5 << "\" fill=\"" << ramp(k / 49.0)
@@ -183,149 +159,8 @@ std::string graph_svg(const std::string& title, std::span<const Eigen::Isometry3
   s << "<text x=\"" << x + 22 << "\" y=\"" << top + 10 << "\" font-size=\"12\">" << hi_text
     << "</text>\n<text x=\"" << x + 22 << "\" y=\"" << top + height << "\" font-size=\"12\">"
     << lo_text << "</text>\n<text x=\"" << x << "\" y=\"" << top - 8 << "\" font-size=\"12\">"
-    << escape(value_label) << "</text>\n";
+    << svg_escape(value_label) << "</text>\n";
   s << scale_bar(view) << "</svg>\n";
-  return s.str();
-}
-
-std::string line_plot_svg(const std::string& title, const std::string& x_label,
-                          const std::string& y_label, std::span<const SvgSeries> series,
-                          bool log_y) {
-  const auto fy = [&](double y) { return log_y ? std::log10(y) : y; };
-  double x_lo = std::numeric_limits<double>::max(), x_hi = -x_lo;
-  double y_lo = x_lo, y_hi = -x_lo;
-  for (const auto& s : series) {
-    for (std::size_t k = 0; k < s.x.size() && k < s.y.size(); ++k) {
-      if (log_y && !(s.y[k] > 0.0)) continue;
-      x_lo = std::min(x_lo, s.x[k]);
-      x_hi = std::max(x_hi, s.x[k]);
-      y_lo = std::min(y_lo, fy(s.y[k]));
-      y_hi = std::max(y_hi, fy(s.y[k]));
-    }
-  }
-  if (!(x_lo < x_hi)) x_hi = x_lo + 1.0;
-  if (!(y_lo < y_hi)) y_hi = y_lo + 1.0;
-  if (log_y) {
-    y_lo = std::floor(y_lo);
-    y_hi = std::ceil(y_hi);
-  }
-  const double left = 90, right = kWidth - kLegendWidth, top = kMargin, bottom = kHeight - 70;
-  const auto px = [&](double x) { return left + (x - x_lo) / (x_hi - x_lo) * (right - left); };
-  const auto py = [&](double y) {
-    return bottom - (fy(y) - y_lo) / (y_hi - y_lo) * (bottom - top);
-  };
-  std::ostringstream s;
-  s << header(title);
-  s << "<rect x=\"" << left << "\" y=\"" << top << "\" width=\"" << right - left << "\" height=\""
-    << bottom - top << "\" fill=\"none\" stroke=\"black\"/>\n";
-  char text[64];
-  // x ticks: six evenly spaced, or whole numbers when every abscissa is one (iterations).
-  bool whole = true;
-  for (const SvgSeries& one : series)
-    for (const double x : one.x) whole = whole && x == std::floor(x);
-  std::vector<double> x_ticks;
-  if (whole) {
-    const double step = std::max(1.0, std::ceil((x_hi - x_lo) / 5.0));
-    for (double x = std::ceil(x_lo); x <= x_hi; x += step) x_ticks.push_back(x);
-  } else {
-    for (int k = 0; k <= 5; ++k) x_ticks.push_back(x_lo + (x_hi - x_lo) * k / 5);
-  }
-  for (const double x : x_ticks) {
-    std::snprintf(text, sizeof(text), "%.3g", x);
-    s << "<text x=\"" << px(x) << "\" y=\"" << bottom + 18 << "\" text-anchor=\"middle\" "
-      << "font-size=\"12\">" << text << "</text>\n";
-  }
-  const int y_ticks = log_y ? static_cast<int>(y_hi - y_lo) : 5;
-  for (int k = 0; k <= y_ticks; ++k) {
-    const double t = y_lo + (y_hi - y_lo) * k / std::max(y_ticks, 1);
-    if (log_y)
-      std::snprintf(text, sizeof(text), "1e%d", static_cast<int>(std::lround(t)));
-    else
-      std::snprintf(text, sizeof(text), "%.3g", t);
-    const double y = bottom - (t - y_lo) / (y_hi - y_lo) * (bottom - top);
-    s << "<line x1=\"" << left << "\" y1=\"" << y << "\" x2=\"" << right << "\" y2=\"" << y
-      << "\" stroke=\"#dddddd\"/>\n<text x=\"" << left - 6 << "\" y=\"" << y + 4
-      << "\" text-anchor=\"end\" font-size=\"12\">" << text << "</text>\n";
-  }
-  s << "<text x=\"" << (left + right) / 2 << "\" y=\"" << kHeight - 30
-    << "\" text-anchor=\"middle\" font-size=\"13\">" << escape(x_label) << "</text>\n"
-    << "<text x=\"20\" y=\"" << (top + bottom) / 2 << "\" text-anchor=\"middle\" font-size=\"13\" "
-    << "transform=\"rotate(-90 20 " << (top + bottom) / 2 << ")\">" << escape(y_label)
-    << "</text>\n";
-  double legend_y = top + 10;
-  for (const auto& series_k : series) {
-    s << "<polyline fill=\"none\" stroke=\"" << series_k.colour
-      << "\" stroke-width=\"2\" points=\"";
-    for (std::size_t k = 0; k < series_k.x.size() && k < series_k.y.size(); ++k) {
-      if (log_y && !(series_k.y[k] > 0.0)) continue;
-      s << px(series_k.x[k]) << ',' << py(series_k.y[k]) << ' ';
-    }
-    s << "\"/>\n";
-    for (std::size_t k = 0; k < series_k.x.size() && k < series_k.y.size(); ++k) {
-      if (log_y && !(series_k.y[k] > 0.0)) continue;
-      s << "<circle cx=\"" << px(series_k.x[k]) << "\" cy=\"" << py(series_k.y[k])
-        << "\" r=\"3\" fill=\"" << series_k.colour << "\"/>\n";
-    }
-    s << "<line x1=\"" << right + 10 << "\" y1=\"" << legend_y << "\" x2=\"" << right + 34
-      << "\" y2=\"" << legend_y << "\" stroke=\"" << series_k.colour << "\" stroke-width=\"3\"/>\n"
-      << "<text x=\"" << right + 40 << "\" y=\"" << legend_y + 4 << "\" font-size=\"12\">"
-      << escape(series_k.label) << "</text>\n";
-    legend_y += 20;
-  }
-  s << "</svg>\n";
-  return s.str();
-}
-
-std::string stacked_bars_svg(const std::string& title, const std::string& y_label,
-                             std::span<const std::string> segment_names,
-                             std::span<const SvgBar> bars) {
-  static const char* const kColours[] = {"#1f77b4", "#ff7f0e", "#2ca02c", "#d62728",
-                                         "#9467bd", "#8c564b", "#e377c2", "#17becf"};
-  double y_hi = 0.0;
-  for (const auto& bar : bars) {
-    double total = 0.0;
-    for (double v : bar.values) total += std::max(v, 0.0);
-    y_hi = std::max(y_hi, total);
-  }
-  if (!(y_hi > 0.0)) y_hi = 1.0;
-  const double left = 90, right = kWidth - kLegendWidth, top = kMargin, bottom = kHeight - 90;
-  std::ostringstream s;
-  s << header(title);
-  char text[64];
-  for (int k = 0; k <= 5; ++k) {
-    const double v = y_hi * k / 5;
-    const double y = bottom - (bottom - top) * k / 5;
-    std::snprintf(text, sizeof(text), "%.3g", v);
-    s << "<line x1=\"" << left << "\" y1=\"" << y << "\" x2=\"" << right << "\" y2=\"" << y
-      << "\" stroke=\"#dddddd\"/>\n<text x=\"" << left - 6 << "\" y=\"" << y + 4
-      << "\" text-anchor=\"end\" font-size=\"12\">" << text << "</text>\n";
-  }
-  s << "<text x=\"20\" y=\"" << (top + bottom) / 2 << "\" text-anchor=\"middle\" font-size=\"13\" "
-    << "transform=\"rotate(-90 20 " << (top + bottom) / 2 << ")\">" << escape(y_label)
-    << "</text>\n";
-  const double slot = (right - left) / static_cast<double>(std::max<std::size_t>(bars.size(), 1));
-  for (std::size_t b = 0; b < bars.size(); ++b) {
-    double base = 0.0;
-    const double x = left + slot * (static_cast<double>(b) + 0.2);
-    for (std::size_t k = 0; k < bars[b].values.size(); ++k) {
-      const double v = std::max(bars[b].values[k], 0.0);
-      const double y0 = bottom - base / y_hi * (bottom - top);
-      const double y1 = bottom - (base + v) / y_hi * (bottom - top);
-      s << "<rect x=\"" << x << "\" y=\"" << y1 << "\" width=\"" << slot * 0.6 << "\" height=\""
-        << y0 - y1 << "\" fill=\"" << kColours[k % 8] << "\"/>\n";
-      base += v;
-    }
-    s << "<text x=\"" << x + slot * 0.3 << "\" y=\"" << bottom + 18
-      << "\" text-anchor=\"middle\" font-size=\"11\">" << escape(bars[b].label) << "</text>\n";
-  }
-  double legend_y = top + 10;
-  for (std::size_t k = 0; k < segment_names.size(); ++k) {
-    s << "<rect x=\"" << right + 10 << "\" y=\"" << legend_y - 8 << "\" width=\"14\" height=\"12\" "
-      << "fill=\"" << kColours[k % 8] << "\"/>\n<text x=\"" << right + 30 << "\" y=\""
-      << legend_y + 3 << "\" font-size=\"12\">" << escape(segment_names[k]) << "</text>\n";
-    legend_y += 20;
-  }
-  s << "</svg>\n";
   return s.str();
 }
 
@@ -358,7 +193,7 @@ std::string point_panels_svg(const std::string& title, std::span<const SvgPointP
     << "\" viewBox=\"0 0 " << width << ' ' << height << "\" font-family=\"sans-serif\">\n"
     << "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n"
     << "<text x=\"" << width / 2 << "\" y=\"28\" text-anchor=\"middle\" font-size=\"18\">"
-    << escape(title) << "</text>\n";
+    << svg_escape(title) << "</text>\n";
   char text[64];
   for (std::size_t p = 0; p < panels.size(); ++p) {
     const SvgPointPanel& panel = panels[p];
@@ -368,7 +203,7 @@ std::string point_panels_svg(const std::string& title, std::span<const SvgPointP
                              kTop + kPanel / 2 - (point.y() - center.y()) * scale);
     };
     s << "<g class=\"panel\">\n<text x=\"" << left + kPanel / 2 << "\" y=\"" << kTop - 12
-      << "\" text-anchor=\"middle\" font-size=\"14\">" << escape(panel.title) << "</text>\n"
+      << "\" text-anchor=\"middle\" font-size=\"14\">" << svg_escape(panel.title) << "</text>\n"
       << "<rect x=\"" << left << "\" y=\"" << kTop << "\" width=\"" << kPanel << "\" height=\""
       << kPanel << "\" fill=\"none\" stroke=\"black\"/>\n";
     // The cloud: one dot per occupied pixel, as zero-length round-capped strokes of one path.
@@ -390,7 +225,7 @@ std::string point_panels_svg(const std::string& title, std::span<const SvgPointP
       const auto c = static_cast<std::size_t>(panel.mark_classes[k]);
       std::snprintf(text, sizeof(text), "%.1f\" cy=\"%.1f", q.x(), q.y());
       s << "<circle cx=\"" << text << "\" r=\"3.5\" fill=\"" << class_colours[c]
-        << "\" data-class=\"" << escape(class_labels[c]) << "\"/>\n";
+        << "\" data-class=\"" << svg_escape(class_labels[c]) << "\"/>\n";
     }
     s << "</g>\n</g>\n";
   }
@@ -399,14 +234,10 @@ std::string point_panels_svg(const std::string& title, std::span<const SvgPointP
   for (std::size_t c = 0; c < class_labels.size() && c < class_colours.size(); ++c) {
     s << "<circle cx=\"" << legend_x + 6 << "\" cy=\"" << height - 30 << "\" r=\"5\" fill=\""
       << class_colours[c] << "\"/>\n<text x=\"" << legend_x + 16 << "\" y=\"" << height - 25
-      << "\" font-size=\"13\">" << escape(class_labels[c]) << "</text>\n";
+      << "\" font-size=\"13\">" << svg_escape(class_labels[c]) << "</text>\n";
     legend_x += 140;
   }
-  const double target = kPanel / 5 / scale;
-  const double magnitude = std::pow(10.0, std::floor(std::log10(target)));
-  double length = magnitude;
-  for (double m : {2.0, 5.0, 10.0})
-    if (m * magnitude <= target) length = m * magnitude;
+  const double length = round_length(kPanel / 5 / scale);
   const double bar_right = width - kGap;
   std::snprintf(text, sizeof(text), "%g m", length);
   s << "<line x1=\"" << bar_right - length * scale << "\" y1=\"" << height - 30 << "\" x2=\""
@@ -414,10 +245,6 @@ std::string point_panels_svg(const std::string& title, std::span<const SvgPointP
     << "<text x=\"" << bar_right - length * scale / 2 << "\" y=\"" << height - 38
     << "\" text-anchor=\"middle\" font-size=\"12\">" << text << "</text>\n</svg>\n";
   return s.str();
-}
-
-void write_svg(const std::filesystem::path& path, const std::string& svg) {
-  write_file_atomically(path, [&](std::ostream& out) { out << svg; });
 }
 
 }  // namespace carat::cli
