@@ -46,11 +46,13 @@ fi
 # GRE lossless: the full factors' optimum (same ATE to 1e-9 relative) in < 0.5 % of their memory.
 demo_lossless=$(json_field "$scratch/demo.json" "(lambda m: abs(m['gre_lossless']['ate_rmse'] - m['gre_full']['ate_rmse']) <= 1e-9 * m['gre_full']['ate_rmse'] and m['gre_lossless']['memory_bytes'] * 200 < m['gre_full']['memory_bytes'] and m['gre_lossless']['iterations'] == m['gre_full']['iterations'])({m['method']: m for m in j['methods']})")
 if [[ $demo_lossless != "True" ]]; then echo "FAIL demo: GRE lossless is not the full optimum in < 0.5 % of the memory"; fail=$((fail + 1)); else pass=$((pass + 1)); fi
-for f in ground_truth_kitti.txt ground_truth_tum.txt initial_kitti.txt gre_exact_kitti.txt gre_exact_tum.txt pgo_hessian_tum.txt trajectories_before.svg trajectories_after.svg graph.svg demo.json; do
+for f in ground_truth_kitti.txt ground_truth_tum.txt initial_kitti.txt gre_exact_kitti.txt gre_exact_tum.txt pgo_hessian_tum.txt trajectories_before.svg trajectories_after.svg frame_errors.svg graph.svg demo.json; do
   if [[ ! -s "$scratch/demo/$f" ]]; then echo "FAIL demo did not write $f"; fail=$((fail + 1)); else pass=$((pass + 1)); fi
 done
 if [[ $(grep -c . "$scratch/demo/gre_exact_kitti.txt") -ne 24 ]]; then echo "FAIL demo trajectory has the wrong length"; fail=$((fail + 1)); else pass=$((pass + 1)); fi
 grep -q "<svg" "$scratch/demo/graph.svg" && grep -q "<line" "$scratch/demo/graph.svg" || { echo "FAIL graph.svg has no edges"; fail=$((fail + 1)); }
+# The per-frame error plot: one line per method and one for the initial guess.
+if [[ $(grep -c "<polyline" "$scratch/demo/frame_errors.svg") -ne 7 ]]; then echo "FAIL frame_errors.svg does not hold 7 lines"; fail=$((fail + 1)); else pass=$((pass + 1)); fi
 
 echo "$pass passed, $fail failed"
 [[ $fail -eq 0 ]]

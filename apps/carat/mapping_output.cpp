@@ -1,7 +1,9 @@
 #include "mapping_output.hpp"
 
 #include "carat/registration/io/trajectory_io.hpp"
-#include "svg.hpp"
+#include "error_plot.hpp"
+#include "svg_document.hpp"
+#include "svg_top_view.hpp"
 
 namespace carat::cli {
 
@@ -23,8 +25,6 @@ std::vector<std::filesystem::path> write_mapping_pictures(
     const std::filesystem::path& dir, std::span<const Eigen::Isometry3d> reference,
     std::span<const Eigen::Isometry3d> initial, const std::vector<MethodResult>& results,
     std::span<const FramePair> pairs, const MethodResult* graph_method) {
-  static const char* const kColours[] = {"#1f77b4", "#ff7f0e", "#2ca02c", "#d62728",
-                                         "#9467bd", "#8c564b", "#e377c2", "#17becf"};
   std::vector<std::filesystem::path> written;
   const auto aligned = [](std::span<const Eigen::Isometry3d> poses,
                           std::span<const Eigen::Isometry3d> ref) {
@@ -46,12 +46,28 @@ std::vector<std::filesystem::path> write_mapping_pictures(
     std::vector<SvgTrajectory> lines;
     if (!ref.empty()) lines.push_back({ref, "#000000", "reference", true});
     for (std::size_t k = 0; k < results.size(); ++k) {
-      lines.push_back(
-          {aligned(results[k].T_world_frame, reference), kColours[k % 8], results[k].label, false});
+      lines.push_back({aligned(results[k].T_world_frame, reference), palette_colour(k),
+                       results[k].label, false});
     }
     written.push_back(dir / "trajectories_after.svg");
     write_svg(written.back(),
               trajectories_svg("Optimized trajectories vs reference (aligned)", lines));
+  }
+  if (ref.size() >= 3) {
+    // Per-frame errors after the ATE's alignment: each method whose trajectory matches the
+    // reference, then the initial guess (dashed, drawn on top).
+    std::vector<FrameErrorLine> lines;
+    for (std::size_t k = 0; k < results.size(); ++k) {
+      if (results[k].T_world_frame.size() != ref.size()) continue;
+      lines.push_back({aligned_position_errors(results[k].T_world_frame, ref), palette_colour(k),
+                       results[k].label, false});
+    }
+    if (initial.size() == ref.size())
+      lines.push_back({aligned_position_errors(initial, ref), "#7f7f7f", "initial guess", true});
+    written.push_back(dir / "frame_errors.svg");
+    write_svg(
+        written.back(),
+        frame_errors_svg("Position error per frame vs reference (aligned as the ATE)", lines));
   }
   if (graph_method != nullptr && graph_method->factor_costs.size() == pairs.size()) {
     std::vector<SvgEdge> edges;

@@ -18,8 +18,10 @@ std::vector<std::filesystem::path> write_trajectory_pair(const std::filesystem::
                                                          std::span<const Eigen::Isometry3d> poses);
 
 /// Writes the pictures: trajectories before (initial vs reference) and after (every method vs
-/// reference), and the dense graph at `graph_method`'s result with factors coloured by its
-/// per-factor error. Returns the paths written.
+/// reference); with a reference of 3 poses or more, frame_errors.svg: every method's and the
+/// initial guess's per-frame position error after the ATE's alignment (log scale); and the dense
+/// graph at `graph_method`'s result with factors coloured by its per-factor error. Returns the
+/// paths written.
 std::vector<std::filesystem::path> write_mapping_pictures(
     const std::filesystem::path& dir, std::span<const Eigen::Isometry3d> reference,
     std::span<const Eigen::Isometry3d> initial, const std::vector<MethodResult>& results,
