@@ -344,28 +344,31 @@ TEST(OptionBytesTest, EveryFieldButTheCallbacksRoundTrips) {
   // Read back and written again: the same bytes.
   EXPECT_EQ(option_bytes(got), bytes);
 
-  ReadOptions read;
-  read.drop_non_finite = true;
-  read.max_points = 12345;
-  PreprocessOptions preprocess;
-  preprocess.voxel_size = 0.3;
-  preprocess.covariance_neighbors = 12;
-  preprocess.min_points = 40;
-  preprocess.num_threads = 2;
+  OpenScansOptions scans;
+  scans.read.drop_non_finite = true;
+  scans.read.max_points = 12345;
+  scans.preprocess.voxel_size = 0.3;
+  scans.preprocess.covariance_neighbors = 12;
+  scans.preprocess.min_points = 40;
+  scans.preprocess.num_threads = 2;
+  scans.max_bytes = 987654321;
+  scans.require_constrained = false;
+  scans.num_threads = 3;
   std::vector<std::byte> more;
   ByteWriter out(more);
-  write_options(out, read);
-  write_options(out, preprocess);
-  ByteReader back(more, "frame options");
-  const ReadOptions read_got = read_read_options(back);
-  const PreprocessOptions preprocess_got = read_preprocess_options(back);
+  write_options(out, scans);
+  ByteReader back(more, "scan options");
+  const OpenScansOptions got_scans = read_open_scans_options(back);
   back.expect_end();
-  EXPECT_EQ(read_got.drop_non_finite, true);
-  EXPECT_EQ(read_got.max_points, 12345u);
-  EXPECT_EQ(preprocess_got.voxel_size, 0.3);
-  EXPECT_EQ(preprocess_got.covariance_neighbors, 12);
-  EXPECT_EQ(preprocess_got.min_points, 40);
-  EXPECT_EQ(preprocess_got.num_threads, 2);
+  EXPECT_EQ(got_scans.read.drop_non_finite, true);
+  EXPECT_EQ(got_scans.read.max_points, 12345u);
+  EXPECT_EQ(got_scans.preprocess.voxel_size, 0.3);
+  EXPECT_EQ(got_scans.preprocess.covariance_neighbors, 12);
+  EXPECT_EQ(got_scans.preprocess.min_points, 40);
+  EXPECT_EQ(got_scans.preprocess.num_threads, 2);
+  EXPECT_EQ(got_scans.max_bytes, 987654321u);
+  EXPECT_EQ(got_scans.require_constrained, false);
+  EXPECT_EQ(got_scans.num_threads, 3);
 }
 
 TEST(OptionBytesTest, TruncatedOrGarbledBytesAreRefused) {

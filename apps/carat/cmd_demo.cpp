@@ -4,27 +4,24 @@
 // and compares PGO (identity), PGO (Hessian), GRE full, GRE exact (M), GRE random and GRE
 // lossless: ATE against the ground truth, iterations, time breakdown and memory. Writes
 // trajectories (KITTI, TUM) and SVG pictures to --out.
-#include <tbb/info.h>
-#include <tbb/task_arena.h>
-
 #include <cstdio>
 #include <filesystem>
-#include <memory>
-#include <mutex>
 #include <nlohmann/json.hpp>
+#include <span>
 #include <string>
+#include <vector>
 
 #include "carat/base/atomic_file.hpp"
 #include "carat/base/error.hpp"
 #include "carat/base/output_folder.hpp"
 #include "carat/base/stopwatch.hpp"
-#include "carat/registration/dense_graph.hpp"
-#include "carat/registration/frame.hpp"
-#include "carat/registration/loop_closure.hpp"
+#include "carat/registration/frame_store.hpp"
+#include "carat/registration/mapping.hpp"
 #include "carat/registration/trajectory_error.hpp"
 #include "carat/sim/pipeline.hpp"
 #include "cli_support.hpp"
 #include "commands.hpp"
+#include "loops_report.hpp"
 #include "mapping_methods.hpp"
 #include "mapping_output.hpp"
 #include "progress.hpp"
@@ -96,23 +93,8 @@ void check_memory(const DemoArgs& args) {
   }
 }
 
-/// Refuses a dense graph whose full GRE factors would not fit (an --overlap far below the
-/// default links many more pairs): each factor holds at most 96 bytes per source point.
-void check_full_factor_memory(const MappingInput& input) {
-  double bytes = 0.0;
-  for (const FramePair& pair : input.pairs)
-    bytes += 96.0 * static_cast<double>(input.frames[pair.source]->size());
-  const double available = static_cast<double>(available_memory_bytes());
-  if (bytes > 0.8 * available) {
-    throw UsageError("the dense graph has " + std::to_string(input.pairs.size()) +
-                     " factors whose full GRE blocks would take up to " + format_bytes(bytes) +
-                     "; " + format_bytes(available) +
-                     " are available (raise --overlap or use fewer --frames)");
-  }
-}
-
-/// The progress bar's label of a pipeline stage.
-const char* stage_label(SyntheticPipelineStage stage) {
+/// The progress bar's label of a simulation stage.
+std::string simulation_stage_label(SyntheticPipelineStage stage) {
   switch (stage) {
     case SyntheticPipelineStage::kPreprocess:
       return "simulating and preprocessing";
@@ -122,6 +104,52 @@ const char* stage_label(SyntheticPipelineStage stage) {
       return "overlap assessment";
   }
   return "";
+}
+
+/// The library's options for the demo's settings (the method is set per method).
+MappingOptions demo_mapping_options(const DemoArgs& args, int threads) {
+  MappingOptions options;
+  options.num_threads = threads;
+  options.close_loops = args.initial == "drift";
+  options.graph.overlap_threshold = args.overlap;
+  GlobalRegistrationOptions& gre = options.registration;
+  gre.residuals = args.residuals;
+  gre.max_correspondence_distance = args.max_distance;
+  gre.seed = args.seed;
+  gre.rounds = args.rounds;
+  gre.factor_cauchy_scale = args.gre_cauchy;
+  gre.factor_excess_cauchy_scale = args.gre_excess_cauchy;
+  options.pair_alignment.max_correspondence_distance = args.max_distance;
+  options.pose_graph.cauchy_scale = args.pgo_cauchy;
+  return options;
+}
+
+/// The demo's loop report: the loop step's JSON, how many accepted loops agree with the ground
+/// truth, and the guess's ATE before and after the loop pose graph; *line gets it in words.
+nlohmann::json demo_loops_json(const MapGraph& graph, std::span<const Eigen::Isometry3d> guess,
+                               std::span<const Eigen::Isometry3d> truth, std::string* line) {
+  nlohmann::json j = loops_json(graph.loops, graph.times.seconds("loops"));
+  if (!graph.loops) return j;
+  // Precision against the ground truth: a true loop's GICP result agrees with the true
+  // relative pose.
+  std::size_t correct = 0;
+  for (const PairRegistration& loop : graph.loops->loops) {
+    const Eigen::Isometry3d error = (truth[static_cast<std::size_t>(loop.pair.target)].inverse() *
+                                     truth[static_cast<std::size_t>(loop.pair.source)])
+                                        .inverse() *
+                                    loop.T_target_source;
+    correct += error.translation().norm() < 0.5;
+  }
+  const double before = compute_ate(guess, truth).rmse;
+  const double after = compute_ate(graph.T_world_start, truth).rmse;
+  j["accepted_correct"] = correct;
+  j["ate_rmse_before"] = before;
+  j["ate_rmse_after"] = after;
+  *line = "  loops: " + std::to_string(graph.loops->loops.size()) + " of " +
+          std::to_string(graph.loops->candidates.size()) + " Scan Context candidates accepted (" +
+          std::to_string(correct) + " match the ground truth); ATE of the guess " + number(before) +
+          " m -> " + number(after) + " m after the pose graph";
+  return j;
 }
 
 int run_demo(const DemoArgs& args) {
@@ -147,97 +175,45 @@ int run_demo(const DemoArgs& args) {
     pipeline_options.drift.heading_bias_deg = kDriftHeadingBiasDeg;
     pipeline_options.dense_graph = false;
   }
-  pipeline_options.graph.overlap_threshold = args.overlap;
+  pipeline_options.dense_graph = false;  // the mapping pipeline builds it
   pipeline_options.threads = threads;
   SyntheticPipeline pipeline;
   {
-    // One bar per stage; stages run one after the other, a stage's reports come from any thread.
-    std::mutex mutex;
-    std::unique_ptr<ProgressBar> bar;
-    SyntheticPipelineStage shown = SyntheticPipelineStage::kPreprocess;
-    auto progress = [&](SyntheticPipelineStage stage, std::size_t done, std::size_t total) {
-      const std::lock_guard<std::mutex> lock(mutex);
-      if (!bar || stage != shown) {
-        bar.reset();
-        bar = std::make_unique<ProgressBar>(stage_label(stage), true);
-        shown = stage;
-      }
-      bar->callback()(done, total);
-    };
-    pipeline = simulate_pipeline(pipeline_options, progress);
+    StageBars<SyntheticPipelineStage> bars(simulation_stage_label, true);
+    pipeline = simulate_pipeline(pipeline_options, bars.callback());
   }
   stages["simulate_s"] = pipeline.timings.simulate_s;
   stages["preprocess_s"] = pipeline.timings.preprocess_s;
   stages["initial_guess_s"] = pipeline.timings.initial_guess_s;
-  stages["dense_graph_s"] = pipeline.timings.dense_graph_s;
   const std::vector<Eigen::Isometry3d> truth = std::move(pipeline.T_world_truth);
+  const std::vector<Eigen::Isometry3d> guess = std::move(pipeline.T_world_initial);
+  FrameStore store(std::move(pipeline.frames));
 
-  MappingInput input;
-  input.threads = threads;
-  input.seed = args.seed;
-  input.residuals = args.residuals;
-  input.rounds = args.rounds;
-  input.max_correspondence_distance = args.max_distance;
-  input.pgo_cauchy_scale = args.pgo_cauchy;
-  input.gre_cauchy_scale = args.gre_cauchy;
-  input.gre_excess_cauchy_scale = args.gre_excess_cauchy;
-  input.frames = std::move(pipeline.frames);
-  input.T_world_initial = std::move(pipeline.T_world_initial);
-  input.pairs = std::move(pipeline.pairs);
-  const std::vector<Eigen::Isometry3d> guess = input.T_world_initial;  // before any loop step
-  nlohmann::json loops_json = {{"ran", drift}};
-  std::string loops_line;
-  if (drift) {
-    LoopClosureOptions loop_options;
-    loop_options.num_threads = threads;
-    const Stopwatch loop_time;
-    LoopClosureResult closed;
-    {
-      ProgressBar bar("closing loops", !args.json);
-      closed = close_loops(input.frames, input.T_world_initial, loop_options, bar.callback());
-    }
-    // Precision of the candidates against the ground truth: a true loop's GICP result agrees
-    // with the true relative pose.
-    std::size_t correct = 0;
-    for (const PairRegistration& loop : closed.loops) {
-      const Eigen::Isometry3d error = (truth[static_cast<std::size_t>(loop.pair.target)].inverse() *
-                                       truth[static_cast<std::size_t>(loop.pair.source)])
-                                          .inverse() *
-                                      loop.T_target_source;
-      correct += error.translation().norm() < 0.5;
-    }
-    loops_json["candidates"] = closed.candidates.size();
-    loops_json["accepted"] = closed.loops.size();
-    loops_json["accepted_correct"] = correct;
-    loops_json["ate_rmse_before"] = compute_ate(input.T_world_initial, truth).rmse;
-    if (!closed.loops.empty()) input.T_world_initial = closed.T_world_frame;
-    loops_json["ate_rmse_after"] = compute_ate(input.T_world_initial, truth).rmse;
-    loops_json["time_s"] = loop_time.elapsed_s();
-    stages["loops_s"] = loop_time.elapsed_s();
-    loops_line = "  loops: " + std::to_string(closed.loops.size()) + " of " +
-                 std::to_string(closed.candidates.size()) + " Scan Context candidates accepted (" +
-                 std::to_string(correct) + " match the ground truth); ATE of the guess " +
-                 number(loops_json["ate_rmse_before"].get<double>()) + " m -> " +
-                 number(loops_json["ate_rmse_after"].get<double>()) + " m after the pose graph";
-    const Stopwatch graph_time;
-    DenseGraphOptions graph_options = pipeline_options.graph;
-    graph_options.num_threads = threads;
-    input.pairs = build_dense_graph(input.frames, input.T_world_initial, graph_options);
-    stages["dense_graph_s"] = graph_time.elapsed_s();
+  // Loops (with --initial drift) and the dense graph at the start, then every method on it.
+  const MappingOptions options = demo_mapping_options(args, threads);
+  MapGraph graph;
+  {
+    StageBars<MappingStage> bars(mapping_stage_label, !args.json);
+    graph = build_map_graph(store, guess, options, bars.callback());
   }
-  const std::size_t raw_points = pipeline.raw_points;
+  if (graph.loops) stages["loops_s"] = graph.times.seconds("loops");
+  stages["dense_graph_s"] = graph.times.seconds("dense_graph");
+  std::string loops_line;
+  const nlohmann::json loops = demo_loops_json(graph, guess, truth, &loops_line);
+  const std::vector<std::size_t> frame_points = store.frame_points();
   std::size_t points = 0;
-  for (const auto& frame : input.frames) points += frame->size();
-  check_full_factor_memory(input);
-
-  // The methods.
+  for (const std::size_t n : frame_points) points += n;
+  check_full_factor_memory(frame_points, graph.pairs, "raise --overlap or use fewer --frames");
   std::vector<MethodResult> results;
-  const std::vector<PairRegistration> registrations = register_graph_pairs(input);
-  results.push_back(run_pose_graph(input, registrations, PoseGraphInformation::kIdentity));
-  results.push_back(run_pose_graph(input, registrations, PoseGraphInformation::kHessian));
+  std::vector<PairRegistration> registrations;  // shared by the two PGO baselines
+  for (PoseGraphInformation information :
+       {PoseGraphInformation::kIdentity, PoseGraphInformation::kHessian}) {
+    results.push_back(
+        run_method(store, graph, pose_graph_method(options, information), true, &registrations));
+  }
   for (ResidualSampling sampling : {ResidualSampling::kFull, ResidualSampling::kExact,
                                     ResidualSampling::kRandom, ResidualSampling::kLossless})
-    results.push_back(run_registration(input, sampling));
+    results.push_back(run_method(store, graph, registration_method(options, sampling), true));
   const AteStatistics initial_ate = compute_ate(guess, truth);
   for (MethodResult& r : results) r.ate = compute_ate(r.T_world_frame, truth);
 
@@ -249,23 +225,23 @@ int run_demo(const DemoArgs& args) {
   for (const MethodResult& r : results)
     for (const auto& p : write_trajectory_pair(dir, r.key, r.T_world_frame)) written.push_back(p);
   const MethodResult* exact = &results[3];
-  for (const auto& p : write_mapping_pictures(dir, truth, guess, results, input.pairs, exact))
+  for (const auto& p : write_mapping_pictures(dir, truth, guess, results, graph.pairs, exact))
     written.push_back(p);
 
   nlohmann::json j;
-  j["frames"] = input.frames.size();
-  j["factors"] = input.pairs.size();
+  j["frames"] = store.size();
+  j["factors"] = graph.pairs.size();
   j["seed"] = args.seed;
   j["residuals"] = args.residuals;
   j["threads"] = threads;
-  j["points_raw"] = raw_points;
+  j["points_raw"] = pipeline.raw_points;
   j["points_downsampled"] = points;
   j["initial"] = args.initial;
   j["gre_rounds"] = args.rounds;
   j["gre_excess_cauchy"] = args.gre_excess_cauchy;
   j["gre_cauchy"] = args.gre_cauchy;
   j["pgo_cauchy"] = args.pgo_cauchy;
-  j["loops"] = loops_json;
+  j["loops"] = loops;
   j["initial_ate_rmse"] = initial_ate.rmse;
   j["initial_ate_mean"] = initial_ate.mean;
   j["initial_ate_std"] = initial_ate.std;
@@ -286,13 +262,14 @@ int run_demo(const DemoArgs& args) {
     return 0;
   }
   std::printf("carat demo: synthetic city, %zu LiDAR frames (2 laps), seed %llu, %d threads\n",
-              input.frames.size(), static_cast<unsigned long long>(args.seed), threads);
-  std::printf("  %zu points simulated, %zu after 0.5 m downsampling\n", raw_points, points);
+              store.size(), static_cast<unsigned long long>(args.seed), threads);
+  std::printf("  %zu points simulated, %zu after 0.5 m downsampling\n", pipeline.raw_points,
+              points);
   std::printf("  initial guess (%s): ATE %.4f ± %.4f m (RMSE %.4f)\n", args.initial.c_str(),
               initial_ate.mean, initial_ate.std, initial_ate.rmse);
   if (!loops_line.empty()) std::printf("%s\n", loops_line.c_str());
   std::printf("  dense graph: %zu factors (overlap >= %.2f, plus consecutive pairs)\n",
-              input.pairs.size(), args.overlap);
+              graph.pairs.size(), args.overlap);
   std::printf("  GRE: %s\n\n", gre_setting(args).c_str());
   std::printf("%s\n", results_table(results).c_str());
   std::printf("Time breakdown [s]\n");

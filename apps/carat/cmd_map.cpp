@@ -9,11 +9,7 @@
 // pairs at the start, and the registration errors of all pairs (gre) or a pose graph of pairwise
 // GICP results (pgo) optimized. Reports the ATE against --poses when given, and writes the
 // optimized trajectory to --out.
-#include <tbb/info.h>
-
-#include <algorithm>
 #include <cstdio>
-#include <filesystem>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -23,20 +19,16 @@
 #include "carat/base/atomic_file.hpp"
 #include "carat/base/error.hpp"
 #include "carat/base/stopwatch.hpp"
-#include "carat/registration/dense_graph.hpp"
-#include "carat/registration/frame.hpp"
-#include "carat/registration/global_registration.hpp"
-#include "carat/registration/io/kitti_io.hpp"
-#include "carat/registration/io/point_cloud_io.hpp"
 #include "carat/registration/io/scan_folder.hpp"
 #include "carat/registration/io/trajectory_io.hpp"
-#include "carat/registration/loop_closure.hpp"
-#include "carat/registration/pose_graph_baseline.hpp"
-#include "carat/registration/pose_perturbation.hpp"
+#include "carat/registration/mapping.hpp"
+#include "carat/registration/scan_opening.hpp"
 #include "carat/registration/trajectory_error.hpp"
 #include "cli_support.hpp"
 #include "commands.hpp"
 #include "covariance_output.hpp"
+#include "loops_report.hpp"
+#include "map_trajectories.hpp"
 #include "mapping_methods.hpp"
 #include "mpi_map.hpp"
 #include "progress.hpp"
@@ -44,14 +36,7 @@
 namespace carat::cli {
 namespace {
 
-namespace fs = std::filesystem;
-
-struct MapArgs {
-  std::string frames;
-  std::string poses;
-  std::string poses_format = "kitti";
-  std::string initial;
-  std::string initial_format;  // empty: --poses-format
+struct MapArgs : MapTrajectoryArgs {
   bool loops = false;
   bool no_loops = false;
   std::string bin_format = "auto";
@@ -64,9 +49,6 @@ struct MapArgs {
   double max_distance = 1.0;
   int rounds = 10;
   double gre_excess_cauchy = 0.0;
-  double perturb_m = 0.0;
-  double perturb_deg = 0.0;
-  std::uint64_t seed = 1;
   std::string out;
   CovarianceRequest covariance;
   int threads = 0;
@@ -75,25 +57,10 @@ struct MapArgs {
   bool json = false;
 };
 
-/// Refuses a GRE run with full factors that this machine cannot hold: a factor holds at most 96
-/// bytes per source point (`points`: per frame, after downsampling).
-void check_full_factor_memory(const std::vector<std::size_t>& points,
-                              const std::vector<FramePair>& pairs) {
-  double bytes = 0.0;
-  for (const FramePair& pair : pairs)
-    bytes += 96.0 * static_cast<double>(points[static_cast<std::size_t>(pair.source)]);
-  const double available = static_cast<double>(available_memory_bytes());
-  if (bytes > 0.8 * available) {
-    throw UsageError("--sampling full: the " + std::to_string(pairs.size()) +
-                     " factors of the dense graph would take up to " + format_bytes(bytes) + "; " +
-                     format_bytes(available) +
-                     " are available (use --sampling exact or lossless, which keep a few rows "
-                     "per factor)");
-  }
-}
-
-/// Refuses options that do not apply to the method chosen (they would be silently ignored).
-void check_applicable(const CLI::App& command, const MapArgs& args, ResidualSampling sampling) {
+/// Refuses options that do not apply to the run asked for (they would be silently ignored) and
+/// contradictions; returns whether loops are closed.
+bool check_arguments(const CLI::App& command, const MapArgs& args, bool mpi) {
+  const ResidualSampling sampling = parse_residual_sampling(args.sampling);
   const bool gre = args.method == "gre";
   for (const char* option : {"--sampling", "--residuals", "--rounds", "--gre-excess-cauchy"}) {
     refuse_unused(command, option, gre, "to --method pgo");
@@ -102,32 +69,9 @@ void check_applicable(const CLI::App& command, const MapArgs& args, ResidualSamp
   refuse_unused(command, "--residuals",
                 sampling == ResidualSampling::kExact || sampling == ResidualSampling::kRandom,
                 "to --sampling " + args.sampling);
-}
-
-/// Every pose expressed relative to the first: the solver's step tests are relative to the
-/// size of the values, so poses millions of metres from the origin (georeferenced maps) would
-/// stop the solve at once. Results are moved back with the same transform.
-std::vector<Eigen::Isometry3d> relative_to(const Eigen::Isometry3d& T_world_anchor,
-                                           const std::vector<Eigen::Isometry3d>& T_world_frame) {
-  const Eigen::Isometry3d T_anchor_world = T_world_anchor.inverse();
-  std::vector<Eigen::Isometry3d> out;
-  out.reserve(T_world_frame.size());
-  for (const Eigen::Isometry3d& T : T_world_frame) out.push_back(T_anchor_world * T);
-  return out;
-}
-
-int run_map(const CLI::App& command, const MapArgs& args) {
-  // Under mpirun every rank but 0 only builds the factors rank 0 asks for (mpi_map.hpp).
-  const std::unique_ptr<MpiMapJob> mpi = MpiMapJob::start();
-  if (mpi && mpi->rank() > 0) return mpi->serve(thread_count(args.threads));
-  const ResidualSampling sampling = parse_residual_sampling(args.sampling);
-  const PoseGraphInformation information = parse_pose_graph_information(args.information);
-  check_applicable(command, args, sampling);
   if (mpi) check_mpi_applicable(args.method, sampling);
-  const int threads = thread_count(args.threads);
-  const bool has_reference = !args.poses.empty();
   const bool has_initial = !args.initial.empty();
-  if (!has_reference && !has_initial) {
+  if (args.poses.empty() && !has_initial) {
     throw UsageError(
         "give --poses (a reference trajectory), --initial (a starting trajectory, "
         "e.g. from `carat odometry`), or both");
@@ -139,16 +83,115 @@ int run_map(const CLI::App& command, const MapArgs& args) {
   refuse_unused(command, "--no-loops", has_initial,
                 "without --initial (the loop step is off unless --loops asks for it)");
   refuse_unused(command, "--initial-format", has_initial, "without --initial");
-  const bool run_loops = has_initial ? !args.no_loops : args.loops;
-  const TrajectoryFormat format = parse_trajectory_format(args.poses_format);
-  const TrajectoryFormat initial_format = parse_trajectory_format(
-      args.initial_format.empty() ? args.poses_format : args.initial_format);
+  return has_initial ? !args.no_loops : args.loops;
+}
+
+/// The library's options for the command line's settings.
+MappingOptions mapping_options(const MapArgs& args, int threads, bool run_loops) {
+  MappingOptions options;
+  options.num_threads = threads;
+  options.close_loops = run_loops;
+  options.loops.max_correspondence_distance = args.max_distance;
+  options.graph.overlap_threshold = args.overlap;
+  options.method = parse_mapping_method(args.method);
+  GlobalRegistrationOptions& gre = options.registration;
+  gre.sampling = parse_residual_sampling(args.sampling);
+  gre.residuals = args.residuals;
+  gre.max_correspondence_distance = args.max_distance;
+  gre.seed = args.seed;
+  gre.rounds = args.rounds;
+  gre.factor_excess_cauchy_scale = args.gre_excess_cauchy;
+  gre.covariance = !args.covariance.path.empty();
+  options.pair_alignment.max_correspondence_distance = args.max_distance;
+  options.pose_graph.information = parse_pose_graph_information(args.information);
+  options.pose_graph.covariance = gre.covariance;
+  return options;
+}
+
+/// The scans of --frames as frames: all read now, or on demand under --max-frame-memory.
+std::shared_ptr<FrameStore> open_frames(const MapArgs& args, const std::vector<ScanFile>& files,
+                                        int threads, OpenScansOptions* scans) {
+  scans->read.drop_non_finite = args.drop_non_finite;
+  scans->preprocess.voxel_size = args.voxel;
+  scans->num_threads = threads;
+  const double cap = args.max_frame_memory_mb * 1024.0 * 1024.0;
+  scans->max_bytes = static_cast<std::size_t>(cap);
+  ProgressBar bar("reading and preprocessing", scans->max_bytes == 0);
+  std::shared_ptr<FrameStore> store = open_scans(files, *scans, bar.callback());
+  // A cap that cannot hold the two frames of one factor cannot build any: say so up front.
+  if (scans->max_bytes > 0) {
+    const std::size_t pair_bytes = store->get(0)->memory_bytes() + store->get(1)->memory_bytes();
+    if (static_cast<double>(pair_bytes) > cap) {
+      char text[32];
+      std::snprintf(text, sizeof(text), "%g", args.max_frame_memory_mb);
+      throw UsageError("--max-frame-memory " + std::string(text) +
+                       " MB cannot hold one pair of frames: " + files[0].path.filename().string() +
+                       " and " + files[1].path.filename().string() + " take " +
+                       format_bytes(static_cast<double>(pair_bytes)));
+    }
+  }
+  return store;
+}
+
+/// The JSON report's fields beside the method's own.
+void add_run_json(nlohmann::json* j, const MapArgs& args, const MappingResult& map,
+                  FrameStore& store, const std::optional<AteStatistics>& initial_ate,
+                  bool can_align) {
+  (*j)["frames"] = store.size();
+  (*j)["factors"] = map.graph.pairs.size();
+  if (!store.resident()) {
+    const FrameStoreStats stats = store.stats();
+    (*j)["frame_store"] = {{"max_bytes", stats.max_bytes}, {"requests", stats.requests},
+                           {"hits", stats.hits},           {"loads", stats.loads},
+                           {"evictions", stats.evictions}, {"peak_bytes", stats.peak_bytes}};
+  }
+  (*j)["peak_rss_bytes"] = peak_rss_bytes();
+  (*j)["start"] = args.initial.empty() ? "reference" : "initial";
+  if (initial_ate) {
+    (*j)["initial_ate_rmse"] = initial_ate->rmse;
+    (*j)["initial_ate_mean"] = initial_ate->mean;
+    (*j)["initial_ate_rotation_rmse_deg"] = initial_ate->rotation_rmse_deg;
+    (*j)["ate_aligned"] = can_align;
+  }
+  (*j)["dense_graph_s"] = map.times.seconds("dense_graph");
+}
+
+/// The text report's lines above the results table.
+void print_run(const MapArgs& args, const MappingResult& map, FrameStore& store,
+               const std::optional<AteStatistics>& initial_ate) {
+  std::printf("carat map: %zu frames from %s, %zu factors in the dense graph\n", store.size(),
+              args.frames.c_str(), map.graph.pairs.size());
+  if (!store.resident()) {
+    const FrameStoreStats stats = store.stats();
+    std::printf("  frames read on demand under %s: %zu reads for %zu requests, at most %s held\n",
+                format_bytes(static_cast<double>(stats.max_bytes)).c_str(), stats.loads,
+                stats.requests, format_bytes(static_cast<double>(stats.peak_bytes)).c_str());
+  }
+  if (initial_ate && !args.initial.empty()) {
+    std::printf("  start (%s): ATE RMSE %.4f m, %.3f deg\n", args.initial.c_str(),
+                initial_ate->rmse, initial_ate->rotation_rmse_deg);
+  } else if (initial_ate) {
+    std::printf("  start (perturbed by %.3g m / %.3g deg): ATE RMSE %.4f m, %.3f deg\n",
+                args.perturb_m, args.perturb_deg, initial_ate->rmse,
+                initial_ate->rotation_rmse_deg);
+  } else {
+    std::printf("  start: %s (no --poses: no ATE)\n", args.initial.c_str());
+  }
+  std::printf("%s\n", map.graph.loops ? loops_line(*map.graph.loops).c_str()
+                                      : "  loops: not searched (--loops searches them)");
+}
+
+int run_map(const CLI::App& command, const MapArgs& args) {
+  // Under mpirun every rank but 0 only builds the factors rank 0 asks for (mpi_map.hpp).
+  const std::unique_ptr<MpiMapJob> mpi = MpiMapJob::start();
+  if (mpi && mpi->rank() > 0) return mpi->serve(thread_count(args.threads));
+  const int threads = thread_count(args.threads);
+  const bool run_loops = check_arguments(command, args, mpi != nullptr);
   const std::vector<ScanFile> files =
       list_scan_folder(args.frames, parse_bin_layout(args.bin_format));
-  std::unique_ptr<OutputFile> out_file;
   std::vector<NamedInput> inputs;
-  if (has_reference) inputs.push_back({"--poses", args.poses});
-  if (has_initial) inputs.push_back({"--initial", args.initial});
+  if (!args.poses.empty()) inputs.push_back({"--poses", args.poses});
+  if (!args.initial.empty()) inputs.push_back({"--initial", args.initial});
   for (const ScanFile& file : files) inputs.push_back({"--frames", file.path.string()});
   check_covariance_request(command, args.covariance, inputs, "--out", args.out);
   if (!args.out.empty()) {
@@ -156,191 +199,53 @@ int run_map(const CLI::App& command, const MapArgs& args) {
     check_output_outside_folder("--out", args.out, {"--frames", args.frames});
   }
   if (files.size() < 2) throw Error(args.frames + ": at least 2 frames are needed");
-  // A trajectory file with one pose per frame, in scan order.
-  const auto read_for_frames = [&](const std::string& option, const std::string& path,
-                                   TrajectoryFormat fmt) {
-    const Trajectory given = read_trajectory(path, fmt);
-    if (files.size() != given.poses.size()) {
-      throw Error(option + " " + path + " has " + std::to_string(given.poses.size()) +
-                  " poses but --frames " + args.frames + " holds " + std::to_string(files.size()) +
-                  " frames");
-    }
-    return poses_in_scan_order(given, fmt, files, path);
-  };
-  Trajectory reference;
-  if (has_reference) reference = read_for_frames("--poses", args.poses, format);
-  Trajectory initial;
-  if (has_initial) initial = read_for_frames("--initial", args.initial, initial_format);
+  const MapTrajectories t = read_map_trajectories(args, files);
+  std::unique_ptr<OutputFile> out_file;
   if (!args.out.empty()) out_file = std::make_unique<OutputFile>(args.out);
-  // Results are written in the frame of the start (the --initial file, else the reference).
-  const Trajectory& start = has_initial ? initial : reference;
-  const TrajectoryFormat out_format = has_initial ? initial_format : format;
-  const Eigen::Isometry3d T_world_anchor = start.poses.front();
-  std::vector<Eigen::Isometry3d> reference_poses;
-  if (has_reference) reference_poses = relative_to(T_world_anchor, reference.poses);
 
+  // Open the scans, close loops and build the dense graph, then optimize.
   const Stopwatch preprocess_time;
-  MappingInput input;
-  input.threads = threads;
-  input.seed = args.seed;
-  input.residuals = args.residuals;
-  input.max_correspondence_distance = args.max_distance;
-  input.rounds = args.rounds;
-  input.gre_excess_cauchy_scale = args.gre_excess_cauchy;
-  input.covariance = !args.covariance.path.empty();
-  PreprocessOptions preprocess;
-  preprocess.voxel_size = args.voxel;
-  ReadOptions read_options;
-  read_options.drop_non_finite = args.drop_non_finite;
-  // Reads, checks and preprocesses scan k (every frame, whether all are read up front or on
-  // demand); a scan too small as read is named by its own count, before downsampling merges any.
-  const auto read_frame = [&](std::size_t k) {
-    PointCloud scan = read_scan(files[k], read_options);
-    if (scan.size() < static_cast<std::size_t>(preprocess.min_points)) {
-      throw Error(files[k].path.string() + ": only " + std::to_string(scan.size()) +
-                  " points (at least " + std::to_string(preprocess.min_points) + " are needed)");
-    }
-    return scan;
-  };
-  const auto check_frame = [](const Frame& frame) {
-    if (frame.constrained_dof() < 6) {
-      throw Error(frame.name() + ": the scan fixes only " +
-                  std::to_string(frame.constrained_dof()) +
-                  " of 6 degrees of freedom (a degenerate scene, e.g. a single plane), so its "
-                  "pose cannot be determined by registration");
-    }
-  };
-  std::vector<std::size_t> frame_points(files.size(), 0);  // after downsampling
-  if (args.max_frame_memory_mb > 0.0) {
-    input.store = std::make_shared<FrameStore>(
-        files.size(),
-        [&, read_frame, check_frame](std::size_t k) {
-          auto frame = preprocess_frame(read_frame(k), preprocess, files[k].path.string());
-          check_frame(*frame);
-          frame_points[k] = frame->size();
-          return frame;
-        },
-        static_cast<std::size_t>(args.max_frame_memory_mb * 1024.0 * 1024.0));
-    // A cap that cannot hold the two frames of one factor cannot build any: say so up front.
-    const std::size_t pair_bytes =
-        input.store->get(0)->memory_bytes() + input.store->get(1)->memory_bytes();
-    if (static_cast<double>(pair_bytes) > args.max_frame_memory_mb * 1024.0 * 1024.0) {
-      char cap[32];
-      std::snprintf(cap, sizeof(cap), "%g", args.max_frame_memory_mb);
-      throw UsageError("--max-frame-memory " + std::string(cap) +
-                       " MB cannot hold one pair of frames: " + files[0].path.filename().string() +
-                       " and " + files[1].path.filename().string() + " take " +
-                       format_bytes(static_cast<double>(pair_bytes)));
-    }
-  } else {
-    ProgressBar bar("reading and preprocessing", true);
-    input.frames = preprocess_frames(
-        files.size(), read_frame, [&](std::size_t k) { return files[k].path.string(); }, preprocess,
-        threads, bar.callback());
-    for (std::size_t k = 0; k < input.frames.size(); ++k) {
-      check_frame(*input.frames[k]);
-      frame_points[k] = input.frames[k]->size();
-    }
-  }
+  OpenScansOptions scans;
+  const std::shared_ptr<FrameStore> store = open_frames(args, files, threads, &scans);
   const double preprocess_s = preprocess_time.elapsed_s();
-  input.T_world_initial =
-      has_initial ? relative_to(T_world_anchor, initial.poses)
-                  : perturb_poses(reference_poses, args.perturb_m, args.perturb_deg, args.seed);
-
-  // Loops: Scan Context candidates, GICP validation, the pose graph of odometry and loops.
-  nlohmann::json loops_json = {{"ran", run_loops}};
-  std::vector<Eigen::Isometry3d> start_poses = input.T_world_initial;
-  std::string loops_line = "  loops: not searched (--loops searches them)";
-  if (run_loops) {
-    LoopClosureOptions loop_options;
-    loop_options.num_threads = threads;
-    loop_options.max_correspondence_distance = args.max_distance;
-    const Stopwatch loop_time;
-    LoopClosureResult closed;
-    {
-      ProgressBar bar("closing loops", !args.json);
-      closed = input.store
-                   ? close_loops(*input.store, input.T_world_initial, loop_options, bar.callback())
-                   : close_loops(input.frames, input.T_world_initial, loop_options, bar.callback());
-    }
-    nlohmann::json rejected = nlohmann::json::object();
-    for (LoopVerdict v :
-         {LoopVerdict::kNotConverged, LoopVerdict::kDegenerate, LoopVerdict::kFewInliers}) {
-      std::size_t count = 0;
-      for (const LoopCheck& check : closed.checks) count += check.verdict == v;
-      rejected[to_string(v)] = count;
-    }
-    loops_json["candidates"] = closed.candidates.size();
-    loops_json["accepted"] = closed.loops.size();
-    loops_json["rejected"] = rejected;
-    loops_json["sparse_frames"] = closed.sparse_frames.size();
-    loops_json["time_s"] = loop_time.elapsed_s();
-    nlohmann::json accepted = nlohmann::json::array();
-    for (const PairRegistration& loop : closed.loops)
-      accepted.push_back({loop.pair.target, loop.pair.source});
-    loops_json["pairs"] = accepted;
-    if (!closed.loops.empty()) {
-      loops_json["pgo"] = {{"termination", to_string(closed.summary.termination)},
-                           {"iterations", closed.summary.num_iterations},
-                           {"final_cost", closed.summary.final_cost},
-                           {"time_s", closed.summary.time.total_s}};
-      input.T_world_initial = closed.T_world_frame;
-      loops_line = "  loops: " + std::to_string(closed.loops.size()) + " of " +
-                   std::to_string(closed.candidates.size()) +
-                   " Scan Context candidates accepted by GICP; pose graph " +
-                   to_string(closed.summary.termination);
-    } else {
-      loops_line = "  loops: none found (" + std::to_string(closed.candidates.size()) +
-                   " candidates, none validated): the start is left as it is, and a drive "
-                   "whose loops are not closed may stay inconsistent";
-    }
-    if (!closed.sparse_frames.empty()) {
-      loops_line += "; " + std::to_string(closed.sparse_frames.size()) +
-                    " frames too sparse for a descriptor";
-    }
+  MappingOptions options = mapping_options(args, threads, run_loops);
+  StageBars<MappingStage> bars(mapping_stage_label, !args.json);
+  MapGraph graph = build_map_graph(*store, t.T_world_initial, options, bars.callback());
+  bars.finish();
+  const bool full = options.method == MappingMethod::kRegistration &&
+                    options.registration.sampling == ResidualSampling::kFull;
+  if (full) {
+    check_full_factor_memory(store->frame_points(), graph.pairs,
+                             "use --sampling exact or lossless, which keep a few rows per factor");
   }
+  if (mpi) mpi->attach({files, scans}, store, &options);
+  const MappingResult map = optimize_map(*store, std::move(graph), options, bars.callback());
+  bars.finish();
+  MethodResult result = describe_method(map, options);
 
-  DenseGraphOptions graph_options;
-  graph_options.overlap_threshold = args.overlap;
-  graph_options.num_threads = threads;
-  const Stopwatch graph_time;
-  input.pairs = input.store ? build_dense_graph(*input.store, input.T_world_initial, graph_options)
-                            : build_dense_graph(input.frames, input.T_world_initial, graph_options);
-  const double graph_s = graph_time.elapsed_s();
-  if (args.method == "gre" && sampling == ResidualSampling::kFull) {
-    check_full_factor_memory(frame_points, input.pairs);
-  }
-
-  if (mpi) mpi->attach({files, read_options, preprocess}, &input);
-
-  MethodResult result;
-  if (args.method == "pgo") {
-    const auto registrations = register_graph_pairs(input);
-    result = run_pose_graph(input, registrations, information);
-  } else {
-    result = run_registration(input, sampling);
-  }
-  const bool can_align = reference_poses.size() >= 3;
+  // The ATE against the reference, before and after.
+  const bool can_align = t.reference_poses.size() >= 3;
   AteOptions ate_options;
   ate_options.align = can_align;
   std::optional<AteStatistics> initial_ate;
-  if (has_reference) {
-    initial_ate = compute_ate(start_poses, reference_poses, ate_options);
-    result.ate = compute_ate(result.T_world_frame, reference_poses, ate_options);
-    if (run_loops) {
-      loops_json["ate_rmse"] =
-          compute_ate(input.T_world_initial, reference_poses, ate_options).rmse;
+  nlohmann::json loops = loops_json(map.graph.loops, map.times.seconds("loops"));
+  if (!t.reference_poses.empty()) {
+    initial_ate = compute_ate(t.T_world_initial, t.reference_poses, ate_options);
+    result.ate = compute_ate(result.T_world_frame, t.reference_poses, ate_options);
+    if (map.graph.loops) {
+      loops["ate_rmse"] = compute_ate(map.graph.T_world_start, t.reference_poses, ate_options).rmse;
     }
   }
 
+  // The outputs, complete before they go into place.
   if (out_file) {
     Trajectory optimized;
-    optimized.stamps = start.stamps;
-    optimized.ids = start.ids;
+    optimized.stamps = t.start.stamps;
+    optimized.ids = t.start.ids;
     for (const Eigen::Isometry3d& T : result.T_world_frame)
-      optimized.poses.push_back(T_world_anchor * T);
+      optimized.poses.push_back(t.T_world_anchor * T);
     try {
-      out_file->stream() << format_trajectory(optimized, out_format);
+      out_file->stream() << format_trajectory(optimized, t.out_format);
     } catch (const Error& e) {
       throw Error(args.out + ": " + e.what());
     }
@@ -353,27 +258,13 @@ int run_map(const CLI::App& command, const MapArgs& args) {
                             result.covariance[k]);
     }
   }
+
+  // The report.
   if (args.json) {
     nlohmann::json j = to_json(result);
-    j["frames"] = files.size();
-    j["factors"] = input.pairs.size();
-    if (input.store) {
-      const FrameStoreStats stats = input.store->stats();
-      j["frame_store"] = {{"max_bytes", stats.max_bytes}, {"requests", stats.requests},
-                          {"hits", stats.hits},           {"loads", stats.loads},
-                          {"evictions", stats.evictions}, {"peak_bytes", stats.peak_bytes}};
-    }
-    j["peak_rss_bytes"] = peak_rss_bytes();
-    j["start"] = has_initial ? "initial" : "reference";
-    j["loops"] = loops_json;
-    if (initial_ate) {
-      j["initial_ate_rmse"] = initial_ate->rmse;
-      j["initial_ate_mean"] = initial_ate->mean;
-      j["initial_ate_rotation_rmse_deg"] = initial_ate->rotation_rmse_deg;
-      j["ate_aligned"] = can_align;
-    }
+    add_run_json(&j, args, map, *store, initial_ate, can_align);
+    j["loops"] = loops;
     j["preprocess_s"] = preprocess_s;
-    j["dense_graph_s"] = graph_s;
     if (!args.out.empty()) j["out"] = args.out;
     if (covariance_file) {
       j["covariance"] = args.covariance.path;
@@ -382,25 +273,7 @@ int run_map(const CLI::App& command, const MapArgs& args) {
     if (mpi) j["mpi"] = mpi->report();
     std::printf("%s\n", j.dump(2).c_str());
   } else {
-    std::printf("carat map: %zu frames from %s, %zu factors in the dense graph\n", files.size(),
-                args.frames.c_str(), input.pairs.size());
-    if (input.store) {
-      const FrameStoreStats stats = input.store->stats();
-      std::printf("  frames read on demand under %s: %zu reads for %zu requests, at most %s held\n",
-                  format_bytes(static_cast<double>(stats.max_bytes)).c_str(), stats.loads,
-                  stats.requests, format_bytes(static_cast<double>(stats.peak_bytes)).c_str());
-    }
-    if (initial_ate && has_initial) {
-      std::printf("  start (%s): ATE RMSE %.4f m, %.3f deg\n", args.initial.c_str(),
-                  initial_ate->rmse, initial_ate->rotation_rmse_deg);
-    } else if (initial_ate) {
-      std::printf("  start (perturbed by %.3g m / %.3g deg): ATE RMSE %.4f m, %.3f deg\n",
-                  args.perturb_m, args.perturb_deg, initial_ate->rmse,
-                  initial_ate->rotation_rmse_deg);
-    } else {
-      std::printf("  start: %s (no --poses: no ATE)\n", args.initial.c_str());
-    }
-    std::printf("%s\n", loops_line.c_str());
+    print_run(args, map, *store, initial_ate);
     if (mpi) std::printf("%s\n", mpi->summary_line().c_str());
     std::printf("%s", results_table({result}).c_str());
     if (result.ate) {
@@ -415,7 +288,7 @@ int run_map(const CLI::App& command, const MapArgs& args) {
                   args.covariance.path.c_str(), result.covariance.size() - 1, result.covariance_s);
     }
   }
-  flush_standard_output();  // the report is out: now the trajectory goes into place
+  flush_standard_output();  // the report is out: now the outputs go into place
   if (out_file) out_file->commit();
   if (covariance_file) covariance_file->commit();
   return 0;

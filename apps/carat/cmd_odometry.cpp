@@ -19,6 +19,7 @@
 #include "carat/registration/io/scan_folder.hpp"
 #include "carat/registration/io/trajectory_io.hpp"
 #include "carat/registration/odometry.hpp"
+#include "carat/registration/scan_opening.hpp"
 #include "cli_support.hpp"
 #include "commands.hpp"
 #include "progress.hpp"
@@ -50,14 +51,14 @@ int run_odometry_command(const OdometryArgs& args) {
   OutputFile out(args.out);
   const int threads = thread_count(args.threads);
   Stopwatch stage;
-  PreprocessOptions preprocess;
-  preprocess.voxel_size = args.voxel;
-  std::vector<std::shared_ptr<const Frame>> frames;
+  OpenScansOptions scans;
+  scans.preprocess.voxel_size = args.voxel;
+  scans.num_threads = threads;
+  scans.require_constrained = false;  // a degenerate step is reported below
+  std::shared_ptr<FrameStore> frames;
   {
     ProgressBar bar("reading and preprocessing", !args.json);
-    frames = preprocess_frames(
-        files.size(), [&](std::size_t k) { return read_scan(files[k]); },
-        [&](std::size_t k) { return files[k].path.string(); }, preprocess, threads, bar.callback());
+    frames = open_scans(files, scans, bar.callback());
   }
   const double preprocess_s = stage.restart();
   AlignSettings settings;
@@ -66,13 +67,13 @@ int run_odometry_command(const OdometryArgs& args) {
   OdometryResult odometry;
   {
     ProgressBar bar("GICP odometry", !args.json);
-    odometry = run_scan_odometry(frames, settings, bar.callback());
+    odometry = run_scan_odometry(*frames, settings, bar.callback());
   }
   const double odometry_s = stage.elapsed_s();
   // A step that did not converge (or whose scans fix too few directions) makes every later pose
   // wrong: an error unless asked for, never a trajectory written in silence.
   const std::size_t unreliable = odometry.unreliable_steps();
-  const std::string unreliable_text = odometry.describe_unreliable_steps(frames);
+  const std::string unreliable_text = odometry.describe_unreliable_steps(*frames);
   if (unreliable > 0 && !args.allow_unconverged) {
     throw Error("odometry of --frames " + args.frames + ": " + std::to_string(unreliable) + " of " +
                 std::to_string(odometry.steps.size()) +

@@ -10,126 +10,121 @@
 namespace carat::cli {
 namespace {
 
-SolverOptions mapping_solver(int threads) {
-  SolverOptions options;
-  options.max_iterations = 100;
-  options.num_threads = threads;
-  return options;
+/// The seconds of a solve's linear algebra.
+double linear_solve_s(const TimeBreakdown& t) {
+  return t.assembly_s + t.symbolic_s + t.numeric_s + t.solve_s;
 }
 
 }  // namespace
 
-std::vector<PairRegistration> register_graph_pairs(const MappingInput& input) {
-  AlignSettings settings;
-  settings.max_correspondence_distance = input.max_correspondence_distance;
-  ProgressBar bar("registering pairs (GICP)", input.progress);
-  if (input.store) {
-    return register_pairs(*input.store, input.pairs, input.T_world_initial, settings, input.threads,
-                          bar.callback());
+std::string mapping_stage_label(MappingStage stage) {
+  switch (stage) {
+    case MappingStage::kLoops:
+      return "closing loops";
+    case MappingStage::kDenseGraph:
+      return "overlap assessment";
+    case MappingStage::kPairRegistration:
+      return "registering pairs (GICP)";
+    case MappingStage::kFactors:
+      return "building factors";
   }
-  return register_pairs(input.frames, input.pairs, input.T_world_initial, settings, input.threads,
-                        bar.callback());
+  return "";
 }
 
-MethodResult run_pose_graph(const MappingInput& input,
-                            const std::vector<PairRegistration>& registrations,
-                            PoseGraphInformation information) {
-  double registration_s = 0.0;
-  for (const PairRegistration& r : registrations) registration_s += r.align_s;
-  registration_s /= std::max(input.threads, 1);
-  PoseGraphBaselineOptions options;
-  options.information = information;
-  options.cauchy_scale = input.pgo_cauchy_scale;
-  options.solver = mapping_solver(input.threads);
-  options.covariance = input.covariance;
-  const PoseGraphBaselineResult result =
-      optimize_pose_graph_baseline(input.T_world_initial, registrations, options);
+void check_full_factor_memory(std::span<const std::size_t> points, std::span<const FramePair> pairs,
+                              const std::string& advice) {
+  double bytes = 0.0;
+  for (const FramePair& pair : pairs)
+    bytes += 96.0 * static_cast<double>(points[static_cast<std::size_t>(pair.source)]);
+  const double available = static_cast<double>(available_memory_bytes());
+  if (bytes > 0.8 * available) {
+    throw UsageError("the " + std::to_string(pairs.size()) +
+                     " full GRE factors of the dense graph would take up to " +
+                     format_bytes(bytes) + "; " + format_bytes(available) + " are available (" +
+                     advice + ")");
+  }
+}
+
+MappingOptions registration_method(MappingOptions options, ResidualSampling sampling) {
+  options.method = MappingMethod::kRegistration;
+  options.registration.sampling = sampling;
+  return options;
+}
+
+MappingOptions pose_graph_method(MappingOptions options, PoseGraphInformation information) {
+  options.method = MappingMethod::kPoseGraph;
+  options.pose_graph.information = information;
+  return options;
+}
+
+MethodResult describe_method(const MappingResult& result, const MappingOptions& options) {
   MethodResult out;
-  const bool hessian = information == PoseGraphInformation::kHessian;
-  out.key = hessian ? "pgo_hessian" : "pgo_identity";
-  out.label = hessian ? "PGO (Hessian)" : "PGO (identity)";
   out.T_world_frame = result.T_world_frame;
   out.covariance = result.covariance;
   out.covariance_s = result.covariance_s;
-  const TimeBreakdown& t = result.summary.time;
-  out.breakdown = {{"registration_s", registration_s},
-                   {"linearization_s", t.linearize_s},
-                   {"cost_evaluation_s", t.cost_s},
-                   {"linear_solve_s", t.assembly_s + t.symbolic_s + t.numeric_s + t.solve_s},
-                   {"optimization_s", t.total_s}};
-  out.time_s = t.total_s;
-  out.total_s = registration_s + t.total_s;
   out.memory_bytes = result.summary.residual_memory_bytes;
-  // Every edge is one relative-pose block of the same size.
-  if (!registrations.empty())
-    out.factor_memory_bytes.assign(registrations.size(), out.memory_bytes / registrations.size());
+  out.factor_memory_bytes = result.factor_residual_bytes;
   out.iterations = result.summary.num_iterations;
   out.termination = to_string(result.summary.termination);
-  return out;
-}
-
-MethodResult run_registration(const MappingInput& input, ResidualSampling sampling,
-                              const RegistrationIterationCallback& on_iteration) {
-  GlobalRegistrationOptions options;
-  options.sampling = sampling;
-  options.residuals = input.residuals;
-  options.max_correspondence_distance = input.max_correspondence_distance;
-  options.seed = input.seed;
-  options.num_threads = input.threads;
-  options.rounds = input.rounds;
-  options.factor_cauchy_scale = input.gre_cauchy_scale;
-  options.factor_excess_cauchy_scale = input.gre_excess_cauchy_scale;
-  options.solver = mapping_solver(input.threads);
-  options.iteration_callback = on_iteration;
-  options.covariance = input.covariance;
-  MethodResult out;
-  out.key = std::string("gre_") + to_string(sampling);
-  out.label = sampling == ResidualSampling::kFull ? "GRE full"
-              : sampling == ResidualSampling::kLossless
-                  ? "GRE lossless"
-                  : std::string("GRE ") + to_string(sampling) + " (M=" +
-                        std::to_string(sampling == ResidualSampling::kRandom
-                                           ? 3 * ((input.residuals + 2) / 3)
-                                           : input.residuals) +
-                        ")";
-  ProgressBar bar("building factors (" + std::string(to_string(sampling)) + ")", input.progress);
-  const GlobalRegistrationResult result =
-      input.build_factors ? optimize_registration(
-                                [&](std::span<const Eigen::Isometry3d> T_world_frame) {
-                                  return input.build_factors(input.pairs, T_world_frame, options);
-                                },
-                                input.pairs, input.T_world_initial, options)
-      : input.store ? optimize_registration(*input.store, input.pairs, input.T_world_initial,
-                                            options, bar.callback())
-                    : optimize_registration(input.frames, input.pairs, input.T_world_initial,
-                                            options, bar.callback());
-  bar.finish();
-  out.T_world_frame = result.T_world_frame;
-  out.covariance = result.covariance;
-  out.covariance_s = result.covariance_s;
   const TimeBreakdown& t = result.summary.time;
-  out.breakdown = {{"correspondences_s", result.stats.correspondence_s},
-                   {"compression_s", result.stats.compression_s},
-                   {"factor_minimum_s", result.stats.minimum_s},
+  if (result.method == MappingMethod::kPoseGraph) {
+    const bool hessian = options.pose_graph.information == PoseGraphInformation::kHessian;
+    out.key = hessian ? "pgo_hessian" : "pgo_identity";
+    out.label = hessian ? "PGO (Hessian)" : "PGO (identity)";
+    double registration_s = 0.0;
+    for (const PairRegistration& r : result.registrations) registration_s += r.align_s;
+    registration_s /= std::max(options.num_threads, 1);
+    out.breakdown = {{"registration_s", registration_s},
+                     {"linearization_s", t.linearize_s},
+                     {"cost_evaluation_s", t.cost_s},
+                     {"linear_solve_s", linear_solve_s(t)},
+                     {"optimization_s", t.total_s}};
+    out.time_s = t.total_s;
+    out.total_s = registration_s + t.total_s;
+    return out;
+  }
+  const ResidualSampling sampling = options.registration.sampling;
+  const int residuals = options.registration.residuals;
+  out.key = std::string("gre_") + to_string(sampling);
+  out.label =
+      sampling == ResidualSampling::kFull ? "GRE full"
+      : sampling == ResidualSampling::kLossless
+          ? "GRE lossless"
+          : std::string("GRE ") + to_string(sampling) + " (M=" +
+                std::to_string(sampling == ResidualSampling::kRandom ? 3 * ((residuals + 2) / 3)
+                                                                     : residuals) +
+                ")";
+  const RegistrationFactorStats& s = result.factor_stats;
+  out.breakdown = {{"correspondences_s", s.correspondence_s},
+                   {"compression_s", s.compression_s},
+                   {"factor_minimum_s", s.minimum_s},
                    {"linearization_s", t.linearize_s},
                    {"cost_evaluation_s", t.cost_s},
-                   {"linear_solve_s", t.assembly_s + t.symbolic_s + t.numeric_s + t.solve_s},
+                   {"linear_solve_s", linear_solve_s(t)},
                    {"optimization_s", t.total_s}};
   // Optimization time as in the paper's Fig. 7: compressing the factors (and, with the excess
   // kernel, each factor's model minimum) plus the LM solve; the correspondence search is the
   // same for every sampling and is reported on its own.
-  out.time_s = result.stats.compression_s + result.stats.minimum_s + t.total_s;
-  out.total_s = result.stats.correspondence_s + out.time_s;
-  out.memory_bytes = result.stats.residual_bytes;
-  out.correspondence_bytes = result.stats.correspondence_bytes;
-  out.iterations = result.summary.num_iterations;
-  out.termination = to_string(result.summary.termination);
+  out.time_s = s.compression_s + s.minimum_s + t.total_s;
+  out.total_s = s.correspondence_s + out.time_s;
+  out.memory_bytes = s.residual_bytes;
+  out.correspondence_bytes = s.correspondence_bytes;
   out.factor_costs = result.factor_costs;
-  out.factor_memory_bytes = result.factor_residual_bytes;
   out.factor_correspondence_bytes = result.factor_correspondence_bytes;
   return out;
 }
 
+MethodResult run_method(FrameStore& frames, const MapGraph& graph, const MappingOptions& options,
+                        bool progress, std::vector<PairRegistration>* registrations) {
+  StageBars<MappingStage> bars(mapping_stage_label, progress);
+  const bool reuse = registrations != nullptr && !registrations->empty();
+  MappingResult result = optimize_map(frames, graph, options, bars.callback(),
+                                      reuse ? std::span<const PairRegistration>(*registrations)
+                                            : std::span<const PairRegistration>());
+  bars.finish();
+  if (registrations != nullptr && !reuse) *registrations = result.registrations;
+  return describe_method(result, options);
+}
 nlohmann::json to_json(const MethodResult& result) {
   nlohmann::json j;
   j["method"] = result.key;

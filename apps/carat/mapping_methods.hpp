@@ -1,7 +1,9 @@
 #pragma once
 
-// The global-mapping methods that `carat demo` and `carat map` run and compare: the pose-graph
-// baselines and global registration error minimization with full, exact or random residuals.
+// The global-mapping methods that `carat demo`, `carat map` and `carat paper` run and compare
+// (the pose-graph baselines and global registration error minimization with full, exact, random
+// or lossless residuals), as rows of their reports. The pipeline itself is the library's
+// (carat/registration/mapping.hpp).
 
 #include <Eigen/Geometry>
 #include <filesystem>
@@ -18,35 +20,12 @@
 #include "carat/registration/frame.hpp"
 #include "carat/registration/frame_store.hpp"
 #include "carat/registration/global_registration.hpp"
+#include "carat/registration/mapping.hpp"
 #include "carat/registration/pair_registration.hpp"
 #include "carat/registration/pose_graph_baseline.hpp"
 #include "carat/registration/trajectory_error.hpp"
 
 namespace carat::cli {
-
-/// What every method starts from.
-struct MappingInput {
-  std::vector<std::shared_ptr<const Frame>> frames;  // preprocessed scans (empty with a store)
-  std::shared_ptr<FrameStore> store;  // frames read on demand instead of `frames`, when set
-  std::vector<FramePair> pairs;       // the dense graph
-  std::vector<Eigen::Isometry3d> T_world_initial;  // initial guess
-  int threads = 1;                                 // threads for every stage
-  std::uint64_t seed = 1;                          // coreset / random sampling seed
-  int residuals = 29;                              // M
-  double max_correspondence_distance = 1.0;        // metres
-  int rounds = 1;                                  // GRE correspondence rounds
-  double pgo_cauchy_scale = 1.0;                   // Cauchy scale of the PGO baselines
-  double gre_cauchy_scale = 0.0;                   // Cauchy scale per GRE factor (0: none)
-  double gre_excess_cauchy_scale = 0.0;  // Cauchy scale on each GRE factor's excess (0: none)
-  bool progress = true;                  // progress bars on a terminal
-  bool covariance = false;               // every pose's covariance after the solve
-  // When set, GRE builds each round's factors (parallel to the pairs) with this instead of from
-  // `frames` (carat map under MPI: over the ranks).
-  std::function<std::vector<RegistrationFactor>(std::span<const FramePair>,
-                                                std::span<const Eigen::Isometry3d>,
-                                                const GlobalRegistrationOptions&)>
-      build_factors;
-};
 
 /// One method's result and costs.
 struct MethodResult {
@@ -64,23 +43,34 @@ struct MethodResult {
   std::vector<std::size_t> factor_memory_bytes;  // per factor: residual data held
   std::vector<std::size_t> factor_correspondence_bytes;  // per factor (GRE): full block built
   std::optional<AteStatistics> ate;                      // against the reference, when there is one
-  std::vector<se3::Matrix6d> covariance;  // with MappingInput::covariance: per pose (first: zero)
+  std::vector<se3::Matrix6d> covariance;  // with the method's covariance option: per pose
   double covariance_s = 0.0;              // time of the covariances
 };
 
-/// GICP between every graph pair from the initial poses (shared by the PGO baselines).
-std::vector<PairRegistration> register_graph_pairs(const MappingInput& input);
+/// The progress bar's label of a mapping stage.
+std::string mapping_stage_label(MappingStage stage);
 
-/// A pose-graph baseline over the registered pairs; its registration time is the pairs' own
-/// alignment times shared over the threads.
-MethodResult run_pose_graph(const MappingInput& input,
-                            const std::vector<PairRegistration>& registrations,
-                            PoseGraphInformation information);
+/// Refuses (UsageError) a GRE run with full factors that this machine cannot hold: a factor
+/// holds at most 96 bytes per source point (`points`: per frame, after downsampling). `advice`
+/// closes the message, e.g. "use --sampling exact".
+void check_full_factor_memory(std::span<const std::size_t> points, std::span<const FramePair> pairs,
+                              const std::string& advice);
 
-/// Global registration error minimization with the given sampling; `on_iteration`, when set,
-/// sees the poses at every LM iteration.
-MethodResult run_registration(const MappingInput& input, ResidualSampling sampling,
-                              const RegistrationIterationCallback& on_iteration = {});
+/// `options` with GRE and `sampling` as the method.
+MappingOptions registration_method(MappingOptions options, ResidualSampling sampling);
+
+/// `options` with a pose-graph baseline of `information` as the method.
+MappingOptions pose_graph_method(MappingOptions options, PoseGraphInformation information);
+
+/// A mapping result as a row of the report: method key and label, times (PGO's registration
+/// time is the pairs' own alignment times shared over the threads), memory, iterations.
+MethodResult describe_method(const MappingResult& result, const MappingOptions& options);
+
+/// Runs `options`' method on `graph` (progress bars on a terminal when `progress`) and
+/// describes it. PGO: `*registrations`, when given and not empty, are the pairs' GICP results to
+/// use; when given and empty, they are filled with those this run computed.
+MethodResult run_method(FrameStore& frames, const MapGraph& graph, const MappingOptions& options,
+                        bool progress, std::vector<PairRegistration>* registrations = nullptr);
 
 /// The result as a JSON object (ate_* fields only when ate is set).
 nlohmann::json to_json(const MethodResult& result);

@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
+#include <limits>
 #include <new>
 #include <string>
 #include <thread>
@@ -50,9 +51,7 @@ std::vector<std::byte> encode_job(const MpiFrameSource& source,
     out.put_string(file.name);
     out.put(static_cast<std::uint8_t>(file.bin_format));
   }
-  write_options(out, source.read);
-  write_options(out, source.preprocess);
-  out.put(static_cast<std::uint64_t>(source.max_bytes));
+  write_options(out, source.scans);
   write_options(out, options);
   out.put(static_cast<std::uint64_t>(pairs.size()));
   out.put_array(pairs);
@@ -79,9 +78,7 @@ BuildJob decode_job(std::span<const std::byte> bytes) {
     file.bin_format = static_cast<KittiFormat>(in.get<std::uint8_t>());
     job.source.files.push_back(std::move(file));
   }
-  job.source.read = read_read_options(in);
-  job.source.preprocess = read_preprocess_options(in);
-  job.source.max_bytes = static_cast<std::size_t>(in.get<std::uint64_t>());
+  job.source.scans = read_open_scans_options(in);
   job.options = read_global_registration_options(in);
   job.pairs = in.get_array<FramePair>(static_cast<std::size_t>(in.get<std::uint64_t>()));
   const auto poses = in.get<std::uint64_t>();
@@ -160,23 +157,13 @@ std::string answer_failure(std::span<const std::byte> bytes, const std::string& 
   return message.empty() ? std::string("failed") : message;
 }
 
-/// Frames read and preprocessed on demand as rank 0 read them, under rank 0's cap (none: kept
-/// once read).
-std::unique_ptr<FrameStore> frames_from(const MpiFrameSource& source) {
-  PreprocessOptions single = source.preprocess;
-  single.num_threads = 1;
-  return std::make_unique<FrameStore>(
-      source.files.size(),
-      [source, single](std::size_t k) {
-        const ScanFile& file = source.files[k];
-        PointCloud scan = read_scan(file, source.read);
-        if (scan.size() < static_cast<std::size_t>(single.min_points)) {
-          throw Error(file.path.string() + ": only " + std::to_string(scan.size()) +
-                      " points (at least " + std::to_string(single.min_points) + " are needed)");
-        }
-        return preprocess_frame(scan, single, file.path.string());
-      },
-      source.max_bytes);
+/// Frames read and preprocessed on demand as rank 0 read them, under rank 0's cap (none: each
+/// kept once read), so that a rank reads only the frames of its share.
+std::shared_ptr<FrameStore> frames_from(const MpiFrameSource& source) {
+  OpenScansOptions scans = source.scans;
+  scans.preprocess.num_threads = 1;
+  if (scans.max_bytes == 0) scans.max_bytes = std::numeric_limits<std::size_t>::max();
+  return open_scans(source.files, scans);
 }
 
 enum Command : std::uint64_t { kStop = 0, kBuild = 1 };
@@ -272,7 +259,7 @@ MpiMapJob::~MpiMapJob() {
 
 int MpiMapJob::serve(int threads) {
 #if CARAT_WITH_MPI
-  std::unique_ptr<FrameStore> store;
+  std::shared_ptr<FrameStore> store;
   for (;;) {
     std::uint64_t command = kStop;
     std::vector<std::byte> payload;
@@ -317,16 +304,13 @@ void check_mpi_applicable(const std::string& method, ResidualSampling sampling) 
   }
 }
 
-void MpiMapJob::attach(MpiFrameSource source, MappingInput* input) {
+void MpiMapJob::attach(MpiFrameSource source, std::shared_ptr<FrameStore> frames,
+                       MappingOptions* options) {
   source_ = std::move(source);
-  // Rank 0's own share: from its store of frames read on demand, or from the frames it holds.
-  store_ = input->store ? input->store : std::make_shared<FrameStore>(input->frames);
-  source_.max_bytes = store_->stats().max_bytes;
-  input->build_factors = [this](std::span<const FramePair> pairs,
-                                std::span<const Eigen::Isometry3d> T_world_frame,
-                                const GlobalRegistrationOptions& options) {
-    return build(pairs, T_world_frame, options);
-  };
+  store_ = std::move(frames);  // rank 0's own share
+  options->build_factors =
+      [this](std::span<const FramePair> pairs, std::span<const Eigen::Isometry3d> T_world_frame,
+             const GlobalRegistrationOptions& gre) { return build(pairs, T_world_frame, gre); };
 }
 
 std::vector<RegistrationFactor> MpiMapJob::build(std::span<const FramePair> pairs,

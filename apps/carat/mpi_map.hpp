@@ -22,16 +22,16 @@
 #include "carat/registration/global_registration.hpp"
 #include "carat/registration/io/kitti_io.hpp"
 #include "carat/registration/io/scan_folder.hpp"
-#include "mapping_methods.hpp"
+#include "carat/registration/mapping.hpp"
+#include "carat/registration/scan_opening.hpp"
 
 namespace carat::cli {
 
-/// What every rank needs to read and preprocess a frame as rank 0 did.
+/// What every rank needs to open the frames as rank 0 did (open_scans(); each rank reads on
+/// demand under scans.max_bytes, 0: no cap, with one thread per frame).
 struct MpiFrameSource {
-  std::vector<ScanFile> files;   // the frames, in scan order
-  ReadOptions read;              // how they are read
-  PreprocessOptions preprocess;  // how they are downsampled (num_threads is ignored)
-  std::size_t max_bytes = 0;     // each rank's cap on frames in memory (0: none)
+  std::vector<ScanFile> files;  // the frames, in scan order
+  OpenScansOptions scans;       // how they are read, checked and preprocessed
 };
 
 /// Refuses what the ranks cannot share: the PGO baselines and full or random sampling (whose
@@ -58,10 +58,9 @@ class MpiMapJob {
   /// a failure is sent to rank 0 (which reports it) instead of factors. Returns the exit status.
   int serve(int threads);
 
-  /// Rank 0: makes `input`'s GRE build its factors over the ranks: rank 0 from input->store or
-  /// input->frames, the others from `source` (under input->store's cap, if any). The job must
-  /// outlive the input's use.
-  void attach(MpiFrameSource source, MappingInput* input);
+  /// Rank 0: makes the GRE of `options` build its factors over the ranks: rank 0 from `frames`,
+  /// the others from `source`. The job and `frames` must outlive the options' use.
+  void attach(MpiFrameSource source, std::shared_ptr<FrameStore> frames, MappingOptions* options);
   /// Rank 0: one round's factors of every pair, parallel to the pairs, built over the ranks at
   /// T_world_frame. Throws carat::Error "rank r of N: ..." with the message of the lowest rank
   /// that failed, after every rank has answered.

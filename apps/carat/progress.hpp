@@ -6,6 +6,8 @@
 #include <unistd.h>
 
 #include <cstdio>
+#include <functional>
+#include <memory>
 #include <mutex>
 #include <string>
 
@@ -54,6 +56,51 @@ class ProgressBar {
   Stopwatch since_start_;  // the first draw waits a second
   Stopwatch since_draw_;   // then at most one draw per 0.1 s
   std::mutex mutex_;
+};
+
+/// One bar per stage of a pipeline whose progress callback names the stage: stages run one after
+/// the other, a stage's reports may come from any thread. The bar in view is erased by finish()
+/// or the destructor.
+template <typename Stage>
+class StageBars {
+ public:
+  /// Bars labelled by `label(stage)`; silent unless stderr is a terminal and `enabled`.
+  StageBars(std::function<std::string(Stage)> label, bool enabled)
+      : state_(std::make_shared<State>()) {
+    state_->label = std::move(label);
+    state_->enabled = enabled;
+  }
+  ~StageBars() { finish(); }
+  StageBars(const StageBars&) = delete;
+  StageBars& operator=(const StageBars&) = delete;
+
+  /// The (stage, done, total) callback for the pipeline.
+  std::function<void(Stage, std::size_t, std::size_t)> callback() {
+    return [state = state_](Stage stage, std::size_t done, std::size_t total) {
+      const std::lock_guard<std::mutex> lock(state->mutex);
+      if (!state->bar || stage != state->shown) {
+        state->bar.reset();
+        state->bar = std::make_unique<ProgressBar>(state->label(stage), state->enabled);
+        state->shown = stage;
+      }
+      state->bar->update(done, total);
+    };
+  }
+  /// Erases the bar in view.
+  void finish() {
+    const std::lock_guard<std::mutex> lock(state_->mutex);
+    state_->bar.reset();
+  }
+
+ private:
+  struct State {
+    std::function<std::string(Stage)> label;
+    bool enabled = true;
+    std::mutex mutex;
+    std::unique_ptr<ProgressBar> bar;
+    Stage shown{};
+  };
+  std::shared_ptr<State> state_;
 };
 
 }  // namespace carat::cli

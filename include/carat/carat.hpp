@@ -12,6 +12,7 @@
 #include <carat/base/machine_memory.hpp>
 #include <carat/base/multiversion.hpp>
 #include <carat/base/output_folder.hpp>
+#include <carat/base/stage_times.hpp>
 #include <carat/base/statistics.hpp>
 #include <carat/base/stopwatch.hpp>
 #include <carat/base/temporary_paths.hpp>
@@ -39,6 +40,7 @@
 #include <carat/registration/io/trajectory_io.hpp>
 #include <carat/registration/kdtree.hpp>
 #include <carat/registration/loop_closure.hpp>
+#include <carat/registration/mapping.hpp>
 #include <carat/registration/odometry.hpp>
 #include <carat/registration/option_serialization.hpp>
 #include <carat/registration/overlap.hpp>
@@ -47,6 +49,7 @@
 #include <carat/registration/pose_graph_baseline.hpp>
 #include <carat/registration/pose_perturbation.hpp>
 #include <carat/registration/scan_context.hpp>
+#include <carat/registration/scan_opening.hpp>
 #include <carat/registration/trajectory_error.hpp>
 #include <carat/registration/voxel_grid.hpp>
 #include <carat/residuals/bal_problem.hpp>

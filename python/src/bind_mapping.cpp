@@ -20,9 +20,11 @@
 #include "carat/registration/io/scan_folder.hpp"
 #include "carat/registration/io/trajectory_io.hpp"
 #include "carat/registration/loop_closure.hpp"
+#include "carat/registration/mapping.hpp"
 #include "carat/registration/odometry.hpp"
 #include "carat/registration/pair_registration.hpp"
 #include "carat/registration/pose_graph_baseline.hpp"
+#include "carat/registration/scan_opening.hpp"
 #include "carat/registration/trajectory_error.hpp"
 #include "frame_list.hpp"
 #include "integer_arguments.hpp"
@@ -82,11 +84,28 @@ std::vector<Eigen::Isometry3d> poses_for_frames(const py::handle& obj, std::size
   return poses;
 }
 
-SolverOptions mapping_solver(int max_iterations, int threads) {
-  SolverOptions options;
-  options.max_iterations = max_iterations;
+/// The mapping pipeline's options for one call: `threads` everywhere, LM up to max_iterations.
+MappingOptions mapping_options(int threads, int max_iterations) {
+  MappingOptions options;
   options.num_threads = threads_argument(threads);
+  options.registration.solver.max_iterations = max_iterations;
+  options.pose_graph.solver.max_iterations = max_iterations;
   return options;
+}
+
+/// The interruption check as the mapping pipeline's progress callback.
+MappingProgress mapping_progress(InterruptCheck& check) {
+  return [progress = check.progress()](MappingStage, std::size_t done, std::size_t total) {
+    progress(done, total);
+  };
+}
+
+/// The dense graph of a call: `pairs` from `poses`.
+MapGraph map_graph(std::vector<FramePair> pairs, std::vector<Eigen::Isometry3d> poses) {
+  MapGraph graph;
+  graph.pairs = std::move(pairs);
+  graph.T_world_start = std::move(poses);
+  return graph;
 }
 
 MappingResult optimize(const py::handle& frames_in, const py::handle& graph,
@@ -94,27 +113,26 @@ MappingResult optimize(const py::handle& frames_in, const py::handle& graph,
                        double max_correspondence_distance, std::uint64_t seed, int threads,
                        int rounds, int max_iterations, double factor_cauchy_scale,
                        double factor_excess_cauchy_scale) {
-  const auto frames = frames_from_sequence(frames_in, "frames");
-  const auto pairs = pairs_argument(graph, frames.size());
-  const auto poses = poses_for_frames(poses_in, frames.size());
-  GlobalRegistrationOptions options;
-  options.sampling = parse_residual_sampling(sampling);
-  options.residuals = residuals;
-  options.max_correspondence_distance = max_correspondence_distance;
-  options.seed = seed;
-  options.num_threads = threads_argument(threads);
-  options.rounds = rounds;
-  options.factor_cauchy_scale = factor_cauchy_scale;
-  options.factor_excess_cauchy_scale = factor_excess_cauchy_scale;
-  options.solver = mapping_solver(max_iterations, threads);
-  const GlobalRegistrationResult result = run_released([&](InterruptCheck& check) {
-    options.solver.iteration_callback = check.iteration_callback();
-    return optimize_registration(frames, pairs, poses, options, check.progress());
+  FrameStore frames(frames_from_sequence(frames_in, "frames"));
+  MapGraph map =
+      map_graph(pairs_argument(graph, frames.size()), poses_for_frames(poses_in, frames.size()));
+  MappingOptions options = mapping_options(threads, max_iterations);
+  GlobalRegistrationOptions& gre = options.registration;
+  gre.sampling = parse_residual_sampling(sampling);
+  gre.residuals = residuals;
+  gre.max_correspondence_distance = max_correspondence_distance;
+  gre.seed = seed;
+  gre.rounds = rounds;
+  gre.factor_cauchy_scale = factor_cauchy_scale;
+  gre.factor_excess_cauchy_scale = factor_excess_cauchy_scale;
+  const carat::MappingResult result = run_released([&](InterruptCheck& check) {
+    options.registration.solver.iteration_callback = check.iteration_callback();
+    return optimize_map(frames, std::move(map), options, mapping_progress(check));
   });
   MappingResult out;
   out.poses = read_only(array_from_poses(result.T_world_frame));
   out.summary = summary_dict(result.summary);
-  const RegistrationFactorStats& s = result.stats;
+  const RegistrationFactorStats& s = result.factor_stats;
   out.stats["factors"] = s.num_factors;
   out.stats["correspondences"] = s.num_correspondences;
   out.stats["rows"] = s.num_rows;
@@ -132,27 +150,25 @@ MappingResult pose_graph(const py::handle& frames_in, const py::handle& graph,
                          const py::handle& poses_in, const std::string& information,
                          double cauchy_scale, double max_correspondence_distance,
                          int max_iterations, int threads) {
-  const auto frames = frames_from_sequence(frames_in, "frames");
-  const auto pairs = pairs_argument(graph, frames.size());
-  const auto poses = poses_for_frames(poses_in, frames.size());
-  PoseGraphBaselineOptions options;
-  options.information = parse_pose_graph_information(information);
-  options.cauchy_scale = cauchy_scale;
-  options.solver = mapping_solver(max_iterations, threads);
-  AlignSettings settings;
-  settings.max_correspondence_distance = max_correspondence_distance;
-  double registration_s = 0.0;
-  const PoseGraphBaselineResult result = run_released([&](InterruptCheck& check) {
-    options.solver.iteration_callback = check.iteration_callback();
-    const auto registrations =
-        register_pairs(frames, pairs, poses, settings, threads, check.progress());
-    for (const PairRegistration& r : registrations) registration_s += r.align_s;
-    return optimize_pose_graph_baseline(poses, registrations, options);
+  FrameStore frames(frames_from_sequence(frames_in, "frames"));
+  MapGraph map =
+      map_graph(pairs_argument(graph, frames.size()), poses_for_frames(poses_in, frames.size()));
+  const std::size_t num_pairs = map.pairs.size();
+  MappingOptions options = mapping_options(threads, max_iterations);
+  options.method = MappingMethod::kPoseGraph;
+  options.pose_graph.information = parse_pose_graph_information(information);
+  options.pose_graph.cauchy_scale = cauchy_scale;
+  options.pair_alignment.max_correspondence_distance = max_correspondence_distance;
+  const carat::MappingResult result = run_released([&](InterruptCheck& check) {
+    options.pose_graph.solver.iteration_callback = check.iteration_callback();
+    return optimize_map(frames, std::move(map), options, mapping_progress(check));
   });
+  double registration_s = 0.0;
+  for (const PairRegistration& r : result.registrations) registration_s += r.align_s;
   MappingResult out;
   out.poses = read_only(array_from_poses(result.T_world_frame));
   out.summary = summary_dict(result.summary);
-  out.stats["factors"] = pairs.size();
+  out.stats["factors"] = num_pairs;
   out.stats["unconverged_pairs"] = result.unconverged_pairs;
   out.stats["registration_s"] = registration_s;
   out.factor_costs = py::array_t<double>(0);
@@ -163,7 +179,7 @@ py::dict close_loops_py(const py::handle& frames_in, const py::handle& poses_in,
                         double exclude_recent_m, double max_descriptor_distance,
                         double min_inlier_fraction, double max_correspondence_distance,
                         int threads) {
-  const auto frames = frames_from_sequence(frames_in, "frames");
+  FrameStore frames(frames_from_sequence(frames_in, "frames"));
   const auto poses = poses_for_frames(poses_in, frames.size());
   LoopClosureOptions options;
   options.exclude_recent_m = exclude_recent_m;
@@ -204,7 +220,7 @@ py::dict close_loops_py(const py::handle& frames_in, const py::handle& poses_in,
 
 py::object odometry_py(const py::handle& frames_in, double max_correspondence_distance, int threads,
                        bool allow_unconverged, bool steps) {
-  const auto frames = frames_from_sequence(frames_in, "frames");
+  FrameStore frames(frames_from_sequence(frames_in, "frames"));
   AlignSettings settings;
   settings.max_correspondence_distance = max_correspondence_distance;
   settings.num_threads = threads_argument(threads);
@@ -268,14 +284,16 @@ void bind_mapping(py::module_& m) {
       m, "load_frames",
       [](const std::filesystem::path& folder, double voxel_size, int neighbors, int min_points,
          int threads, const std::string& layout) {
-        const auto scans = list_scan_folder(folder, parse_bin_layout(layout));
-        const PreprocessOptions options =
-            preprocess_options(voxel_size, neighbors, min_points, threads);
-        auto frames = run_released([&](InterruptCheck& check) {
-          return preprocess_frames(
-              scans.size(), [&](std::size_t k) { return read_scan(scans[k]); },
-              [&](std::size_t k) { return scans[k].path.string(); }, options, threads,
-              check.progress());
+        OpenScansOptions options;
+        options.preprocess = preprocess_options(voxel_size, neighbors, min_points, threads);
+        options.num_threads = threads_argument(threads);
+        options.require_constrained = false;  // the stages report degenerate frames themselves
+        std::vector<ScanFile> scans = list_scan_folder(folder, parse_bin_layout(layout));
+        std::vector<std::shared_ptr<const Frame>> frames;
+        run_released([&](InterruptCheck& check) {
+          const std::shared_ptr<FrameStore> store =
+              open_scans(std::move(scans), options, check.progress());
+          for (std::size_t k = 0; k < store->size(); ++k) frames.push_back(store->get(k));
         });
         return list_from_frames(frames);
       },
@@ -367,7 +385,7 @@ void bind_mapping(py::module_& m) {
       m, "dense_graph",
       [](const py::handle& frames_in, const py::handle& poses_in, double overlap_threshold,
          double voxel_size, double max_distance, int overlap_stride, int threads) {
-        const auto frames = frames_from_sequence(frames_in, "frames");
+        FrameStore frames(frames_from_sequence(frames_in, "frames"));
         const auto poses = poses_for_frames(poses_in, frames.size());
         DenseGraphOptions options;
         options.overlap_threshold = overlap_threshold;

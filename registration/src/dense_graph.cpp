@@ -20,16 +20,6 @@
 namespace carat {
 
 std::vector<FramePair> build_dense_graph(
-    std::span<const std::shared_ptr<const Frame>> frames,
-    std::span<const Eigen::Isometry3d> T_world_frame, const DenseGraphOptions& options,
-    const std::function<void(std::size_t, std::size_t)>& progress) {
-  for (std::size_t i = 0; i < frames.size(); ++i)
-    if (!frames[i]) throw Error("build_dense_graph: frame " + std::to_string(i) + " is null");
-  FrameStore store(std::vector<std::shared_ptr<const Frame>>(frames.begin(), frames.end()));
-  return build_dense_graph(store, T_world_frame, options, progress);
-}
-
-std::vector<FramePair> build_dense_graph(
     FrameStore& frames, std::span<const Eigen::Isometry3d> T_world_frame,
     const DenseGraphOptions& options,
     const std::function<void(std::size_t, std::size_t)>& progress) {

@@ -13,6 +13,7 @@ FrameStore::FrameStore(std::vector<std::shared_ptr<const Frame>> frames) : entri
   for (std::size_t k = 0; k < frames.size(); ++k) {
     if (!frames[k]) throw Error("frame store: frame " + std::to_string(k) + " is null");
     entries_[k].bytes = frames[k]->memory_bytes();
+    entries_[k].points = frames[k]->size();
     entries_[k].frame = std::move(frames[k]);
     bytes_ += entries_[k].bytes;
   }
@@ -61,6 +62,7 @@ std::shared_ptr<const Frame> FrameStore::get(std::size_t k) {
   entry.loading = false;
   entry.frame = frame;
   entry.bytes = bytes;
+  entry.points = frame->size();
   lru_.push_front(k);
   entry.lru = lru_.begin();
   bytes_ += bytes;
@@ -88,6 +90,13 @@ void FrameStore::evict_locked(std::size_t incoming) {
 FrameStoreStats FrameStore::stats() const {
   std::lock_guard lock(mutex_);
   return stats_;
+}
+
+std::vector<std::size_t> FrameStore::frame_points() const {
+  std::lock_guard lock(mutex_);
+  std::vector<std::size_t> out(entries_.size());
+  for (std::size_t k = 0; k < entries_.size(); ++k) out[k] = entries_[k].points;
+  return out;
 }
 
 }  // namespace carat

@@ -382,36 +382,25 @@ RegistrationProblem assemble_registration_problem(std::span<const FramePair> pai
 
 namespace {
 
-/// Checks frames held by the caller up front (every frame, degenerate ones by name, before any
-/// factor is built) and wraps them in a resident store.
-FrameStore checked_store(std::span<const std::shared_ptr<const Frame>> frames,
-                         std::span<const FramePair> pairs,
-                         std::span<const Eigen::Isometry3d> T_world_frame,
-                         const GlobalRegistrationOptions& options) {
+/// Checks the frames of a resident store up front (every frame, degenerate ones by name, before
+/// any factor is built); a store that reads on demand checks each frame as its factors are built.
+void check_resident(FrameStore& frames, std::span<const FramePair> pairs,
+                    std::span<const Eigen::Isometry3d> T_world_frame,
+                    const GlobalRegistrationOptions& options) {
+  if (!frames.resident()) return;
   check_options(options);
   check_inputs(frames.size(), pairs, T_world_frame);
   check_connected(frames.size(), pairs);
-  for (std::size_t i = 0; i < frames.size(); ++i) {
-    if (!frames[i]) throw Error("global registration: frame " + std::to_string(i) + " is null");
-    check_frame(*frames[i], i);
-  }
-  return FrameStore(std::vector<std::shared_ptr<const Frame>>(frames.begin(), frames.end()));
+  for (std::size_t i = 0; i < frames.size(); ++i) check_frame(*frames.get(i), i);
 }
 
 }  // namespace
 
 RegistrationProblem build_registration_problem(
-    std::span<const std::shared_ptr<const Frame>> frames, std::span<const FramePair> pairs,
-    std::span<const Eigen::Isometry3d> T_world_frame, const GlobalRegistrationOptions& options,
-    const std::function<void(std::size_t, std::size_t)>& progress) {
-  FrameStore store = checked_store(frames, pairs, T_world_frame, options);
-  return build_registration_problem(store, pairs, T_world_frame, options, progress);
-}
-
-RegistrationProblem build_registration_problem(
     FrameStore& frames, std::span<const FramePair> pairs,
     std::span<const Eigen::Isometry3d> T_world_frame, const GlobalRegistrationOptions& options,
     const std::function<void(std::size_t, std::size_t)>& progress) {
+  check_resident(frames, pairs, T_world_frame, options);
   const Stopwatch stage_time;
   std::vector<RegistrationFactor> factors =
       build_registration_factors(frames, pairs, {}, T_world_frame, options, progress);
@@ -420,17 +409,10 @@ RegistrationProblem build_registration_problem(
 }
 
 GlobalRegistrationResult optimize_registration(
-    std::span<const std::shared_ptr<const Frame>> frames, std::span<const FramePair> pairs,
-    std::span<const Eigen::Isometry3d> T_world_frame, const GlobalRegistrationOptions& options,
-    const std::function<void(std::size_t, std::size_t)>& progress) {
-  FrameStore store = checked_store(frames, pairs, T_world_frame, options);
-  return optimize_registration(store, pairs, T_world_frame, options, progress);
-}
-
-GlobalRegistrationResult optimize_registration(
     FrameStore& frames, std::span<const FramePair> pairs,
     std::span<const Eigen::Isometry3d> T_world_frame, const GlobalRegistrationOptions& options,
     const std::function<void(std::size_t, std::size_t)>& progress) {
+  check_resident(frames, pairs, T_world_frame, options);
   return optimize_registration(
       [&](std::span<const Eigen::Isometry3d> T_world_start) {
         return build_registration_factors(frames, pairs, {}, T_world_start, options, progress);

@@ -99,25 +99,6 @@ const char* to_string(LoopVerdict verdict) {
   return "unknown";
 }
 
-namespace {
-
-/// A store over frames the caller holds (null frames refused by name).
-FrameStore resident_store(std::span<const std::shared_ptr<const Frame>> frames) {
-  for (std::size_t k = 0; k < frames.size(); ++k)
-    if (!frames[k]) throw Error("loop closure: frame " + std::to_string(k) + " is null");
-  return FrameStore(std::vector<std::shared_ptr<const Frame>>(frames.begin(), frames.end()));
-}
-
-}  // namespace
-
-std::vector<LoopCandidate> find_loop_candidates(
-    std::span<const std::shared_ptr<const Frame>> frames,
-    std::span<const Eigen::Isometry3d> T_world_guess, const LoopClosureOptions& options,
-    std::vector<int>* sparse_frames) {
-  FrameStore store = resident_store(frames);
-  return find_loop_candidates(store, T_world_guess, options, sparse_frames);
-}
-
 std::vector<LoopCandidate> find_loop_candidates(FrameStore& frames,
                                                 std::span<const Eigen::Isometry3d> T_world_guess,
                                                 const LoopClosureOptions& options,
@@ -199,14 +180,6 @@ std::vector<LoopCandidate> find_loop_candidates(FrameStore& frames,
   return out;
 }
 
-std::vector<LoopCheck> validate_loop_candidates(
-    std::span<const std::shared_ptr<const Frame>> frames,
-    std::span<const Eigen::Isometry3d> T_world_guess, std::span<const LoopCandidate> candidates,
-    const LoopClosureOptions& options) {
-  FrameStore store = resident_store(frames);
-  return validate_loop_candidates(store, T_world_guess, candidates, options);
-}
-
 std::vector<LoopCheck> validate_loop_candidates(FrameStore& frames,
                                                 std::span<const Eigen::Isometry3d> T_world_guess,
                                                 std::span<const LoopCandidate> candidates,
@@ -263,14 +236,6 @@ std::vector<LoopCheck> validate_loop_candidates(FrameStore& frames,
     });
   });
   return checks;
-}
-
-LoopClosureResult close_loops(std::span<const std::shared_ptr<const Frame>> frames,
-                              std::span<const Eigen::Isometry3d> T_world_guess,
-                              const LoopClosureOptions& options,
-                              const std::function<void(std::size_t, std::size_t)>& progress) {
-  FrameStore store = resident_store(frames);
-  return close_loops(store, T_world_guess, options, progress);
 }
 
 LoopClosureResult close_loops(FrameStore& frames, std::span<const Eigen::Isometry3d> T_world_guess,

@@ -12,12 +12,12 @@ std::size_t OdometryResult::unreliable_steps() const {
   return count;
 }
 
-std::string OdometryResult::describe_unreliable_steps(
-    std::span<const std::shared_ptr<const Frame>> frames, std::size_t limit) const {
+std::string OdometryResult::describe_unreliable_steps(FrameStore& frames, std::size_t limit) const {
   const auto name = [&](int k) {
     const auto i = static_cast<std::size_t>(k);
-    return i < frames.size() && frames[i] && !frames[i]->name().empty() ? frames[i]->name()
-                                                                        : std::to_string(k);
+    if (i >= frames.size()) return std::to_string(k);
+    const std::string frame_name = frames.get(i)->name();
+    return frame_name.empty() ? std::to_string(k) : frame_name;
   };
   std::string text;
   std::size_t listed = 0;
@@ -31,8 +31,7 @@ std::string OdometryResult::describe_unreliable_steps(
   return text;
 }
 
-OdometryResult run_odometry(std::span<const std::shared_ptr<const Frame>> frames,
-                            std::span<const Eigen::Isometry3d> T_world_guess,
+OdometryResult run_odometry(FrameStore& frames, std::span<const Eigen::Isometry3d> T_world_guess,
                             const AlignSettings& settings, int num_threads,
                             const std::function<void(std::size_t, std::size_t)>& progress) {
   if (frames.size() < 2)
@@ -52,8 +51,7 @@ OdometryResult run_odometry(std::span<const std::shared_ptr<const Frame>> frames
   return out;
 }
 
-OdometryResult run_scan_odometry(std::span<const std::shared_ptr<const Frame>> frames,
-                                 const AlignSettings& settings,
+OdometryResult run_scan_odometry(FrameStore& frames, const AlignSettings& settings,
                                  const std::function<void(std::size_t, std::size_t)>& progress) {
   if (frames.size() < 2)
     throw Error("odometry: at least 2 frames are needed, got " + std::to_string(frames.size()));
@@ -61,8 +59,10 @@ OdometryResult run_scan_odometry(std::span<const std::shared_ptr<const Frame>> f
   out.T_world_frame.push_back(Eigen::Isometry3d::Identity());
   Eigen::Isometry3d motion = Eigen::Isometry3d::Identity();
   for (std::size_t k = 0; k + 1 < frames.size(); ++k) {
-    const Frame& target = *frames[k];
-    const Frame& source = *frames[k + 1];
+    const std::shared_ptr<const Frame> target_frame = frames.get(k);
+    const std::shared_ptr<const Frame> source_frame = frames.get(k + 1);
+    const Frame& target = *target_frame;
+    const Frame& source = *source_frame;
     AlignSettings coarse = settings;
     coarse.max_correspondence_distance = 3.0 * settings.max_correspondence_distance;
     AlignResult result;

@@ -12,6 +12,7 @@ namespace {
 // read there, and the count here raised (callbacks are counted and deliberately not sent).
 static_assert(field_count<ReadOptions>() == 2, "option_serialization: write the new field");
 static_assert(field_count<PreprocessOptions>() == 4, "option_serialization: write the new field");
+static_assert(field_count<OpenScansOptions>() == 5, "option_serialization: write the new field");
 static_assert(field_count<SolverOptions>() == 22, "option_serialization: write the new field");
 static_assert(field_count<GlobalRegistrationOptions>() == 14,
               "option_serialization: write the new field");
@@ -50,6 +51,14 @@ void write_options(ByteWriter& out, const PreprocessOptions& options) {
   out.put(options.voxel_size);
   out.put(options.covariance_neighbors);
   out.put(options.min_points);
+  out.put(options.num_threads);
+}
+
+void write_options(ByteWriter& out, const OpenScansOptions& options) {
+  write_options(out, options.read);
+  write_options(out, options.preprocess);
+  out.put(static_cast<std::uint64_t>(options.max_bytes));
+  put_bool(out, options.require_constrained);
   out.put(options.num_threads);
 }
 
@@ -107,6 +116,16 @@ PreprocessOptions read_preprocess_options(ByteReader& in) {
   options.voxel_size = in.get<double>();
   options.covariance_neighbors = in.get<int>();
   options.min_points = in.get<int>();
+  options.num_threads = in.get<int>();
+  return options;
+}
+
+OpenScansOptions read_open_scans_options(ByteReader& in) {
+  OpenScansOptions options;
+  options.read = read_read_options(in);
+  options.preprocess = read_preprocess_options(in);
+  options.max_bytes = static_cast<std::size_t>(in.get<std::uint64_t>());
+  options.require_constrained = get_bool(in, "require_constrained");
   options.num_threads = in.get<int>();
   return options;
 }

@@ -24,16 +24,6 @@ std::string PairRegistration::problem() const {
 }
 
 std::vector<PairRegistration> register_pairs(
-    std::span<const std::shared_ptr<const Frame>> frames, std::span<const FramePair> pairs,
-    std::span<const Eigen::Isometry3d> T_world_frame, const AlignSettings& settings,
-    int num_threads, const std::function<void(std::size_t, std::size_t)>& progress) {
-  for (std::size_t i = 0; i < frames.size(); ++i)
-    if (!frames[i]) throw Error("register_pairs: frame " + std::to_string(i) + " is null");
-  FrameStore store(std::vector<std::shared_ptr<const Frame>>(frames.begin(), frames.end()));
-  return register_pairs(store, pairs, T_world_frame, settings, num_threads, progress);
-}
-
-std::vector<PairRegistration> register_pairs(
     FrameStore& frames, std::span<const FramePair> pairs,
     std::span<const Eigen::Isometry3d> T_world_frame, const AlignSettings& settings,
     int num_threads, const std::function<void(std::size_t, std::size_t)>& progress) {

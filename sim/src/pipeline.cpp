@@ -5,6 +5,7 @@
 
 #include "carat/base/error.hpp"
 #include "carat/base/stopwatch.hpp"
+#include "carat/registration/frame_store.hpp"
 #include "carat/registration/odometry.hpp"
 #include "carat/sim/sequence.hpp"
 #include "carat/sim/world.hpp"
@@ -48,9 +49,10 @@ SyntheticPipeline simulate_pipeline(const SyntheticPipelineOptions& options,
   out.timings.preprocess_s = stage_time.restart();
 
   out.T_world_drift = apply_drift(out.T_world_truth, options.drift);
+  FrameStore frames(out.frames);
   if (options.odometry) {
     out.T_world_initial =
-        run_odometry(out.frames, out.T_world_drift, options.odometry_settings, options.threads,
+        run_odometry(frames, out.T_world_drift, options.odometry_settings, options.threads,
                      stage_progress(progress, SyntheticPipelineStage::kOdometry))
             .T_world_frame;
   } else {
@@ -61,7 +63,7 @@ SyntheticPipeline simulate_pipeline(const SyntheticPipelineOptions& options,
   if (options.dense_graph) {
     DenseGraphOptions graph = options.graph;
     graph.num_threads = options.threads;
-    out.pairs = build_dense_graph(out.frames, out.T_world_initial, graph,
+    out.pairs = build_dense_graph(frames, out.T_world_initial, graph,
                                   stage_progress(progress, SyntheticPipelineStage::kDenseGraph));
   }
   out.timings.dense_graph_s = stage_time.elapsed_s();

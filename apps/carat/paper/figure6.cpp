@@ -11,20 +11,21 @@
 namespace carat::cli::paper {
 namespace {
 
-GlobalRegistrationOptions lossless_options(const MappingInput& input) {
+GlobalRegistrationOptions lossless_options(const MappingOptions& mapping) {
   GlobalRegistrationOptions options;
   options.sampling = ResidualSampling::kLossless;
-  options.max_correspondence_distance = input.max_correspondence_distance;
-  options.seed = input.seed;
-  options.num_threads = input.threads;
+  options.max_correspondence_distance = mapping.registration.max_correspondence_distance;
+  options.seed = mapping.registration.seed;
+  options.num_threads = mapping.num_threads;
   return options;
 }
 
 }  // namespace
 
-RegistrationErrorProbe::RegistrationErrorProbe(const MappingInput& input)
-    : problem_(build_registration_problem(input.frames, input.pairs, input.T_world_initial,
-                                          lossless_options(input))) {}
+RegistrationErrorProbe::RegistrationErrorProbe(FrameStore& frames, const MapGraph& graph,
+                                               const MappingOptions& options)
+    : problem_(build_registration_problem(frames, graph.pairs, graph.T_world_start,
+                                          lossless_options(options))) {}
 
 double RegistrationErrorProbe::operator()(std::span<const Eigen::Isometry3d> T_world_frame) {
   for (std::size_t i = 0; i < problem_.frame_variables.size(); ++i)

@@ -10,8 +10,8 @@
 
 #include "carat/base/error.hpp"
 #include "carat/base/stopwatch.hpp"
-#include "carat/registration/dense_graph.hpp"
 #include "carat/registration/frame_store.hpp"
+#include "carat/registration/mapping.hpp"
 #include "carat/registration/pose_perturbation.hpp"
 #include "carat/registration/trajectory_error.hpp"
 #include "carat/sim/sequence.hpp"
@@ -89,11 +89,7 @@ void full_size_tables(const PaperArgs& args, int threads, Report* report) {
   PreprocessOptions preprocess;
   preprocess.voxel_size = kVoxel;
   preprocess.num_threads = 1;  // frames load in parallel already
-  MappingInput input;
-  input.threads = threads;
-  input.seed = args.seed;
-  input.progress = !args.json;
-  input.store = std::make_shared<FrameStore>(
+  FrameStore store(
       truth.size(),
       [&](std::size_t k) {
         const std::string name = "synthetic frame " + std::to_string(k);
@@ -102,30 +98,33 @@ void full_size_tables(const PaperArgs& args, int threads, Report* report) {
             preprocess, name);
       },
       kFrameCapBytes);
-  input.T_world_initial = perturb_poses(truth, kPerturbMetres, kPerturbDegrees, args.seed);
-  const AteStatistics initial = compute_ate(input.T_world_initial, truth);
+  const std::vector<Eigen::Isometry3d> T_world_initial =
+      perturb_poses(truth, kPerturbMetres, kPerturbDegrees, args.seed);
+  const AteStatistics initial = compute_ate(T_world_initial, truth);
 
   const double available = static_cast<double>(available_memory_bytes());
   const double limit = args.full_size_memory_gb > 0.0
                            ? args.full_size_memory_gb * 1e9
                            : std::max(0.0, kMemoryShare * available - double(kFrameCapBytes));
-  DenseGraphOptions graph_options;
-  graph_options.num_threads = threads;
-  const Stopwatch graph_time;
+  MappingOptions mapping;
+  mapping.num_threads = threads;
+  mapping.registration.seed = args.seed;
+  MapGraph graph;
   {
-    ProgressBar bar("full size: dense graph", input.progress);
-    input.pairs = build_dense_graph(*input.store, input.T_world_initial, graph_options);
+    StageBars<MappingStage> bars(
+        [](MappingStage stage) { return "full size: " + mapping_stage_label(stage); }, !args.json);
+    graph = build_map_graph(store, T_world_initial, mapping, bars.callback());
   }
-  const double graph_s = graph_time.elapsed_s();
-  if (input.pairs.empty()) {
+  const double graph_s = graph.times.seconds("dense_graph");
+  const std::vector<FramePair>& pairs = graph.pairs;
+  if (pairs.empty()) {
     throw Error("carat paper --full-size: the " + std::to_string(frames) +
                 "-frame drive has no dense factors");
   }
 
   // The factors whose bytes project each method's memory: spread evenly over the graph.
-  std::vector<std::size_t> sample(std::min(kSampleFactors, input.pairs.size()));
-  for (std::size_t k = 0; k < sample.size(); ++k)
-    sample[k] = k * input.pairs.size() / sample.size();
+  std::vector<std::size_t> sample(std::min(kSampleFactors, pairs.size()));
+  for (std::size_t k = 0; k < sample.size(); ++k) sample[k] = k * pairs.size() / sample.size();
   std::vector<FullSizeRow> rows;
   for (int m : {29, 256, 1024}) rows.push_back(planned(ResidualSampling::kExact, m));
   rows.push_back(planned(ResidualSampling::kLossless, 0));
@@ -139,18 +138,19 @@ void full_size_tables(const PaperArgs& args, int threads, Report* report) {
     options.seed = args.seed;
     options.num_threads = threads;
     double sample_bytes = 0.0, sample_correspondence_bytes = 0.0;
-    for (const RegistrationFactor& f : build_registration_factors(*input.store, input.pairs, sample,
-                                                                  input.T_world_initial, options)) {
+    for (const RegistrationFactor& f :
+         build_registration_factors(store, pairs, sample, T_world_initial, options)) {
       sample_bytes += static_cast<double>(f.block->memory_bytes());
       sample_correspondence_bytes += static_cast<double>(f.correspondence_bytes);
     }
-    const double scale = double(input.pairs.size()) / double(sample.size());
+    const double scale = double(pairs.size()) / double(sample.size());
     row.projected_bytes = sample_bytes * scale;
     if (full_projected == 0.0) full_projected = sample_correspondence_bytes * scale;
     if (row.projected_bytes > limit) continue;
-    input.residuals = options.residuals;
+    MappingOptions method = registration_method(mapping, row.sampling);
+    method.registration.residuals = options.residuals;
     const Stopwatch wall;
-    row.result = run_registration(input, row.sampling);
+    row.result = run_method(store, graph, method, !args.json);
     row.wall_s = wall.elapsed_s();
     row.result->ate = compute_ate(row.result->T_world_frame, truth);
     row.result->T_world_frame.clear();
@@ -185,7 +185,7 @@ void full_size_tables(const PaperArgs& args, int threads, Report* report) {
                          : row.sampling == ResidualSampling::kFull && any_solved
                              ? full_built
                              : row.projected_bytes;
-    const double per_factor = bytes / double(input.pairs.size());
+    const double per_factor = bytes / double(pairs.size());
     j5["memory_bytes"] = bytes;
     // Measured when solved; projected from the sample; full's: its correspondences as built by
     // a solved method (projected when none was solved).
@@ -251,14 +251,14 @@ void full_size_tables(const PaperArgs& args, int threads, Report* report) {
     t5.add_row(c5, j5);
   }
 
-  const FrameStoreStats store = input.store->stats();
+  const FrameStoreStats store_stats = store.stats();
   const double section_s = section_time.elapsed_s();
   std::string& md = report->markdown;
   md += "## Tables IV and V at the paper's size (`--full-size`)\n\n";
   md += thousands(frames) + " synthetic frames (two laps of a " + std::to_string(blocks) +
         "-block circuit), scanned and preprocessed on demand (" + fmt("%g", kVoxel) +
         " m voxels) with at most " + format_bytes(double(kFrameCapBytes)) + " of frames held; " +
-        thousands(static_cast<long long>(input.pairs.size())) +
+        thousands(static_cast<long long>(pairs.size())) +
         " dense factors (the paper's KITTI 00: " + thousands(published::kSequence00Poses) +
         " poses, " + thousands(published::kSequence00Factors) +
         " factors). Start: the ground truth with every pose but the first moved by " +
@@ -267,7 +267,7 @@ void full_size_tables(const PaperArgs& args, int threads, Report* report) {
         std::to_string(threads) + " threads (the paper: " + std::to_string(published::kThreads) +
         "). Dense graph " + fmt("%.0f", graph_s) + " s; section " + fmt("%.0f", section_s) +
         " s; peak RSS of the process " + format_bytes(static_cast<double>(peak_rss_bytes())) +
-        "; " + std::to_string(store.loads) + " frame scans for " + std::to_string(frames) +
+        "; " + std::to_string(store_stats.loads) + " frame scans for " + std::to_string(frames) +
         " frames.\n\n";
   md += "### Table IV at the paper's size\n\n" + t4.markdown();
   md +=
@@ -297,7 +297,7 @@ void full_size_tables(const PaperArgs& args, int threads, Report* report) {
                                {"laps", drive.laps},
                                {"circuit_blocks", blocks},
                                {"voxel_m", kVoxel},
-                               {"factors", input.pairs.size()},
+                               {"factors", pairs.size()},
                                {"threads", threads},
                                {"initial_ate_rmse", initial.rmse},
                                {"dense_graph_s", graph_s},
@@ -306,10 +306,10 @@ void full_size_tables(const PaperArgs& args, int threads, Report* report) {
                                {"sample_factors", sample.size()},
                                {"peak_rss_bytes", peak_rss_bytes()},
                                {"frame_store",
-                                {{"loads", store.loads},
-                                 {"evictions", store.evictions},
-                                 {"peak_bytes", store.peak_bytes},
-                                 {"max_bytes", store.max_bytes}}},
+                                {{"loads", store_stats.loads},
+                                 {"evictions", store_stats.evictions},
+                                 {"peak_bytes", store_stats.peak_bytes},
+                                 {"max_bytes", store_stats.max_bytes}}},
                                {"table4", t4.json()},
                                {"table5", t5.json()}};
 }

@@ -8,7 +8,9 @@
 #include <string>
 #include <vector>
 
+#include "carat/registration/frame_store.hpp"
 #include "carat/registration/global_registration.hpp"
+#include "carat/registration/mapping.hpp"
 #include "mapping_methods.hpp"
 
 namespace carat::cli::paper {
@@ -27,8 +29,9 @@ struct IterationTrace {
 /// kernel) at any poses, from their lossless rows: the same cost as all residuals, at every pose.
 class RegistrationErrorProbe {
  public:
-  /// Builds the lossless factors of `input`'s dense graph at its initial poses.
-  explicit RegistrationErrorProbe(const MappingInput& input);
+  /// Builds the lossless factors of `graph` at its start, with the correspondence distance,
+  /// seed and threads of `options`.
+  RegistrationErrorProbe(FrameStore& frames, const MapGraph& graph, const MappingOptions& options);
 
   /// 1/2 sum |r|^2 over the full factors at T_world_frame (parallel to the frames).
   double operator()(std::span<const Eigen::Isometry3d> T_world_frame);

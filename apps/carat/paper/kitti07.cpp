@@ -1,8 +1,9 @@
 // carat paper: the real KITTI 07 dense graph, GRE exact vs full vs PGO from a perturbed start.
 #include "carat/base/error.hpp"
-#include "carat/registration/dense_graph.hpp"
+#include "carat/registration/frame_store.hpp"
 #include "carat/registration/io/scan_folder.hpp"
 #include "carat/registration/io/trajectory_io.hpp"
+#include "carat/registration/mapping.hpp"
 #include "carat/registration/pose_perturbation.hpp"
 #include "mapping_methods.hpp"
 #include "paper.hpp"
@@ -28,29 +29,33 @@ void kitti07(const PaperArgs& args, int threads, Report* report) {
     throw Error((dir / "graph.txt").string() + ": " + std::to_string(reference.poses.size()) +
                 " poses; this section needs at least 3 frames");
   }
-  MappingInput input;
-  input.threads = threads;
-  input.seed = args.seed;
-  input.gre_excess_cauchy_scale = args.gre_excess_cauchy;
-  input.rounds = 10;
   PreprocessOptions preprocess;
   preprocess.voxel_size = 0.25;
+  std::vector<std::shared_ptr<const Frame>> frames;
   for (const ScanFile& scan : scans) {
-    input.frames.push_back(preprocess_frame(read_scan(scan), preprocess, scan.path.string()));
+    frames.push_back(preprocess_frame(read_scan(scan), preprocess, scan.path.string()));
   }
-  input.T_world_initial = perturb_poses(reference.poses, 0.3, 3.0, args.seed);
-  input.pairs = build_dense_graph(input.frames, input.T_world_initial);
+  FrameStore store(std::move(frames));
+  const std::vector<Eigen::Isometry3d> T_world_initial =
+      perturb_poses(reference.poses, 0.3, 3.0, args.seed);
+  MappingOptions options;
+  options.num_threads = threads;
+  options.registration.seed = args.seed;
+  options.registration.factor_excess_cauchy_scale = args.gre_excess_cauchy;
+  options.registration.rounds = 10;
+  const MapGraph graph = build_map_graph(store, T_world_initial, options);
   std::vector<MethodResult> results;
-  results.push_back(run_registration(input, ResidualSampling::kExact));
-  results.push_back(run_registration(input, ResidualSampling::kFull));
-  results.push_back(run_registration(input, ResidualSampling::kLossless));
-  const auto registrations = register_graph_pairs(input);
-  results.push_back(run_pose_graph(input, registrations, PoseGraphInformation::kHessian));
-  const AteStatistics start = compute_ate(input.T_world_initial, reference.poses);
-  md += std::to_string(input.frames.size()) +
+  for (ResidualSampling sampling :
+       {ResidualSampling::kExact, ResidualSampling::kFull, ResidualSampling::kLossless}) {
+    results.push_back(run_method(store, graph, registration_method(options, sampling), true));
+  }
+  results.push_back(
+      run_method(store, graph, pose_graph_method(options, PoseGraphInformation::kHessian), true));
+  const AteStatistics start = compute_ate(T_world_initial, reference.poses);
+  md += std::to_string(store.size()) +
         " frames, every one but the first perturbed by 0.3 m and 3° (seed " +
         std::to_string(args.seed) + "): start ATE " + fmt("%.4f", start.rmse) + " m / " +
-        fmt("%.3f", start.rotation_rmse_deg) + "°; " + std::to_string(input.pairs.size()) +
+        fmt("%.3f", start.rotation_rmse_deg) + "°; " + std::to_string(graph.pairs.size()) +
         " factors. GRE re-searches correspondences each "
         "round (up to 10). Total time includes the correspondence searches (GRE) or the pairwise "
         "GICP (PGO).\n\n";
@@ -63,7 +68,7 @@ void kitti07(const PaperArgs& args, int threads, Report* report) {
   }
   md += table.markdown() + "\n";
   report->json["kitti07"] = {
-      {"start_ate_rmse", start.rmse}, {"factors", input.pairs.size()}, {"rows", table.json()}};
+      {"start_ate_rmse", start.rmse}, {"factors", graph.pairs.size()}, {"rows", table.json()}};
 }
 
 }  // namespace carat::cli::paper

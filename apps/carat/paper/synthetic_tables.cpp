@@ -43,41 +43,57 @@ void synthetic_tables(const PaperArgs& args, int threads, const fs::path& dir, R
   pipeline_options.drift.seed = args.seed;
   pipeline_options.threads = threads;
   SyntheticPipeline pipeline = simulate_pipeline(pipeline_options);
-  MappingInput input;
-  input.threads = threads;
-  input.seed = args.seed;
-  input.gre_excess_cauchy_scale = args.gre_excess_cauchy;
-  input.frames = std::move(pipeline.frames);
-  input.T_world_initial = std::move(pipeline.T_world_initial);
-  input.pairs = std::move(pipeline.pairs);
   const std::vector<Eigen::Isometry3d>& truth = pipeline.T_world_truth;
-  const AteStatistics initial = compute_ate(input.T_world_initial, truth);
+  FrameStore store(std::move(pipeline.frames));
+  MappingOptions options;
+  options.num_threads = threads;
+  options.registration.seed = args.seed;
+  options.registration.factor_excess_cauchy_scale = args.gre_excess_cauchy;
+  MapGraph graph;
+  graph.T_world_start = std::move(pipeline.T_world_initial);
+  graph.pairs = std::move(pipeline.pairs);
+  const AteStatistics initial = compute_ate(graph.T_world_start, truth);
 
   // Table III: sparse PGO (odometry + loop closures), dense PGO, GRE exact.
-  const auto registrations = register_graph_pairs(input);
-  std::vector<PairRegistration> sparse;
-  for (const auto& r : registrations)
-    if (r.pair.source == r.pair.target + 1 ||
-        (r.pair.source - r.pair.target >= 5 && r.pair.overlap >= 0.5))
-      sparse.push_back(r);
+  std::vector<PairRegistration> registrations;
   std::vector<MethodResult> table3;
-  table3.push_back(run_pose_graph(input, sparse, PoseGraphInformation::kIdentity));
-  table3.back().label = "PGO (identity)";
-  table3.push_back(run_pose_graph(input, sparse, PoseGraphInformation::kHessian));
-  table3.back().label = "PGO (Hessian)";
-  table3.push_back(run_pose_graph(input, registrations, PoseGraphInformation::kHessian));
+  table3.push_back(run_method(store, graph,
+                              pose_graph_method(options, PoseGraphInformation::kHessian), true,
+                              &registrations));
   table3.back().label = "PGO dense (Hessian)";
   table3.back().key = "pgo_dense";
+  MapGraph sparse_graph;
+  sparse_graph.T_world_start = graph.T_world_start;
+  std::vector<PairRegistration> sparse;
+  for (const auto& r : registrations) {
+    if (r.pair.source == r.pair.target + 1 ||
+        (r.pair.source - r.pair.target >= 5 && r.pair.overlap >= 0.5)) {
+      sparse.push_back(r);
+      sparse_graph.pairs.push_back(r.pair);
+    }
+  }
+  table3.insert(
+      table3.begin(),
+      run_method(store, sparse_graph, pose_graph_method(options, PoseGraphInformation::kIdentity),
+                 true, &sparse));
+  table3.front().label = "PGO (identity)";
+  table3.insert(
+      table3.begin() + 1,
+      run_method(store, sparse_graph, pose_graph_method(options, PoseGraphInformation::kHessian),
+                 true, &sparse));
+  table3[1].label = "PGO (Hessian)";
   // Tables IV/V: GRE full and exact at several M; Fig. 6 follows each solve's iterations.
-  RegistrationErrorProbe probe(input);
+  RegistrationErrorProbe probe(store, graph, options);
   std::vector<IterationTrace> traces;
   traces.reserve(5);
   std::vector<int> table4_residuals;  // per row: M of exact sampling, else 0
   const auto traced = [&](ResidualSampling sampling, int residuals) {
-    input.residuals = residuals;
+    MappingOptions method = registration_method(options, sampling);
+    method.registration.residuals = residuals;
     table4_residuals.push_back(sampling == ResidualSampling::kExact ? residuals : 0);
     traces.emplace_back();
-    MethodResult r = run_registration(input, sampling, probe.recorder(truth, &traces.back()));
+    method.registration.iteration_callback = probe.recorder(truth, &traces.back());
+    MethodResult r = run_method(store, graph, method, true);
     traces.back().key = r.key;
     traces.back().label = r.label;
     return r;
@@ -87,7 +103,6 @@ void synthetic_tables(const PaperArgs& args, int threads, const fs::path& dir, R
   for (int m : {29, 256, 1024}) table4.push_back(traced(ResidualSampling::kExact, m));
   // Beside the paper: carat's lossless rows (the full factors' cost at every pose).
   table4.push_back(traced(ResidualSampling::kLossless, 29));
-  input.residuals = 29;
   table3.push_back(table4[1]);
   for (auto& r : table3) r.ate = compute_ate(r.T_world_frame, truth);
   for (auto& r : table4) r.ate = compute_ate(r.T_world_frame, truth);
@@ -97,7 +112,7 @@ void synthetic_tables(const PaperArgs& args, int threads, const fs::path& dir, R
   md += std::to_string(frames) +
         " frames of the built-in world (two laps), GICP odometry "
         "initial guess (ATE RMSE " +
-        fmt("%.4f", initial.rmse) + " m), " + std::to_string(input.pairs.size()) +
+        fmt("%.4f", initial.rmse) + " m), " + std::to_string(graph.pairs.size()) +
         " dense factors (overlap >= 0.2); the sparse graph "
         "keeps consecutive pairs and loop closures (5+ frames apart, overlap >= 0.5): " +
         std::to_string(sparse.size()) + " factors.\n\n";
@@ -172,7 +187,7 @@ void synthetic_tables(const PaperArgs& args, int threads, const fs::path& dir, R
       "the paper ran KITTI 00 (" + thousands(published::kSequence00Poses) + " poses, " +
       thousands(published::kSequence00Factors) + " factors, ~30,000 residuals each) on " +
       std::to_string(published::kThreads) + " threads; carat runs the synthetic sequence above (" +
-      std::to_string(frames) + " frames, " + std::to_string(input.pairs.size()) + " factors) on " +
+      std::to_string(frames) + " frames, " + std::to_string(graph.pairs.size()) + " factors) on " +
       std::to_string(threads) + " threads";
   md += "\n### Table IV: GRE full vs exact — ATE and optimization time\n\n" + t4.markdown();
   md += "\nSettings differ: " + setting +
@@ -217,7 +232,7 @@ void synthetic_tables(const PaperArgs& args, int threads, const fs::path& dir, R
             stacked_bars_svg("Fig. 7: optimization time breakdown", "seconds", segments, bars));
   md += "![Fig. 7](fig7_time_breakdown.svg)\n\n";
   report->json["synthetic"] = {{"frames", frames},
-                               {"factors", input.pairs.size()},
+                               {"factors", graph.pairs.size()},
                                {"sparse_factors", sparse.size()},
                                {"threads", threads},
                                {"initial_ate_rmse", initial.rmse},

@@ -34,14 +34,9 @@ struct FramePair {
 /// T_world_frame, sorted by (target, source). Throws carat::Error when frames and poses differ
 /// in count, fewer than 2 frames are given, a pose is not finite, or an option is out of range.
 /// `progress`, if set, is called with (pairs tested, pairs to test) from any thread.
-std::vector<FramePair> build_dense_graph(
-    std::span<const std::shared_ptr<const Frame>> frames,
-    std::span<const Eigen::Isometry3d> T_world_frame, const DenseGraphOptions& options = {},
-    const std::function<void(std::size_t, std::size_t)>& progress = {});
-
-/// The same graph from frames read on demand: each frame is requested once, in index order, and
-/// only what the overlap tests need of it is kept (its occupied voxels and every
-/// overlap_stride-th point, a few percent of a frame).
+/// Each frame is requested once, in index order, and only what the overlap tests need of it is
+/// kept (its occupied voxels and every overlap_stride-th point, a few percent of a frame), so a
+/// store that reads frames on demand stays small.
 std::vector<FramePair> build_dense_graph(
     FrameStore& frames, std::span<const Eigen::Isometry3d> T_world_frame,
     const DenseGraphOptions& options = {},

@@ -52,11 +52,14 @@ class FrameStore {
   bool resident() const { return !load_; }
   /// Counts so far.
   FrameStoreStats stats() const;
+  /// Points of each frame as last given or loaded (0: not loaded yet), indexed by frame.
+  std::vector<std::size_t> frame_points() const;
 
  private:
   struct Entry {
     std::shared_ptr<const Frame> frame;
     std::size_t bytes = 0;
+    std::size_t points = 0;  // of the frame as last loaded
     bool loading = false;
     std::list<std::size_t>::iterator lru;  // valid while frame is set
   };

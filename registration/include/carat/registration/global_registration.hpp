@@ -133,17 +133,12 @@ RegistrationProblem assemble_registration_problem(std::span<const FramePair> pai
                                                   double build_s = 0.0);
 
 /// Builds the problem at T_world_frame (the first frame's pose held constant). Factors are
-/// built and compressed in parallel; results do not depend on the thread count. Throws
-/// carat::Error for mismatched counts, bad options, non-finite poses, a frame after the first
-/// whose own geometry fixes fewer than 6 directions (Frame::constrained_dof(), e.g. a plane),
-/// or a pair with fewer than min_correspondences correspondences (naming the pair). `progress`
-/// gets (factors done, factors).
-RegistrationProblem build_registration_problem(
-    std::span<const std::shared_ptr<const Frame>> frames, std::span<const FramePair> pairs,
-    std::span<const Eigen::Isometry3d> T_world_frame, const GlobalRegistrationOptions& options,
-    const std::function<void(std::size_t, std::size_t)>& progress = {});
-
-/// The same from frames read on demand (see build_registration_factors()).
+/// built and compressed in parallel (see build_registration_factors()); results do not depend
+/// on the thread count. Throws carat::Error for mismatched counts, bad options, non-finite
+/// poses, a frame after the first whose own geometry fixes fewer than 6 directions
+/// (Frame::constrained_dof(), e.g. a plane; every frame of a resident store is checked before
+/// any factor is built), or a pair with fewer than min_correspondences correspondences (naming
+/// the pair). `progress` gets (factors done, factors).
 RegistrationProblem build_registration_problem(
     FrameStore& frames, std::span<const FramePair> pairs,
     std::span<const Eigen::Isometry3d> T_world_frame, const GlobalRegistrationOptions& options,
@@ -170,15 +165,8 @@ struct GlobalRegistrationResult {
 /// final_cost the last round's (each round has its own correspondences, so the two are costs of
 /// different objectives); the stats' times add up, their counts are the last round's and their
 /// byte counts the largest of any round; factor_costs and the per-factor bytes are the last
-/// round's. Throws
+/// round's. A store that reads frames on demand reads them again each round. Throws
 /// carat::Error as build_registration_problem() does, or when a solve fails.
-GlobalRegistrationResult optimize_registration(
-    std::span<const std::shared_ptr<const Frame>> frames, std::span<const FramePair> pairs,
-    std::span<const Eigen::Isometry3d> T_world_frame, const GlobalRegistrationOptions& options,
-    const std::function<void(std::size_t, std::size_t)>& progress = {});
-
-/// The same from frames read on demand (see build_registration_factors()); each round reads
-/// the frames again.
 GlobalRegistrationResult optimize_registration(
     FrameStore& frames, std::span<const FramePair> pairs,
     std::span<const Eigen::Isometry3d> T_world_frame, const GlobalRegistrationOptions& options,

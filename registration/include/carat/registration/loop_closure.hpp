@@ -83,12 +83,7 @@ struct LoopClosureResult {
 /// along T_world_guess's path) when it matches within max_descriptor_distance. Deterministic,
 /// parallel over frames; frames too sparse for a descriptor are listed in *sparse_frames (may be
 /// null). Throws carat::Error for mismatched counts or options out of range.
-std::vector<LoopCandidate> find_loop_candidates(
-    std::span<const std::shared_ptr<const Frame>> frames,
-    std::span<const Eigen::Isometry3d> T_world_guess, const LoopClosureOptions& options,
-    std::vector<int>* sparse_frames = nullptr);
-
-/// The same from frames read on demand (each requested once, in index order).
+/// Each frame is requested once, in index order.
 std::vector<LoopCandidate> find_loop_candidates(FrameStore& frames,
                                                 std::span<const Eigen::Isometry3d> T_world_guess,
                                                 const LoopClosureOptions& options,
@@ -97,12 +92,6 @@ std::vector<LoopCandidate> find_loop_candidates(FrameStore& frames,
 /// GICP for every candidate from two starts: the descriptor's yaw (no translation) and the
 /// guess's relative pose; the start whose result matches more of the source's points counts.
 /// Parallel over candidates; results do not depend on the thread count.
-std::vector<LoopCheck> validate_loop_candidates(
-    std::span<const std::shared_ptr<const Frame>> frames,
-    std::span<const Eigen::Isometry3d> T_world_guess, std::span<const LoopCandidate> candidates,
-    const LoopClosureOptions& options);
-
-/// The same from frames read on demand.
 std::vector<LoopCheck> validate_loop_candidates(FrameStore& frames,
                                                 std::span<const Eigen::Isometry3d> T_world_guess,
                                                 std::span<const LoopCandidate> candidates,
@@ -113,12 +102,6 @@ std::vector<LoopCheck> validate_loop_candidates(FrameStore& frames,
 /// kernel, then with options.graph. Throws carat::Error as the stages do (fewer than 2 frames,
 /// mismatched counts, a consecutive pair GICP cannot align). `progress`, if set, gets (steps
 /// done, steps) from any thread.
-LoopClosureResult close_loops(std::span<const std::shared_ptr<const Frame>> frames,
-                              std::span<const Eigen::Isometry3d> T_world_guess,
-                              const LoopClosureOptions& options,
-                              const std::function<void(std::size_t, std::size_t)>& progress = {});
-
-/// The same from frames read on demand.
 LoopClosureResult close_loops(FrameStore& frames, std::span<const Eigen::Isometry3d> T_world_guess,
                               const LoopClosureOptions& options,
                               const std::function<void(std::size_t, std::size_t)>& progress = {});

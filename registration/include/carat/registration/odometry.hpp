@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "carat/registration/frame_store.hpp"
 #include "carat/registration/pair_registration.hpp"
 
 namespace carat {
@@ -24,16 +25,14 @@ struct OdometryResult {
   /// Names those steps, their frames and why ("000011 -> 000012 did not converge; ..."; at most
   /// `limit` of them, then how many more), with frame names from `frames` (else indices); "" when
   /// every step is reliable.
-  std::string describe_unreliable_steps(std::span<const std::shared_ptr<const Frame>> frames,
-                                        std::size_t limit = 5) const;
+  std::string describe_unreliable_steps(FrameStore& frames, std::size_t limit = 5) const;
 };
 
 /// Aligns frame k+1 to frame k for every k, starting each alignment from the relative motion
 /// of T_world_guess (wheel odometry, a drift model, or any prior), in parallel, and chains the
 /// results from T_world_guess[0]. Throws carat::Error for fewer than 2 frames, mismatched
 /// counts, or a failed alignment (naming the frames).
-OdometryResult run_odometry(std::span<const std::shared_ptr<const Frame>> frames,
-                            std::span<const Eigen::Isometry3d> T_world_guess,
+OdometryResult run_odometry(FrameStore& frames, std::span<const Eigen::Isometry3d> T_world_guess,
                             const AlignSettings& settings, int num_threads,
                             const std::function<void(std::size_t, std::size_t)>& progress = {});
 
@@ -44,7 +43,7 @@ OdometryResult run_odometry(std::span<const std::shared_ptr<const Frame>> frames
 /// frames or a failed alignment (naming the frames). `progress`, if set, gets (steps done,
 /// steps).
 OdometryResult run_scan_odometry(
-    std::span<const std::shared_ptr<const Frame>> frames, const AlignSettings& settings,
+    FrameStore& frames, const AlignSettings& settings,
     const std::function<void(std::size_t, std::size_t)>& progress = {});
 
 }  // namespace carat

@@ -9,6 +9,7 @@
 #include "carat/registration/frame.hpp"
 #include "carat/registration/global_registration.hpp"
 #include "carat/registration/io/kitti_io.hpp"
+#include "carat/registration/scan_opening.hpp"
 #include "carat/solver/solver_options.hpp"
 
 namespace carat {
@@ -17,6 +18,8 @@ namespace carat {
 void write_options(ByteWriter& out, const ReadOptions& options);
 /// Appends every field of `options`.
 void write_options(ByteWriter& out, const PreprocessOptions& options);
+/// Appends every field of `options` (its read and preprocess options included).
+void write_options(ByteWriter& out, const OpenScansOptions& options);
 /// Appends every field of `options` but iteration_callback.
 void write_options(ByteWriter& out, const SolverOptions& options);
 /// Appends every field of `options` (its solver options included) but the callbacks.
@@ -27,6 +30,8 @@ void write_options(ByteWriter& out, const GlobalRegistrationOptions& options);
 ReadOptions read_read_options(ByteReader& in);
 /// Reads what write_options() wrote for PreprocessOptions; throws as read_read_options().
 PreprocessOptions read_preprocess_options(ByteReader& in);
+/// Reads what write_options() wrote for OpenScansOptions; throws as read_read_options().
+OpenScansOptions read_open_scans_options(ByteReader& in);
 /// Reads what write_options() wrote for SolverOptions (no callback); throws as
 /// read_read_options().
 SolverOptions read_solver_options(ByteReader& in);

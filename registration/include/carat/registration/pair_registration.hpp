@@ -40,12 +40,7 @@ struct PairRegistration {
 /// implies, in parallel over pairs with `num_threads` threads (each alignment single-threaded,
 /// so results do not depend on the thread count). Throws carat::Error naming the pair when an
 /// alignment fails. `progress`, if set, gets (pairs done, pairs) from any thread.
-std::vector<PairRegistration> register_pairs(
-    std::span<const std::shared_ptr<const Frame>> frames, std::span<const FramePair> pairs,
-    std::span<const Eigen::Isometry3d> T_world_frame, const AlignSettings& settings,
-    int num_threads, const std::function<void(std::size_t, std::size_t)>& progress = {});
-
-/// The same from frames read on demand, walked in locality_order() when the store loads them.
+/// A store that reads frames on demand is walked in locality_order().
 std::vector<PairRegistration> register_pairs(
     FrameStore& frames, std::span<const FramePair> pairs,
     std::span<const Eigen::Isometry3d> T_world_frame, const AlignSettings& settings,
