@@ -24,15 +24,9 @@
 #include "carat/registration/io/scan_folder.hpp"
 #include "carat/registration/mapping.hpp"
 #include "carat/registration/scan_opening.hpp"
+#include "mpi_messages.hpp"
 
 namespace carat::cli {
-
-/// What every rank needs to open the frames as rank 0 did (open_scans(); each rank reads on
-/// demand under scans.max_bytes, 0: no cap, with one thread per frame).
-struct MpiFrameSource {
-  std::vector<ScanFile> files;  // the frames, in scan order
-  OpenScansOptions scans;       // how they are read, checked and preprocessed
-};
 
 /// Refuses what the ranks cannot share: the PGO baselines and full or random sampling (whose
 /// factors are not a few KB each); throws UsageError.

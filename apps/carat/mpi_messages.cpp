@@ -1,0 +1,145 @@
+#include "mpi_messages.hpp"
+
+#include <algorithm>
+#include <cstdint>
+#include <utility>
+
+#include "carat/base/byte_stream.hpp"
+#include "carat/registration/factor_serialization.hpp"
+#include "carat/registration/option_serialization.hpp"
+
+namespace carat::cli {
+
+std::vector<std::byte> encode_job(const MpiFrameSource& source,
+                                  const GlobalRegistrationOptions& options,
+                                  std::span<const FramePair> pairs,
+                                  std::span<const Eigen::Isometry3d> T_world_frame,
+                                  const std::vector<std::vector<std::size_t>>& shares) {
+  std::vector<std::byte> bytes;
+  ByteWriter out(bytes);
+  out.put(static_cast<std::uint64_t>(source.files.size()));
+  for (const ScanFile& file : source.files) {
+    out.put_string(file.path.string());
+    out.put_string(file.name);
+    out.put(static_cast<std::uint8_t>(file.bin_format));
+  }
+  write_options(out, source.scans);
+  write_options(out, options);
+  out.put(static_cast<std::uint64_t>(pairs.size()));
+  out.put_array(pairs);
+  out.put(static_cast<std::uint64_t>(T_world_frame.size()));
+  for (const Eigen::Isometry3d& T : T_world_frame)
+    out.put_array(std::span<const double>(T.matrix().data(), 16));
+  out.put(static_cast<std::uint64_t>(shares.size()));
+  for (const std::vector<std::size_t>& share : shares) {
+    out.put(static_cast<std::uint64_t>(share.size()));
+    for (const std::size_t k : share) out.put(static_cast<std::uint64_t>(k));
+  }
+  return bytes;
+}
+
+BuildJob decode_job(std::span<const std::byte> bytes) {
+  ByteReader in(bytes, "the job from rank 0");
+  BuildJob job;
+  const auto files = in.get<std::uint64_t>();
+  if (files > in.remaining()) in.garbled("frame count");
+  for (std::uint64_t k = 0; k < files; ++k) {
+    ScanFile file;
+    file.path = in.get_string();
+    file.name = in.get_string();
+    file.bin_format = static_cast<KittiFormat>(in.get<std::uint8_t>());
+    job.source.files.push_back(std::move(file));
+  }
+  job.source.scans = read_open_scans_options(in);
+  job.options = read_global_registration_options(in);
+  job.pairs = in.get_array<FramePair>(static_cast<std::size_t>(in.get<std::uint64_t>()));
+  const auto poses = in.get<std::uint64_t>();
+  if (poses > in.remaining() / (16 * sizeof(double))) in.garbled("pose count");
+  for (std::uint64_t k = 0; k < poses; ++k) {
+    Eigen::Isometry3d T;
+    const std::vector<double> m = in.get_array<double>(16);
+    std::copy(m.begin(), m.end(), T.matrix().data());
+    job.T_world_frame.push_back(T);
+  }
+  const auto ranks = in.get<std::uint64_t>();
+  if (ranks > in.remaining() / sizeof(std::uint64_t)) in.garbled("rank count");
+  for (std::uint64_t r = 0; r < ranks; ++r) {
+    std::vector<std::size_t> share;
+    for (const std::uint64_t k :
+         in.get_array<std::uint64_t>(static_cast<std::size_t>(in.get<std::uint64_t>()))) {
+      if (k >= job.pairs.size()) in.garbled("pair index " + std::to_string(k));
+      share.push_back(static_cast<std::size_t>(k));
+    }
+    job.shares.push_back(std::move(share));
+  }
+  in.expect_end();
+  return job;
+}
+
+std::vector<std::vector<std::size_t>> split_pairs(std::span<const FramePair> pairs,
+                                                  std::span<const Eigen::Isometry3d> T_world_frame,
+                                                  int ranks) {
+  const std::vector<std::size_t> order = locality_order(pairs, T_world_frame);
+  std::vector<std::vector<std::size_t>> shares(static_cast<std::size_t>(ranks));
+  const std::size_t n = order.size(), r = shares.size();
+  for (std::size_t q = 0; q < r; ++q) {
+    shares[q].assign(order.begin() + static_cast<std::ptrdiff_t>(q * n / r),
+                     order.begin() + static_cast<std::ptrdiff_t>((q + 1) * n / r));
+    std::sort(shares[q].begin(), shares[q].end());
+  }
+  return shares;
+}
+
+std::vector<std::byte> encode_factors(std::span<const std::size_t> indices,
+                                      std::span<const RegistrationFactor> factors, double build_s,
+                                      std::size_t frames_read) {
+  std::vector<std::byte> bytes;
+  ByteWriter out(bytes);
+  out.put(std::uint8_t{1});
+  out.put(build_s);
+  out.put(static_cast<std::uint64_t>(frames_read));
+  out.put(static_cast<std::uint64_t>(indices.size()));
+  for (std::size_t p = 0; p < indices.size(); ++p) {
+    const std::vector<std::byte> factor = serialize_factor(factors[p]);
+    out.put(static_cast<std::uint64_t>(indices[p]));
+    out.put(static_cast<std::uint64_t>(factor.size()));
+    out.put_array(std::span<const std::byte>(factor));
+  }
+  return bytes;
+}
+
+std::vector<std::byte> encode_failure(const std::string& message) {
+  std::vector<std::byte> bytes;
+  ByteWriter out(bytes);
+  out.put(std::uint8_t{0});
+  out.put_string(message);
+  return bytes;
+}
+
+std::string answer_failure(std::span<const std::byte> bytes, const std::string& what) {
+  ByteReader in(bytes, what);
+  if (in.get<std::uint8_t>() != 0) return {};
+  std::string message = in.get_string();
+  return message.empty() ? std::string("failed") : message;
+}
+
+FactorAnswer read_factor_answer(std::span<const std::byte> bytes, const std::string& what,
+                                std::span<const std::size_t> expected,
+                                std::vector<RegistrationFactor>* factors) {
+  ByteReader in(bytes, what);
+  in.get<std::uint8_t>();
+  FactorAnswer answer;
+  answer.build_s = in.get<double>();
+  answer.frames_read = static_cast<std::size_t>(in.get<std::uint64_t>());
+  if (in.get<std::uint64_t>() != expected.size()) in.garbled("factor count");
+  for (const std::size_t k : expected) {
+    if (in.get<std::uint64_t>() != k) in.garbled("factor index");
+    const auto length = in.get<std::uint64_t>();
+    (*factors)[k] = deserialize_factor(in.get_bytes(static_cast<std::size_t>(length)),
+                                       what + ", factor " + std::to_string(k));
+  }
+  in.expect_end();
+  return answer;
+}
+
+}  // namespace carat::cli

@@ -1,0 +1,77 @@
+#pragma once
+
+// The messages of `carat map` under mpirun, as bytes (what travels; mpi_map.cpp moves them):
+// rank 0's build job each round, and each rank's answer (its factors, or its error).
+
+#include <Eigen/Geometry>
+#include <cstddef>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "carat/registration/dense_graph.hpp"
+#include "carat/registration/global_registration.hpp"
+#include "carat/registration/io/scan_folder.hpp"
+#include "carat/registration/scan_opening.hpp"
+
+namespace carat::cli {
+
+/// What every rank needs to open the frames as rank 0 did (open_scans(); each rank reads on
+/// demand under scans.max_bytes, 0: no cap, with one thread per frame).
+struct MpiFrameSource {
+  std::vector<ScanFile> files;  // the frames, in scan order
+  OpenScansOptions scans;       // how they are read, checked and preprocessed
+};
+
+/// What rank 0 sends every round: how to read the frames, how to build, what, and where.
+struct BuildJob {
+  MpiFrameSource source;
+  GlobalRegistrationOptions options;
+  std::vector<FramePair> pairs;
+  std::vector<Eigen::Isometry3d> T_world_frame;
+  std::vector<std::vector<std::size_t>> shares;  // per rank: the pairs it builds
+};
+
+/// A round's job as bytes.
+std::vector<std::byte> encode_job(const MpiFrameSource& source,
+                                  const GlobalRegistrationOptions& options,
+                                  std::span<const FramePair> pairs,
+                                  std::span<const Eigen::Isometry3d> T_world_frame,
+                                  const std::vector<std::vector<std::size_t>>& shares);
+
+/// The job from its bytes; throws carat::Error ("the job from rank 0: garbled: ...") for bytes
+/// encode_job() does not write.
+BuildJob decode_job(std::span<const std::byte> bytes);
+
+/// The pairs split over `ranks` ranks: contiguous stretches of locality_order() at the first
+/// round's poses, as equal in count as can be, so that each rank reads only the frames of one
+/// part of the map (and a few loop partners). Each share is in increasing index order.
+std::vector<std::vector<std::size_t>> split_pairs(std::span<const FramePair> pairs,
+                                                  std::span<const Eigen::Isometry3d> T_world_frame,
+                                                  int ranks);
+
+/// A rank's answer: its build time (s), the frames it has read, and its factors (index and
+/// bytes each).
+std::vector<std::byte> encode_factors(std::span<const std::size_t> indices,
+                                      std::span<const RegistrationFactor> factors, double build_s,
+                                      std::size_t frames_read);
+
+/// A rank's answer when it failed: the message.
+std::vector<std::byte> encode_failure(const std::string& message);
+
+/// The message of a failed answer, or empty for factors; `what` names the answer in errors.
+std::string answer_failure(std::span<const std::byte> bytes, const std::string& what);
+
+/// What an answer with factors said besides them.
+struct FactorAnswer {
+  double build_s = 0.0;         // the rank's build time
+  std::size_t frames_read = 0;  // frames the rank has read so far
+};
+
+/// Reads an answer with factors: the factors of `expected` (pair indices) into (*factors)[k].
+/// Throws carat::Error naming `what` for bytes that are not that answer.
+FactorAnswer read_factor_answer(std::span<const std::byte> bytes, const std::string& what,
+                                std::span<const std::size_t> expected,
+                                std::vector<RegistrationFactor>* factors);
+
+}  // namespace carat::cli
