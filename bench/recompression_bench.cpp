@@ -21,12 +21,14 @@
 #include <cstdlib>
 #include <memory>
 #include <random>
+#include <utility>
 
 #include "../examples/camera_localization/camera_scene.hpp"
 #include "../tests/curve_fit_problem.hpp"
 #include "carat/coreset/problem_compression.hpp"
 #include "carat/registration/dense_graph.hpp"
 #include "carat/registration/frame.hpp"
+#include "carat/registration/frame_store.hpp"
 #include "carat/registration/global_registration.hpp"
 #include "carat/residuals/relative_pose_block.hpp"
 #include "carat/sim/drift.hpp"
@@ -88,10 +90,11 @@ carat::Problem registration_problem() {
   drift.translation_sigma = 0.005;
   drift.rotation_sigma_deg = 0.03;
   const auto initial = carat::apply_drift(sequence.T_world_frame, drift);
-  const auto pairs = carat::build_dense_graph(frames, initial);
+  carat::FrameStore store(std::move(frames));
+  const auto pairs = carat::build_dense_graph(store, initial);
   carat::GlobalRegistrationOptions options;
   options.sampling = carat::ResidualSampling::kFull;
-  return carat::build_registration_problem(frames, pairs, initial, options).problem;
+  return carat::build_registration_problem(store, pairs, initial, options).problem;
 }
 
 const carat::Problem& problem(int which) {

@@ -47,6 +47,7 @@
 #include "carat/base/stopwatch.hpp"
 #include "carat/registration/dense_graph.hpp"
 #include "carat/registration/frame.hpp"
+#include "carat/registration/frame_store.hpp"
 #include "carat/registration/global_registration.hpp"
 #include "carat/registration/pose_perturbation.hpp"
 #include "carat/registration/trajectory_error.hpp"
@@ -155,7 +156,8 @@ Drive make_drive(int frames) {
 
 struct Scene {
   int frames = 0;
-  Drive drive;  // ground truth and scans
+  Drive drive;                               // ground truth and scans
+  std::unique_ptr<carat::FrameStore> store;  // the scans, resident
   std::vector<Eigen::Isometry3d> initial;
   std::vector<carat::FramePair> pairs;
   double graph_s = 0.0;
@@ -179,25 +181,23 @@ Scene& scene(int frames) {
   s->frames = frames;
   s->drive = make_drive(frames);
   const std::span<const Eigen::Isometry3d> truth = s->drive.truth;
-  const std::span<const std::shared_ptr<const carat::Frame>> scans = s->drive.scans;
   // A map to refine, as a SLAM system with loop closure hands it over: every pose but the
   // first moved by 0.1 m and 0.5 degrees in random directions (no drift accumulates, so the
   // dense graph at these poses has every loop closure).
   s->initial = carat::perturb_poses(truth, kStartMetres, kStartDegrees, 1);
-  for (const auto& f : scans) s->points += f->size();
+  for (const auto& f : s->drive.scans) s->points += f->size();
+  s->store = std::make_unique<carat::FrameStore>(s->drive.scans);
   carat::DenseGraphOptions graph;
   graph.num_threads = num_threads();
   const carat::Stopwatch stopwatch;
-  s->pairs = carat::build_dense_graph(scans, s->initial, graph);
+  s->pairs = carat::build_dense_graph(*s->store, s->initial, graph);
   s->graph_s = stopwatch.elapsed_s();
   s->initial_ate_rmse = carat::compute_ate(s->initial, truth).rmse;
   slot = std::move(s);
   return *slot;
 }
 
-std::span<const std::shared_ptr<const carat::Frame>> frames_of(const Scene& s) {
-  return s.drive.scans;
-}
+carat::FrameStore& frames_of(Scene& s) { return *s.store; }
 
 carat::GlobalRegistrationOptions registration_options(carat::ResidualSampling sampling) {
   carat::GlobalRegistrationOptions options;
@@ -274,7 +274,7 @@ double full_bytes_estimate(const Scene& s) {
   if (s.correspondences) {
     correspondences = static_cast<double>(*s.correspondences);
   } else {
-    const auto frames = frames_of(s);
+    const auto& frames = s.drive.scans;
     for (const auto& p : s.pairs)
       correspondences +=
           p.overlap * static_cast<double>(frames[static_cast<std::size_t>(p.source)]->size());

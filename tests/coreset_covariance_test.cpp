@@ -9,6 +9,7 @@
 
 #include "carat/coreset/problem_compression.hpp"
 #include "carat/registration/dense_graph.hpp"
+#include "carat/registration/frame_store.hpp"
 #include "carat/registration/global_registration.hpp"
 #include "carat/solver/autodiff_block.hpp"
 #include "carat/solver/covariance.hpp"
@@ -76,16 +77,17 @@ TEST(CompressedCovarianceTest, RegistrationGraphGivesTheFullProblemsCovariance) 
   // 16 frames over two laps; the dense graph of every overlapping pair at the drifting guess.
   const SyntheticPipeline drive = test::simulate_test_drive(
       5, 16, 2, {.seed = 2, .translation_sigma = 0.005, .rotation_sigma_deg = 0.03});
-  const std::vector<FramePair> pairs = build_dense_graph(drive.frames, drive.T_world_drift);
+  FrameStore frames(drive.frames);
+  const std::vector<FramePair> pairs = build_dense_graph(frames, drive.T_world_drift);
   GlobalRegistrationOptions options;
   options.num_threads = 2;
   options.sampling = ResidualSampling::kFull;
   const RegistrationProblem full =
-      build_registration_problem(drive.frames, pairs, drive.T_world_drift, options);
+      build_registration_problem(frames, pairs, drive.T_world_drift, options);
   for (const ResidualSampling sampling : {ResidualSampling::kExact, ResidualSampling::kLossless}) {
     options.sampling = sampling;
     const RegistrationProblem kept =
-        build_registration_problem(drive.frames, pairs, drive.T_world_drift, options);
+        build_registration_problem(frames, pairs, drive.T_world_drift, options);
     EXPECT_LT(kept.stats.residual_bytes * 10, full.stats.residual_bytes) << to_string(sampling);
     expect_same_covariances(kept.problem, full.problem);
   }

@@ -47,7 +47,8 @@ const Drive& drive() {
     Drive out;
     out.frames = std::move(pipeline.frames);
     out.initial = std::move(pipeline.T_world_drift);
-    out.pairs = build_dense_graph(out.frames, out.initial);
+    FrameStore store(out.frames);
+    out.pairs = build_dense_graph(store, out.initial);
     return out;
   }();
   return d;
@@ -134,9 +135,8 @@ TEST_P(FactorBytesTest, SolveOverFactorsMovedThroughBytesIsTheSame) {
   GlobalRegistrationOptions options = options_for(GetParam());
   options.rounds = 2;
   const Drive& d = drive();
-  const GlobalRegistrationResult direct =
-      optimize_registration(d.frames, d.pairs, d.initial, options);
   FrameStore store(d.frames);
+  const GlobalRegistrationResult direct = optimize_registration(store, d.pairs, d.initial, options);
   std::size_t moved = 0;
   const GlobalRegistrationResult through_bytes = optimize_registration(
       [&](std::span<const Eigen::Isometry3d> T_world_frame) {

@@ -122,7 +122,8 @@ TEST(FrameStoreTest, LoaderErrorsPassThroughAndAreRetried) {
 }
 
 TEST(FrameStoreTest, LocalityOrderIsAPermutationThatKeepsCellsTogether) {
-  const std::vector<FramePair> pairs = build_dense_graph(drive().frames, drive().initial);
+  FrameStore frames(drive().frames);
+  const std::vector<FramePair> pairs = build_dense_graph(frames, drive().initial);
   const std::vector<std::size_t> order = locality_order(pairs, drive().initial);
   std::vector<std::size_t> sorted = order;
   std::sort(sorted.begin(), sorted.end());
@@ -138,8 +139,9 @@ TEST(FrameStoreTest, LocalityOrderIsAPermutationThatKeepsCellsTogether) {
 
 TEST(FrameStoreTest, ACappedStoreGivesTheResidentResults) {
   const Drive& d = drive();
+  FrameStore resident_store(d.frames);
   CountingStore s(4.0);
-  const std::vector<FramePair> pairs = build_dense_graph(d.frames, d.initial);
+  const std::vector<FramePair> pairs = build_dense_graph(resident_store, d.initial);
   const std::vector<FramePair> streamed_pairs = build_dense_graph(*s.store, d.initial);
   ASSERT_EQ(pairs.size(), streamed_pairs.size());
   for (std::size_t k = 0; k < pairs.size(); ++k) {
@@ -153,7 +155,7 @@ TEST(FrameStoreTest, ACappedStoreGivesTheResidentResults) {
     options.num_threads = 2;
     options.rounds = 2;
     const GlobalRegistrationResult resident =
-        optimize_registration(d.frames, pairs, d.initial, options);
+        optimize_registration(resident_store, pairs, d.initial, options);
     const GlobalRegistrationResult streamed =
         optimize_registration(*s.store, pairs, d.initial, options);
     ASSERT_EQ(resident.T_world_frame.size(), streamed.T_world_frame.size());
@@ -166,7 +168,7 @@ TEST(FrameStoreTest, ACappedStoreGivesTheResidentResults) {
   EXPECT_GT(stats.evictions, 0u);
   EXPECT_LE(stats.peak_bytes, stats.max_bytes);
   // Pairwise GICP (the pose-graph baselines) too.
-  const auto a = register_pairs(d.frames, pairs, d.initial, AlignSettings{}, 2);
+  const auto a = register_pairs(resident_store, pairs, d.initial, AlignSettings{}, 2);
   const auto b = register_pairs(*s.store, pairs, d.initial, AlignSettings{}, 2);
   ASSERT_EQ(a.size(), b.size());
   for (std::size_t k = 0; k < a.size(); ++k)
@@ -175,10 +177,10 @@ TEST(FrameStoreTest, ACappedStoreGivesTheResidentResults) {
 
 TEST(FrameStoreTest, ASubsetOfFactorsEqualsTheSameFactorsOfTheWhole) {
   const Drive& d = drive();
-  const std::vector<FramePair> pairs = build_dense_graph(d.frames, d.initial);
+  FrameStore resident(d.frames);
+  const std::vector<FramePair> pairs = build_dense_graph(resident, d.initial);
   GlobalRegistrationOptions options;
   options.num_threads = 2;
-  FrameStore resident(d.frames);
   const auto all = build_registration_factors(resident, pairs, {}, d.initial, options);
   const std::vector<std::size_t> some = {pairs.size() - 1, 3, 0};
   CountingStore s(2.0);

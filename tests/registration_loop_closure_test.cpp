@@ -12,6 +12,7 @@
 #include "carat/base/error.hpp"
 #include "carat/registration/dense_graph.hpp"
 #include "carat/registration/frame.hpp"
+#include "carat/registration/frame_store.hpp"
 #include "carat/registration/global_registration.hpp"
 #include "carat/registration/loop_closure.hpp"
 #include "carat/registration/scan_context.hpp"
@@ -121,12 +122,13 @@ double mapped_ate(const DriftingDrive& d, std::span<const Eigen::Isometry3d> ini
                   std::size_t* loop_pairs) {
   DenseGraphOptions graph_options;
   graph_options.num_threads = 2;
-  const auto pairs = build_dense_graph(d.pipeline.frames, initial, graph_options);
+  FrameStore frames(d.pipeline.frames);
+  const auto pairs = build_dense_graph(frames, initial, graph_options);
   *loop_pairs = 0;
   for (const FramePair& p : pairs) *loop_pairs += std::abs(p.source - p.target - 50) <= 5;
   GlobalRegistrationOptions options;
   options.num_threads = 2;
-  const auto result = optimize_registration(d.pipeline.frames, pairs, initial, options);
+  const auto result = optimize_registration(frames, pairs, initial, options);
   return ate_rmse(result.T_world_frame, d.pipeline.T_world_truth);
 }
 
@@ -139,7 +141,8 @@ TEST(LoopClosureTest, ADriftingTwoLapDriveIsClosedAndMapped) {
 
   LoopClosureOptions options;
   options.num_threads = 2;
-  const LoopClosureResult closed = close_loops(d.pipeline.frames, d.guess, options);
+  FrameStore frames(d.pipeline.frames);
+  const LoopClosureResult closed = close_loops(frames, d.guess, options);
   EXPECT_TRUE(closed.sparse_frames.empty());
   ASSERT_EQ(closed.checks.size(), closed.candidates.size());
   // Every accepted loop measures the true relative pose; most are revisits (the same place on
@@ -190,9 +193,10 @@ TEST(LoopClosureTest, ScansOfDifferentPlacesAreNotAccepted) {
   other.dense_graph = false;
   other.threads = 2;
   const SyntheticPipeline elsewhere = simulate_pipeline(other);
-  std::vector<std::shared_ptr<const Frame>> frames(d.pipeline.frames.begin(),
-                                                   d.pipeline.frames.begin() + 25);
-  frames.insert(frames.end(), elsewhere.frames.begin(), elsewhere.frames.begin() + 25);
+  std::vector<std::shared_ptr<const Frame>> both(d.pipeline.frames.begin(),
+                                                 d.pipeline.frames.begin() + 25);
+  both.insert(both.end(), elsewhere.frames.begin(), elsewhere.frames.begin() + 25);
+  FrameStore frames(std::move(both));
   std::vector<Eigen::Isometry3d> guess(d.pipeline.T_world_truth.begin(),
                                        d.pipeline.T_world_truth.begin() + 25);
   for (int k = 0; k < 25; ++k) {
@@ -230,7 +234,7 @@ TEST(LoopClosureTest, ACorridorOfIdenticalScansIsNotAccepted) {
   PreprocessOptions preprocess;
   preprocess.voxel_size = 0.3;
   const auto frame = preprocess_frame(corridor, preprocess, "corridor");
-  std::vector<std::shared_ptr<const Frame>> frames(40, frame);
+  FrameStore frames(std::vector<std::shared_ptr<const Frame>>(40, frame));
   std::vector<Eigen::Isometry3d> guess(40, Eigen::Isometry3d::Identity());
   for (int k = 0; k < 40; ++k) guess[static_cast<std::size_t>(k)].translation().x() = 5.0 * k;
   LoopClosureOptions options;
@@ -245,16 +249,17 @@ TEST(LoopClosureTest, ACorridorOfIdenticalScansIsNotAccepted) {
 TEST(LoopClosureTest, BadInputIsNamed) {
   const DriftingDrive& d = drifting_drive();
   LoopClosureOptions options;
+  FrameStore frames(d.pipeline.frames);
   const std::span<const Eigen::Isometry3d> fewer(d.guess.data(), 10);
   try {
-    close_loops(d.pipeline.frames, fewer, options);
+    close_loops(frames, fewer, options);
     FAIL() << "no error";
   } catch (const Error& e) {
     EXPECT_STREQ(e.what(), "loop closure: 100 frames but 10 poses");
   }
   options.min_inlier_fraction = 1.5;
   try {
-    find_loop_candidates(d.pipeline.frames, d.guess, options);
+    find_loop_candidates(frames, d.guess, options);
     FAIL() << "no error";
   } catch (const Error& e) {
     EXPECT_STREQ(e.what(), "loop closure: min_inlier_fraction must be in [0, 1], got 1.5");

@@ -19,6 +19,7 @@
 #include "carat/coreset/problem_compression.hpp"
 #include "carat/registration/dense_graph.hpp"
 #include "carat/registration/frame.hpp"
+#include "carat/registration/frame_store.hpp"
 #include "carat/registration/global_registration.hpp"
 #include "carat/registration/io/kitti_io.hpp"
 #include "carat/registration/io/trajectory_io.hpp"
@@ -60,6 +61,12 @@ const SmallWorld& small_world() {
   return world;
 }
 
+/// The small world's frames in a resident store.
+FrameStore& small_frames() {
+  static FrameStore store(small_world().frames);
+  return store;
+}
+
 /// Dense H (tangent of all poses), b and c of a problem at its current values.
 struct DenseModel {
   Eigen::MatrixXd H;
@@ -93,7 +100,7 @@ DenseModel dense_model(const Problem& problem) {
 /// The small world's dense graph at its initial poses.
 const std::vector<FramePair>& small_pairs() {
   static const std::vector<FramePair> pairs =
-      build_dense_graph(small_world().frames, small_world().initial);
+      build_dense_graph(small_frames(), small_world().initial);
   return pairs;
 }
 
@@ -108,19 +115,20 @@ GlobalRegistrationOptions small_options(ResidualSampling sampling) {
 /// The small world's registration problem at its initial poses.
 RegistrationProblem small_problem(ResidualSampling sampling) {
   const SmallWorld& w = small_world();
-  return build_registration_problem(w.frames, small_pairs(), w.initial, small_options(sampling));
+  return build_registration_problem(small_frames(), small_pairs(), w.initial,
+                                    small_options(sampling));
 }
 
 /// The small world's registration solved from its initial poses.
 GlobalRegistrationResult small_solve(ResidualSampling sampling) {
   const SmallWorld& w = small_world();
-  return optimize_registration(w.frames, small_pairs(), w.initial, small_options(sampling));
+  return optimize_registration(small_frames(), small_pairs(), w.initial, small_options(sampling));
 }
 
 TEST(DenseGraphTest, ConsecutivePairsAndOverlappingLoops) {
   const SmallWorld& w = small_world();
   DenseGraphOptions options;
-  const auto pairs = build_dense_graph(w.frames, w.truth, options);
+  const auto pairs = build_dense_graph(small_frames(), w.truth, options);
   ASSERT_GE(pairs.size(), w.frames.size() - 1);
   int loops = 0;
   for (std::size_t k = 0; k < pairs.size(); ++k) {
@@ -148,11 +156,11 @@ TEST(DenseGraphTest, RejectsBadInput) {
   const SmallWorld& w = small_world();
   std::vector<Eigen::Isometry3d> poses = w.truth;
   poses.pop_back();
-  EXPECT_THAT([&] { build_dense_graph(w.frames, poses); },
+  EXPECT_THAT([&] { build_dense_graph(small_frames(), poses); },
               ::testing::ThrowsMessage<Error>(HasSubstr("40 frames but 39 poses")));
   poses = w.truth;
   poses[3].translation().x() = std::nan("");
-  EXPECT_THAT([&] { build_dense_graph(w.frames, poses); },
+  EXPECT_THAT([&] { build_dense_graph(small_frames(), poses); },
               ::testing::ThrowsMessage<Error>(HasSubstr("pose 3 is not finite")));
 }
 
@@ -160,7 +168,7 @@ TEST(OdometryTest, ChainsConsecutiveAlignmentsCloseToTruth) {
   const SmallWorld& w = small_world();
   AlignSettings settings;
   settings.max_correspondence_distance = 2.0;
-  const OdometryResult odometry = run_odometry(w.frames, w.initial, settings, 2);
+  const OdometryResult odometry = run_odometry(small_frames(), w.initial, settings, 2);
   ASSERT_EQ(odometry.T_world_frame.size(), w.frames.size());
   for (std::size_t k = 0; k < odometry.steps.size(); ++k) {
     const Eigen::Isometry3d truth = w.truth[k].inverse() * w.truth[k + 1];
@@ -336,7 +344,7 @@ TEST(GlobalRegistrationTest, IterationCallbackSeesThePosesOfEveryIterate) {
     return CallbackResult::kContinue;
   };
   const GlobalRegistrationResult result =
-      optimize_registration(w.frames, small_pairs(), w.initial, options);
+      optimize_registration(small_frames(), small_pairs(), w.initial, options);
   ASSERT_GE(iterations.size(), 2u);
   EXPECT_EQ(static_cast<int>(iterations.size()), solver_calls);
   EXPECT_EQ(iterations.size(), result.summary.iterations.size());
@@ -359,7 +367,7 @@ TEST(GlobalRegistrationTest, IterationCallbackSeesThePosesOfEveryIterate) {
     return row.iteration >= 1 ? CallbackResult::kAbort : CallbackResult::kContinue;
   };
   const GlobalRegistrationResult aborted =
-      optimize_registration(w.frames, small_pairs(), w.initial, options);
+      optimize_registration(small_frames(), small_pairs(), w.initial, options);
   EXPECT_EQ(aborted.summary.termination, TerminationType::kUserAbort);
   EXPECT_EQ(aborted.rounds, 1);
   EXPECT_EQ(calls, 2);
@@ -381,14 +389,16 @@ TEST(GlobalRegistrationTest, ExactMatchesFullAndImprovesOnTheStart) {
 
 TEST(GlobalRegistrationTest, ExcessKernelStartsAtEachFactorsLeastNorm) {
   const SmallWorld& w = small_world();
-  const auto pairs = build_dense_graph(w.frames, w.initial);
+  const auto pairs = build_dense_graph(small_frames(), w.initial);
   GlobalRegistrationOptions options;
   options.num_threads = 2;
   options.factor_excess_cauchy_scale = 1.0;
   options.sampling = ResidualSampling::kFull;
-  const RegistrationProblem full = build_registration_problem(w.frames, pairs, w.initial, options);
+  const RegistrationProblem full =
+      build_registration_problem(small_frames(), pairs, w.initial, options);
   options.sampling = ResidualSampling::kExact;
-  const RegistrationProblem exact = build_registration_problem(w.frames, pairs, w.initial, options);
+  const RegistrationProblem exact =
+      build_registration_problem(small_frames(), pairs, w.initial, options);
   EXPECT_GT(full.stats.minimum_s, 0.0);
   const auto full_blocks = full.problem.blocks();
   const auto exact_blocks = exact.problem.blocks();
@@ -432,10 +442,10 @@ TEST(GlobalRegistrationTest, ExcessKernelStartsAtEachFactorsLeastNorm) {
   // Solved, both improve on the start tenfold and agree (each kernel measures its block's excess
   // over that block's own least norm).
   const GlobalRegistrationResult robust_exact =
-      optimize_registration(w.frames, pairs, w.initial, options);
+      optimize_registration(small_frames(), pairs, w.initial, options);
   options.sampling = ResidualSampling::kFull;
   const GlobalRegistrationResult robust_full =
-      optimize_registration(w.frames, pairs, w.initial, options);
+      optimize_registration(small_frames(), pairs, w.initial, options);
   const double start = compute_ate(w.initial, w.truth).rmse;
   const double ate_full = compute_ate(robust_full.T_world_frame, w.truth).rmse;
   const double ate_exact = compute_ate(robust_exact.T_world_frame, w.truth).rmse;
@@ -447,13 +457,15 @@ TEST(GlobalRegistrationTest, ExcessKernelStartsAtEachFactorsLeastNorm) {
 
 TEST(GlobalRegistrationTest, SameResultWithOneOrTwoThreads) {
   const SmallWorld& w = small_world();
-  const auto pairs = build_dense_graph(w.frames, w.initial);
+  const auto pairs = build_dense_graph(small_frames(), w.initial);
   GlobalRegistrationOptions options;
   options.sampling = ResidualSampling::kExact;
   options.num_threads = 1;
-  const GlobalRegistrationResult one = optimize_registration(w.frames, pairs, w.initial, options);
+  const GlobalRegistrationResult one =
+      optimize_registration(small_frames(), pairs, w.initial, options);
   options.num_threads = 2;
-  const GlobalRegistrationResult two = optimize_registration(w.frames, pairs, w.initial, options);
+  const GlobalRegistrationResult two =
+      optimize_registration(small_frames(), pairs, w.initial, options);
   ASSERT_EQ(one.T_world_frame.size(), two.T_world_frame.size());
   for (std::size_t k = 0; k < one.T_world_frame.size(); ++k)
     EXPECT_EQ(one.T_world_frame[k].matrix(), two.T_world_frame[k].matrix()) << "frame " << k;
@@ -462,15 +474,17 @@ TEST(GlobalRegistrationTest, SameResultWithOneOrTwoThreads) {
 
 TEST(GlobalRegistrationTest, EverySamplingIsTheSameWithOneOrTwoThreads) {
   const SmallWorld& w = small_world();
-  const auto pairs = build_dense_graph(w.frames, w.initial);
+  const auto pairs = build_dense_graph(small_frames(), w.initial);
   for (ResidualSampling sampling :
        {ResidualSampling::kFull, ResidualSampling::kRandom, ResidualSampling::kLossless}) {
     GlobalRegistrationOptions options;
     options.sampling = sampling;
     options.num_threads = 1;
-    const GlobalRegistrationResult one = optimize_registration(w.frames, pairs, w.initial, options);
+    const GlobalRegistrationResult one =
+        optimize_registration(small_frames(), pairs, w.initial, options);
     options.num_threads = 2;
-    const GlobalRegistrationResult two = optimize_registration(w.frames, pairs, w.initial, options);
+    const GlobalRegistrationResult two =
+        optimize_registration(small_frames(), pairs, w.initial, options);
     for (std::size_t k = 0; k < one.T_world_frame.size(); ++k)
       EXPECT_EQ(one.T_world_frame[k].matrix(), two.T_world_frame[k].matrix())
           << to_string(sampling) << " frame " << k;
@@ -483,16 +497,16 @@ TEST(PipelineTest, OdometryGraphAndPoseGraphsAreTheSameWithOneOrTwoThreads) {
   const SmallWorld& w = small_world();
   AlignSettings settings;
   settings.max_correspondence_distance = 2.0;
-  const OdometryResult odometry_one = run_odometry(w.frames, w.initial, settings, 1);
-  const OdometryResult odometry_two = run_odometry(w.frames, w.initial, settings, 2);
+  const OdometryResult odometry_one = run_odometry(small_frames(), w.initial, settings, 1);
+  const OdometryResult odometry_two = run_odometry(small_frames(), w.initial, settings, 2);
   for (std::size_t k = 0; k < w.frames.size(); ++k)
     EXPECT_EQ(odometry_one.T_world_frame[k].matrix(), odometry_two.T_world_frame[k].matrix())
         << "odometry frame " << k;
   DenseGraphOptions graph;
   graph.num_threads = 1;
-  const auto pairs_one = build_dense_graph(w.frames, odometry_one.T_world_frame, graph);
+  const auto pairs_one = build_dense_graph(small_frames(), odometry_one.T_world_frame, graph);
   graph.num_threads = 2;
-  const auto pairs_two = build_dense_graph(w.frames, odometry_one.T_world_frame, graph);
+  const auto pairs_two = build_dense_graph(small_frames(), odometry_one.T_world_frame, graph);
   ASSERT_EQ(pairs_one.size(), pairs_two.size());
   for (std::size_t k = 0; k < pairs_one.size(); ++k) {
     EXPECT_EQ(pairs_one[k].target, pairs_two[k].target);
@@ -500,9 +514,9 @@ TEST(PipelineTest, OdometryGraphAndPoseGraphsAreTheSameWithOneOrTwoThreads) {
     EXPECT_EQ(pairs_one[k].overlap, pairs_two[k].overlap);
   }
   const auto registrations_one =
-      register_pairs(w.frames, pairs_one, odometry_one.T_world_frame, AlignSettings{}, 1);
+      register_pairs(small_frames(), pairs_one, odometry_one.T_world_frame, AlignSettings{}, 1);
   const auto registrations_two =
-      register_pairs(w.frames, pairs_one, odometry_one.T_world_frame, AlignSettings{}, 2);
+      register_pairs(small_frames(), pairs_one, odometry_one.T_world_frame, AlignSettings{}, 2);
   for (std::size_t k = 0; k < registrations_one.size(); ++k) {
     EXPECT_EQ(registrations_one[k].T_target_source.matrix(),
               registrations_two[k].T_target_source.matrix())
@@ -525,8 +539,8 @@ TEST(PipelineTest, OdometryGraphAndPoseGraphsAreTheSameWithOneOrTwoThreads) {
 
 TEST(GlobalRegistrationTest, PoseGraphBaselinesImproveOnTheStart) {
   const SmallWorld& w = small_world();
-  const auto pairs = build_dense_graph(w.frames, w.initial);
-  const auto registrations = register_pairs(w.frames, pairs, w.initial, AlignSettings{}, 2);
+  const auto pairs = build_dense_graph(small_frames(), w.initial);
+  const auto registrations = register_pairs(small_frames(), pairs, w.initial, AlignSettings{}, 2);
   const double start = compute_ate(w.initial, w.truth).rmse;
   for (auto information : {PoseGraphInformation::kIdentity, PoseGraphInformation::kHessian}) {
     PoseGraphBaselineOptions options;
@@ -564,35 +578,35 @@ TEST(GlobalRegistrationTest, RejectsBadInput) {
   const std::vector<FramePair> pairs{{0, 1, 1.0}};
   GlobalRegistrationOptions options;
   std::vector<Eigen::Isometry3d> poses(w.initial.begin(), w.initial.end() - 1);
-  EXPECT_THAT([&] { build_registration_problem(w.frames, pairs, poses, options); },
+  EXPECT_THAT([&] { build_registration_problem(small_frames(), pairs, poses, options); },
               ::testing::ThrowsMessage<Error>(HasSubstr("40 frames but 39 poses")));
   // Frames no pair ties to frame 0 would keep their start poses.
-  EXPECT_THAT([&] { build_registration_problem(w.frames, pairs, w.initial, options); },
+  EXPECT_THAT([&] { build_registration_problem(small_frames(), pairs, w.initial, options); },
               ::testing::ThrowsMessage<Error>(HasSubstr(
                   "global registration: 38 of 40 frames are tied to frame 0 by no chain of pairs "
                   "(e.g. frame 2; 1 pairs given), so their poses are undetermined")));
-  EXPECT_THAT([&] { optimize_registration(w.frames, {}, w.initial, options); },
+  EXPECT_THAT([&] { optimize_registration(small_frames(), {}, w.initial, options); },
               ::testing::ThrowsMessage<Error>(HasSubstr("39 of 40 frames are tied to frame 0")));
   // Far apart: no correspondences within 1 m.
-  const std::vector<std::shared_ptr<const Frame>> two(w.frames.begin(), w.frames.begin() + 2);
+  FrameStore two(std::vector<std::shared_ptr<const Frame>>(w.frames.begin(), w.frames.begin() + 2));
   poses.assign(w.initial.begin(), w.initial.begin() + 2);
   poses[1].translation() += Eigen::Vector3d(500.0, 0.0, 0.0);
   EXPECT_THAT([&] { build_registration_problem(two, pairs, poses, options); },
               ::testing::ThrowsMessage<Error>(HasSubstr("pair (0, 1) has only 0 correspondences")));
   const std::vector<FramePair> bad{{0, 0, 1.0}};
-  EXPECT_THROW(build_registration_problem(w.frames, bad, w.initial, options), Error);
+  EXPECT_THROW(build_registration_problem(small_frames(), bad, w.initial, options), Error);
   options.factor_excess_cauchy_scale = -1.0;
-  EXPECT_THAT([&] { build_registration_problem(w.frames, pairs, w.initial, options); },
+  EXPECT_THAT([&] { build_registration_problem(small_frames(), pairs, w.initial, options); },
               ::testing::ThrowsMessage<Error>(HasSubstr(
                   "factor_excess_cauchy_scale must be finite and >= 0 (0: no kernel), got -1")));
   options.factor_excess_cauchy_scale = 1.0;
   options.factor_cauchy_scale = 1.0;
-  EXPECT_THAT([&] { build_registration_problem(w.frames, pairs, w.initial, options); },
+  EXPECT_THAT([&] { build_registration_problem(small_frames(), pairs, w.initial, options); },
               ::testing::ThrowsMessage<Error>(HasSubstr("a factor takes one kernel")));
   options.factor_cauchy_scale = 0.0;
   options.factor_excess_cauchy_scale = 0.0;
   options.residuals = 0;
-  EXPECT_THROW(build_registration_problem(w.frames, pairs, w.initial, options), Error);
+  EXPECT_THROW(build_registration_problem(small_frames(), pairs, w.initial, options), Error);
   EXPECT_THROW(parse_residual_sampling("exactly"), Error);
 }
 
@@ -610,11 +624,12 @@ TEST(GlobalRegistrationTest, Kitti07RecoversTheReferenceFromAPerturbedStart) {
                                       preprocess, name));
   }
   const auto start = perturb_poses(reference.poses, 0.3, 3.0, 1);
-  const auto pairs = build_dense_graph(frames, start);
+  FrameStore store(std::move(frames));
+  const auto pairs = build_dense_graph(store, start);
   GlobalRegistrationOptions options;
   options.num_threads = 2;
   options.rounds = 10;
-  const GlobalRegistrationResult result = optimize_registration(frames, pairs, start, options);
+  const GlobalRegistrationResult result = optimize_registration(store, pairs, start, options);
   const AteStatistics ate = compute_ate(result.T_world_frame, reference.poses);
   EXPECT_LT(ate.rmse, 0.02);
   EXPECT_LT(ate.rotation_rmse_deg, 0.2);
