@@ -42,6 +42,9 @@ class SchurLinearization {
   void plan_direct_blocks(const Problem& problem);
   void plan_other_blocks(const Problem& problem);
   void zero_slots(std::size_t k);
+  /// The points [p0, p1) of chunk k: V, their gradients, W per edge and, fused, the chunk's
+  /// slots; h_of(q) / b_of(q): packed H (or, direct, Jacobian rows) and b of the block of
+  /// structure point contribution q.
   template <typename HOf, typename BOf>
   void scatter_chunk(std::size_t k, std::size_t p0, std::size_t p1, double* gradient,
                      const HOf& h_of, const BOf& b_of, bool use_direct);
