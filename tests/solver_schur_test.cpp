@@ -203,6 +203,54 @@ TEST(SchurSystemTest, StepEqualsWholeSystemStepWithSixParameterCameras) {
 }
 TEST(SchurSystemTest, StepEqualsWholeSystemStepWithOtherSizes) { expect_same_step<7>(8, 120); }
 
+/// The ordering named in a system's description ("... AMD ordering ..."): AMD, METIS or NESDIS.
+std::string ordering_in(const std::string& description) {
+  for (const char* name : {"AMD", "METIS", "NESDIS"}) {
+    if (description.find(std::string(name) + " ordering") != std::string::npos) return name;
+  }
+  return "none";
+}
+
+TEST(SchurSystemTest, AutoOrderingIsTheSameRuleOnBothPaths) {
+  // Ordering::kAuto tries AMD, METIS and NESDIS and keeps the cheapest factor, on the whole
+  // system's variable graph and on the reduced system alike: here NESDIS wins on both (the
+  // reduced system of a ring of cameras, a 3-D grid of variables); an explicit choice is kept.
+  BundleProblem<9> ba = make_bundle<9>(20, 100, 3, 3, true);
+  std::vector<char> eliminate(static_cast<std::size_t>(ba.problem.num_variables()), 0);
+  for (VariableId p : ba.points) eliminate[static_cast<std::size_t>(p.index)] = 1;
+  EXPECT_EQ(
+      ordering_in(internal::SchurSystem(ba.problem, eliminate, Ordering::kAuto).description()),
+      "NESDIS");
+  EXPECT_EQ(ordering_in(internal::SchurSystem(ba.problem, eliminate, Ordering::kAmd).description()),
+            "AMD");
+  EXPECT_EQ(
+      ordering_in(internal::SchurSystem(ba.problem, eliminate, Ordering::kMetis).description()),
+      "METIS");
+
+  // A 6 x 6 x 6 grid of 2-D variables, each joined to its neighbours along x, y and z.
+  constexpr int kSide = 6;
+  Problem grid;
+  std::vector<VariableId> ids;
+  for (int k = 0; k < kSide * kSide * kSide; ++k) {
+    ids.push_back(grid.add_euclidean(Eigen::Vector2d(k, 1)));
+  }
+  const auto join = [&](int a, int b) {
+    grid.add_residual_block(
+        std::make_shared<test::LinearBlock>(
+            std::vector<Eigen::MatrixXd>{Eigen::Matrix2d::Identity(), -Eigen::Matrix2d::Identity()},
+            Eigen::Vector2d(1.0, 0.0)),
+        {ids[static_cast<std::size_t>(a)], ids[static_cast<std::size_t>(b)]});
+  };
+  for (int k = 0; k < kSide * kSide * kSide; ++k) {
+    if (k % kSide + 1 < kSide) join(k, k + 1);
+    if (k / kSide % kSide + 1 < kSide) join(k, k + kSide);
+    if (k / (kSide * kSide) + 1 < kSide) join(k, k + kSide * kSide);
+  }
+  EXPECT_EQ(ordering_in(internal::SparseSystem(grid, Ordering::kAuto).description()), "NESDIS");
+  EXPECT_EQ(ordering_in(internal::SparseSystem(grid, Ordering::kAmd).description()), "AMD");
+  EXPECT_EQ(ordering_in(internal::SparseSystem(grid, Ordering::kMetis).description()), "METIS");
+}
+
 TEST(SchurSystemTest, UnobservedPointIsNotPositiveDefiniteWithoutDamping) {
   BundleProblem<6> ba = make_bundle<6>(6, 20, 3, 3, true);
   ba.points.push_back(ba.problem.add_euclidean(Eigen::Vector3d(0.0, 0.0, 0.0)));

@@ -42,14 +42,15 @@ cholmod_common& CholmodSession::common() { return state_->common; }
 
 cholmod_factor* CholmodSession::factor() { return state_->factor; }
 
-void CholmodSession::set_lower_matrix(std::size_t n, std::int64_t* colptr, std::int64_t* rows,
-                                      double* values, std::size_t nnz) {
+void CholmodSession::set_lower_matrix(std::size_t n, const std::int64_t* colptr,
+                                      const std::int64_t* rows, double* values, std::size_t nnz) {
   State& st = *state_;
   st.matrix.nrow = n;
   st.matrix.ncol = n;
   st.matrix.nzmax = nnz;
-  st.matrix.p = colptr;
-  st.matrix.i = rows;
+  // CHOLMOD's header has no const members; it reads, never writes, a packed matrix's pattern.
+  st.matrix.p = const_cast<std::int64_t*>(colptr);
+  st.matrix.i = const_cast<std::int64_t*>(rows);
   st.matrix.nz = nullptr;
   st.matrix.x = values;
   st.matrix.z = nullptr;
@@ -59,6 +60,40 @@ void CholmodSession::set_lower_matrix(std::size_t n, std::int64_t* colptr, std::
   st.matrix.dtype = CHOLMOD_DOUBLE;
   st.matrix.sorted = 1;
   st.matrix.packed = 1;
+}
+
+void CholmodSession::set_ordering(Ordering ordering) {
+  cholmod_common& common = state_->common;
+  switch (ordering) {
+    case Ordering::kAmd:
+      common.nmethods = 1;
+      common.method[0].ordering = CHOLMOD_AMD;
+      break;
+    case Ordering::kMetis:
+      common.nmethods = 1;
+      common.method[0].ordering = CHOLMOD_METIS;
+      break;
+    case Ordering::kAuto:
+      common.nmethods = 3;  // CHOLMOD keeps the one whose factor needs the fewest flops
+      common.method[0].ordering = CHOLMOD_AMD;
+      common.method[1].ordering = CHOLMOD_METIS;
+      common.method[2].ordering = CHOLMOD_NESDIS;
+      break;
+  }
+}
+
+const char* CholmodSession::chosen_ordering() const {
+  const cholmod_common& common = state_->common;
+  switch (common.method[common.selected].ordering) {
+    case CHOLMOD_AMD:
+      return "AMD";
+    case CHOLMOD_METIS:
+      return "METIS";
+    case CHOLMOD_NESDIS:
+      return "NESDIS";
+    default:
+      return "natural";
+  }
 }
 
 void CholmodSession::analyze(const char* who) {

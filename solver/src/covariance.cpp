@@ -253,13 +253,9 @@ void Covariance::Impl::compute(const Problem& problem, const Options& options) {
   const std::vector<double> values(problem.all_values().begin(), problem.all_values().end());
   evaluator.bind(0, values.data());
   Eigen::VectorXd gradient;
-  double cost = 0.0;
-  double assembly_s = 0.0;
-  std::string error;
-  if (!system->linearize(evaluator, 0, &gradient, &cost, &time.linearize_s, &assembly_s, &error)) {
-    throw Error("covariance: " + error);
-  }
-  time.linearize_s += assembly_s;
+  const internal::LinearizeReport linearized = system->linearize(evaluator, 0, &gradient);
+  time.linearize_s += linearized.time.linearize_s + linearized.time.assembly_s;
+  if (!linearized.ok) throw Error("covariance: " + linearized.error);
   if (n == 0) {
     time.total_s = total.elapsed_s();
     return;

@@ -7,6 +7,7 @@
 #include "carat/base/error.hpp"
 #include "carat/base/machine_memory.hpp"
 #include "carat/base/stopwatch.hpp"
+#include "schur_structure.hpp"
 #include "schur_system.hpp"
 #include "sparse_system.hpp"
 #include "system_memory.hpp"
@@ -25,19 +26,7 @@ std::vector<char> marked_group(const Problem& problem) {
     const VariableId id{v};
     eliminate[static_cast<std::size_t>(v)] = problem.is_eliminable(id) && !problem.is_constant(id);
   }
-  const auto blocks = problem.blocks();
-  for (std::size_t bi = 0; bi < blocks.size(); ++bi) {
-    int first = -1;
-    for (VariableId v : blocks[bi].variables) {
-      if (!eliminate[static_cast<std::size_t>(v.index)]) continue;
-      if (first >= 0) {
-        throw Error("Schur complement: residual block " + std::to_string(bi) +
-                    " connects two eliminable variables (" + std::to_string(first) + " and " +
-                    std::to_string(v.index) + "); the eliminated variables must not share a block");
-      }
-      first = v.index;
-    }
-  }
+  check_eliminable_group(problem, eliminate);
   return eliminate;
 }
 
@@ -79,22 +68,20 @@ std::vector<char> detected_group(const Problem& problem, int* group_dims) {
 
 }  // namespace
 
-bool LinearSystem::linearize(const BlockEvaluator& evaluator, int which, Eigen::VectorXd* gradient,
-                             double* cost, double* linearize_s, double* assembly_s,
-                             std::string* error) {
+LinearizeReport LinearSystem::linearize(const BlockEvaluator& evaluator, int which,
+                                        Eigen::VectorXd* gradient) {
+  LinearizeReport report;
   Stopwatch t0;
   if (storage_.dim.empty()) evaluator.allocate(&storage_);
-  if (!evaluator.linearize(which, &storage_, error)) {
-    *linearize_s += t0.elapsed_s();
-    return false;
-  }
-  *linearize_s += t0.elapsed_s();
+  const bool ok = evaluator.linearize(which, &storage_, &report.error);
+  report.time.linearize_s = t0.elapsed_s();
+  if (!ok) return report;
   t0.restart();
   assemble(storage_, gradient);
-  *assembly_s += t0.elapsed_s();
-  *cost = 0.0;
-  for (const double c : storage_.cost) *cost += c;
-  return true;
+  report.time.assembly_s = t0.elapsed_s();
+  for (const double c : storage_.cost) report.cost += c;
+  report.ok = true;
+  return report;
 }
 
 namespace {

@@ -14,6 +14,7 @@
 #include "block_linearizations.hpp"
 #include "carat/solver/problem.hpp"
 #include "carat/solver/solver_options.hpp"
+#include "linearize_report.hpp"
 
 namespace carat::internal {
 
@@ -36,11 +37,11 @@ class LinearSystem {
   virtual void assemble(const BlockLinearizations& blocks, Eigen::VectorXd* gradient) = 0;
 
   /// Linearizes every block at the evaluator's buffer `which` and assembles the system and the
-  /// gradient; *cost: 1/2 sum rho. Adds the time spent to *linearize_s and *assembly_s. False,
-  /// with the block and row named in *error, if something is not finite. The default evaluates
-  /// into per-block storage, then assembles.
-  virtual bool linearize(const BlockEvaluator& evaluator, int which, Eigen::VectorXd* gradient,
-                         double* cost, double* linearize_s, double* assembly_s, std::string* error);
+  /// gradient; reports the cost (1/2 sum rho) and the time of each stage, or, with ok false,
+  /// the block and row that were not finite. The default evaluates into per-block storage,
+  /// then assembles.
+  virtual LinearizeReport linearize(const BlockEvaluator& evaluator, int which,
+                                    Eigen::VectorXd* gradient);
 
   /// Undamped diagonal of H.
   virtual Eigen::VectorXd diagonal() const = 0;

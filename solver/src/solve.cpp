@@ -17,6 +17,7 @@
 #include "factorization_reuse.hpp"
 #include "hessian_damping.hpp"
 #include "linear_system.hpp"
+#include "solver_run.hpp"
 #include "step_quality.hpp"
 #include "stop_criteria.hpp"
 #include "trust_region_strategy.hpp"
@@ -54,66 +55,9 @@ double free_parameter_norm(const Problem& problem, const std::vector<int>& var_o
   return std::sqrt(sum);
 }
 
-/// One solve: set-up and the first linearization, then the iterations of the chosen method.
-/// Levenberg-Marquardt and Gauss-Newton share the pieces of an iteration (the stop tests at its
-/// start, the linear solve, the parameter test, the trial cost, moving to the new iterate);
-/// the trust region, its damping and the reuse of factorizations belong to LM alone.
-class Solver {
- public:
-  Solver(const SolverOptions& options, Problem& problem, SolverSummary& summary)
-      : options_(options), problem_(problem), summary_(summary) {}
+}  // namespace
 
-  void run();
-  /// Copies the last accepted iterate (finite cost, lowest so far) into the problem.
-  void write_back() {
-    if (!buffers_[current_].empty()) problem_.set_all_values(buffers_[current_]);
-  }
-
- private:
-  bool initialize();
-  void run_levenberg_marquardt();
-  void run_gauss_newton();
-  bool begin_iteration(int iteration, IterationSummary* row);
-  bool factorize();
-  bool factorize_gauss_newton(IterationSummary* row);
-  bool solve_for_step(IterationSummary& row, const Stopwatch& iteration_time);
-  bool stop_on_small_step(IterationSummary& row, double radius, const Stopwatch& iteration_time);
-  double trial_cost();
-  double predicted_decrease();
-  bool reject_step(IterationSummary& row, internal::TrustRegionStrategy& region,
-                   internal::RadiusShrinkCause cause, const Stopwatch& iteration_time);
-  bool linearize();
-  bool take_step(IterationSummary& row, double new_cost, int iteration,
-                 const Stopwatch& iteration_time);
-  bool try_reused_factorization(IterationSummary& row, int iteration,
-                                const Stopwatch& iteration_time, bool* stop);
-  void record(IterationSummary row, const Stopwatch& iteration_time);
-  bool finish(TerminationType type, std::string message);
-  /// Ends the solve with kUserAbort when the iteration callback asked for it: then true.
-  bool abort_if_requested();
-  bool finish(internal::StopReason reason) {
-    return finish(reason.type, std::move(reason.message));
-  }
-
-  SolverOptions options_;  ///< a copy: the automatic trust-region growth is resolved in it
-  Problem& problem_;
-  SolverSummary& summary_;
-  Stopwatch solve_time_;  ///< since the solver was made
-  std::unique_ptr<internal::LinearSystem> system_;
-  std::unique_ptr<internal::BlockEvaluator> evaluator_;
-  std::unique_ptr<internal::BoundConstraints> bounds_;  ///< none when the problem has no bounds
-  bool projected_ = false;  ///< the last trial point was moved onto the bounds
-  std::vector<double> buffers_[2];
-  int current_ = 0;
-  bool abort_requested_ = false;  ///< the iteration callback returned kAbort
-  double cost_ = 0.0;
-  double fresh_decrease_ = 0.0;  ///< cost decrease of the last step from a fresh factorization
-  Eigen::VectorXd gradient_;
-  Eigen::VectorXd damping_;  ///< diagonal added to H in the last factorization
-  Eigen::VectorXd delta_;    ///< scratch: the step
-  Eigen::VectorXd rhs_;      ///< scratch: -gradient
-  Eigen::VectorXd h_delta_;  ///< scratch: H delta
-};
+namespace internal {
 
 bool Solver::finish(TerminationType type, std::string message) {
   summary_.termination = type;
@@ -137,11 +81,11 @@ bool Solver::abort_if_requested() {
 }
 
 bool Solver::linearize() {
-  std::string error;
-  if (!system_->linearize(*evaluator_, current_, &gradient_, &cost_, &summary_.time.linearize_s,
-                          &summary_.time.assembly_s, &error)) {
-    return finish(TerminationType::kFailure, error), false;
-  }
+  internal::LinearizeReport report = system_->linearize(*evaluator_, current_, &gradient_);
+  summary_.time.linearize_s += report.time.linearize_s;
+  summary_.time.assembly_s += report.time.assembly_s;
+  if (!report.ok) return finish(TerminationType::kFailure, std::move(report.error)), false;
+  cost_ = report.cost;
   return true;
 }
 
@@ -338,104 +282,6 @@ bool Solver::try_reused_factorization(IterationSummary& row, int iteration,
   return true;
 }
 
-/// Levenberg-Marquardt: each iteration damps H by the trust region, solves, and takes the step
-/// if the trust region accepts its gain ratio; a rejected step shrinks the region and the next
-/// iteration refactorizes at the same iterate (no relinearization).
-void Solver::run_levenberg_marquardt() {
-  internal::TrustRegionStrategy region(options_);
-  bool reuse_next = false;  // try the next step with the current factorization
-  for (int iteration = 1;; ++iteration) {
-    IterationSummary row;
-    if (!begin_iteration(iteration, &row)) return;
-    const Stopwatch iteration_time;
-
-    if (reuse_next) {
-      reuse_next = false;
-      row.trust_region_radius = region.radius();
-      bool stop = false;
-      if (try_reused_factorization(row, iteration, iteration_time, &stop)) {
-        if (stop) return;
-        reuse_next = true;
-        continue;
-      }
-    }
-
-    region.damping(system_->diagonal(), &damping_);
-    if (bounds_) bounds_->hold_active(buffers_[current_].data(), gradient_, &damping_);
-    if (!factorize()) {
-      row.linear_solver_failed = true;
-      ++summary_.num_linear_solver_failures;
-      if (reject_step(row, region, internal::RadiusShrinkCause::kSystemNotPositiveDefinite,
-                      iteration_time)) {
-        return;
-      }
-      continue;
-    }
-    if (!solve_for_step(row, iteration_time)) return;
-    if (stop_on_small_step(row, region.radius(), iteration_time)) return;
-
-    const double new_cost = trial_cost();
-    const internal::StepQuality step = internal::judge_step(cost_, new_cost, predicted_decrease());
-    row.relative_decrease = step.measured_ratio;
-    if (!region.accepts(step)) {
-      if (reject_step(row, region, internal::RadiusShrinkCause::kStepRejected, iteration_time)) {
-        return;
-      }
-      continue;
-    }
-    ++summary_.num_successful_steps;
-    row.step_is_successful = true;
-    row.cost_change = step.cost_decrease;
-    row.cost = new_cost;
-    region.on_accepted(step.gain_ratio);
-    row.trust_region_radius = region.radius();
-    // A gain ratio well above 1 (the cost fell faster than the model said, as in a slow,
-    // linearly converging tail): the exact H buys little over this one, so the next step
-    // first tries this factorization.
-    reuse_next = internal::should_try_reuse(step, options_);
-    if (take_step(row, new_cost, iteration, iteration_time)) return;
-  }
-}
-
-/// Gauss-Newton: undamped steps (damped only as far as an indefinite system needs), each taken
-/// if it does not raise the cost; a step that does ends the solve. The table shows the initial
-/// trust region radius, which Gauss-Newton never changes.
-void Solver::run_gauss_newton() {
-  const double radius = options_.initial_trust_region_radius;
-  for (int iteration = 1;; ++iteration) {
-    IterationSummary row;
-    if (!begin_iteration(iteration, &row)) return;
-    const Stopwatch iteration_time;
-
-    if (!factorize_gauss_newton(&row)) {
-      ++summary_.num_unsuccessful_steps;
-      record(row, iteration_time);
-      finish(TerminationType::kFailure,
-             "Gauss-Newton: the system is not positive definite even with damping (gauge not fixed "
-             "or rank-deficient H?)");
-      return;
-    }
-    if (!solve_for_step(row, iteration_time)) return;
-    if (stop_on_small_step(row, radius, iteration_time)) return;
-
-    const double new_cost = trial_cost();
-    const internal::StepQuality step = internal::judge_step(cost_, new_cost, predicted_decrease());
-    row.relative_decrease = step.measured_ratio;
-    if (auto stop = internal::check_gauss_newton_decrease(cost_, new_cost)) {
-      ++summary_.num_unsuccessful_steps;
-      record(row, iteration_time);
-      finish(std::move(*stop));
-      return;
-    }
-    ++summary_.num_successful_steps;
-    row.step_is_successful = true;
-    row.cost_change = step.cost_decrease;
-    row.cost = new_cost;
-    row.trust_region_radius = radius;
-    if (take_step(row, new_cost, iteration, iteration_time)) return;
-  }
-}
-
 /// The symbolic analysis, the buffers and the first linearization; the summary's problem
 /// figures and the row of iteration 0. False: the solve is already over.
 bool Solver::initialize() {
@@ -525,7 +371,7 @@ void Solver::run() {
   summary_.final_cost = cost_;
 }
 
-}  // namespace
+}  // namespace internal
 
 SolverSummary solve(const SolverOptions& options, Problem& problem) {
   const Stopwatch start;
@@ -542,7 +388,7 @@ SolverSummary solve(const SolverOptions& options, Problem& problem) {
   // More threads than TBB allows would only make TBB print a warning; clamp instead.
   SolverOptions effective = options;
   effective.num_threads = std::min(options.num_threads, tbb::info::default_concurrency());
-  Solver solver(effective, problem, summary);
+  internal::Solver solver(effective, problem, summary);
   tbb::task_arena arena(effective.num_threads);
   arena.execute([&] { solver.run(); });
   solver.write_back();

@@ -83,18 +83,7 @@ SparseSystem::SparseSystem(const Problem& problem, Ordering ordering)
     G->stype = 1;  // symmetric, both triangles stored: CHOLMOD uses the upper part
     common.supernodal = CHOLMOD_SIMPLICIAL;
     common.postorder = 1;
-    if (ordering == Ordering::kAmd) {
-      common.nmethods = 1;
-      common.method[0].ordering = CHOLMOD_AMD;
-    } else if (ordering == Ordering::kMetis) {
-      common.nmethods = 1;
-      common.method[0].ordering = CHOLMOD_METIS;
-    } else {
-      common.nmethods = 3;  // all three; the one whose factor needs fewer flops wins
-      common.method[0].ordering = CHOLMOD_AMD;
-      common.method[1].ordering = CHOLMOD_METIS;
-      common.method[2].ordering = CHOLMOD_NESDIS;
-    }
+    cholmod_->set_ordering(ordering);
     cholmod_factor* LG = cholmod_l_analyze(G, &common);
     cholmod_l_free_sparse(&G, &common);
     if (!LG)
@@ -103,11 +92,7 @@ SparseSystem::SparseSystem(const Problem& problem, Ordering ordering)
     const auto* perm = static_cast<const SuiteSparse_long*>(LG->Perm);
     for (std::size_t k = 0; k < nb; ++k)
       position[static_cast<std::size_t>(perm[k])] = static_cast<int>(k);
-    const int selected = common.method[common.selected].ordering;
-    ordering_name_ = selected == CHOLMOD_METIS    ? "METIS"
-                     : selected == CHOLMOD_NESDIS ? "NESDIS"
-                     : selected == CHOLMOD_AMD    ? "AMD"
-                                                  : "natural";
+    ordering_name_ = cholmod_->chosen_ordering();
     cholmod_l_free_factor(&LG, &common);
   } else {
     ordering_name_ = "natural";

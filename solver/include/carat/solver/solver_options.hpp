@@ -21,10 +21,13 @@ const char* to_string(Method method);
 /// Parses "lm" or "gn"; throws carat::Error listing them otherwise.
 Method parse_method(std::string_view name);
 
-/// Fill-reducing ordering of the variables (computed once, on the variable-level graph, then
-/// expanded to scalars and postordered).
+/// Fill-reducing ordering of the matrix that is factorized, computed once in the symbolic
+/// analysis: for the whole system on the variable-level graph (then expanded to scalars and
+/// postordered), for the Schur complement on the reduced system.
 enum class Ordering {
-  kAuto,   ///< AMD, METIS and CHOLMOD's NESDIS; the one whose factor needs fewer flops wins
+  kAuto,   ///< AMD, METIS and CHOLMOD's NESDIS are each tried and the one whose factor needs
+           ///< the fewest flops is kept; the same rule for the whole system and the Schur
+           ///< complement's reduced system
   kAmd,    ///< approximate minimum degree
   kMetis,  ///< METIS nested dissection (good for large, mesh-like graphs)
 };
