@@ -11,6 +11,7 @@
 #include "carat/base/stage_times.hpp"
 #include "carat/registration/io/kitti_io.hpp"
 #include "carat/registration/mapping.hpp"
+#include "carat/registration/odometry.hpp"
 #include "carat/registration/scan_opening.hpp"
 #include "registration_test_drive.hpp"
 #include "test_support.hpp"
@@ -103,6 +104,30 @@ TEST(MappingTest, RefusesBadSettings) {
   EXPECT_EQ(parse_mapping_method("pgo"), MappingMethod::kPoseGraph);
   EXPECT_STREQ(to_string(MappingMethod::kRegistration), "gre");
 }
+
+// Code written for frames in memory still builds (with a deprecation warning) and gets what a
+// resident store gives.
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wdeprecated-declarations"
+TEST(MappingTest, DeprecatedFrameSpanOverloadsGiveTheStoreResults) {
+  const std::vector<std::shared_ptr<const Frame>>& frames = drive().frames;
+  FrameStore store(frames);
+  const std::vector<FramePair> pairs = build_dense_graph(store, drive().initial);
+  EXPECT_EQ(build_dense_graph(frames, drive().initial).size(), pairs.size());
+  const std::vector<FramePair> first(pairs.begin(), pairs.begin() + 3);
+  const auto a = register_pairs(frames, first, drive().initial, AlignSettings{}, 2);
+  const auto b = register_pairs(store, first, drive().initial, AlignSettings{}, 2);
+  ASSERT_EQ(a.size(), b.size());
+  for (std::size_t k = 0; k < a.size(); ++k)
+    EXPECT_TRUE(a[k].T_target_source.isApprox(b[k].T_target_source, 0.0));
+  const OdometryResult odometry = run_odometry(frames, drive().initial, AlignSettings{}, 2);
+  EXPECT_EQ(odometry.describe_unreliable_steps(frames), odometry.describe_unreliable_steps(store));
+  EXPECT_EQ(test::error_of([&] {
+              build_dense_graph(std::vector<std::shared_ptr<const Frame>>(2), drive().initial);
+            }),
+            "frame store: frame 0 is null");
+}
+#pragma GCC diagnostic pop
 
 TEST(StageTimesTest, AddsPerStageInFirstRunOrder) {
   StageTimes times;

@@ -42,6 +42,16 @@ std::vector<FramePair> build_dense_graph(
     const DenseGraphOptions& options = {},
     const std::function<void(std::size_t, std::size_t)>& progress = {});
 
+/// Deprecated: the same from frames in memory.
+[[deprecated("wrap the frames in a carat::FrameStore")]] inline std::vector<FramePair>
+build_dense_graph(std::span<const std::shared_ptr<const Frame>> frames,
+                  std::span<const Eigen::Isometry3d> T_world_frame,
+                  const DenseGraphOptions& options = {},
+                  const std::function<void(std::size_t, std::size_t)>& progress = {}) {
+  FrameStore store = resident_store(frames);
+  return build_dense_graph(store, T_world_frame, options, progress);
+}
+
 /// A processing order of `pairs` (a permutation of their indices) under which a bounded cache
 /// of frames meets each frame in few separate stretches: pairs sorted by the Morton code of the
 /// cell (cell_size metres) that holds the midpoint of their two frames' positions, then by

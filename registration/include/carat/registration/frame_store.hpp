@@ -75,4 +75,10 @@ class FrameStore {
   std::condition_variable loaded_;
 };
 
+/// Frames the caller holds as a resident store; throws as FrameStore's constructor does. What the
+/// deprecated overloads that take a span of frames do.
+inline FrameStore resident_store(std::span<const std::shared_ptr<const Frame>> frames) {
+  return FrameStore(std::vector<std::shared_ptr<const Frame>>(frames.begin(), frames.end()));
+}
+
 }  // namespace carat

@@ -186,4 +186,26 @@ GlobalRegistrationResult optimize_registration(const RegistrationFactorBuilder& 
                                                std::span<const Eigen::Isometry3d> T_world_frame,
                                                const GlobalRegistrationOptions& options);
 
+/// Deprecated: build_registration_problem() from frames in memory.
+[[deprecated("wrap the frames in a carat::FrameStore")]] inline RegistrationProblem
+build_registration_problem(std::span<const std::shared_ptr<const Frame>> frames,
+                           std::span<const FramePair> pairs,
+                           std::span<const Eigen::Isometry3d> T_world_frame,
+                           const GlobalRegistrationOptions& options,
+                           const std::function<void(std::size_t, std::size_t)>& progress = {}) {
+  FrameStore store = resident_store(frames);
+  return build_registration_problem(store, pairs, T_world_frame, options, progress);
+}
+
+/// Deprecated: optimize_registration() from frames in memory.
+[[deprecated("wrap the frames in a carat::FrameStore")]] inline GlobalRegistrationResult
+optimize_registration(std::span<const std::shared_ptr<const Frame>> frames,
+                      std::span<const FramePair> pairs,
+                      std::span<const Eigen::Isometry3d> T_world_frame,
+                      const GlobalRegistrationOptions& options,
+                      const std::function<void(std::size_t, std::size_t)>& progress = {}) {
+  FrameStore store = resident_store(frames);
+  return optimize_registration(store, pairs, T_world_frame, options, progress);
+}
+
 }  // namespace carat

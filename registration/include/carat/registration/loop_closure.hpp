@@ -106,4 +106,32 @@ LoopClosureResult close_loops(FrameStore& frames, std::span<const Eigen::Isometr
                               const LoopClosureOptions& options,
                               const std::function<void(std::size_t, std::size_t)>& progress = {});
 
+/// Deprecated: find_loop_candidates() from frames in memory.
+[[deprecated("wrap the frames in a carat::FrameStore")]] inline std::vector<LoopCandidate>
+find_loop_candidates(std::span<const std::shared_ptr<const Frame>> frames,
+                     std::span<const Eigen::Isometry3d> T_world_guess,
+                     const LoopClosureOptions& options, std::vector<int>* sparse_frames = nullptr) {
+  FrameStore store = resident_store(frames);
+  return find_loop_candidates(store, T_world_guess, options, sparse_frames);
+}
+
+/// Deprecated: validate_loop_candidates() from frames in memory.
+[[deprecated("wrap the frames in a carat::FrameStore")]] inline std::vector<LoopCheck>
+validate_loop_candidates(std::span<const std::shared_ptr<const Frame>> frames,
+                         std::span<const Eigen::Isometry3d> T_world_guess,
+                         std::span<const LoopCandidate> candidates,
+                         const LoopClosureOptions& options) {
+  FrameStore store = resident_store(frames);
+  return validate_loop_candidates(store, T_world_guess, candidates, options);
+}
+
+/// Deprecated: close_loops() from frames in memory.
+[[deprecated("wrap the frames in a carat::FrameStore")]] inline LoopClosureResult close_loops(
+    std::span<const std::shared_ptr<const Frame>> frames,
+    std::span<const Eigen::Isometry3d> T_world_guess, const LoopClosureOptions& options,
+    const std::function<void(std::size_t, std::size_t)>& progress = {}) {
+  FrameStore store = resident_store(frames);
+  return close_loops(store, T_world_guess, options, progress);
+}
+
 }  // namespace carat

@@ -26,6 +26,12 @@ struct OdometryResult {
   /// `limit` of them, then how many more), with frame names from `frames` (else indices); "" when
   /// every step is reliable.
   std::string describe_unreliable_steps(FrameStore& frames, std::size_t limit = 5) const;
+  /// Deprecated: the same with names from frames in memory.
+  [[deprecated("wrap the frames in a carat::FrameStore")]] std::string describe_unreliable_steps(
+      std::span<const std::shared_ptr<const Frame>> frames, std::size_t limit = 5) const {
+    FrameStore store = resident_store(frames);
+    return describe_unreliable_steps(store, limit);
+  }
 };
 
 /// Aligns frame k+1 to frame k for every k, starting each alignment from the relative motion
@@ -45,5 +51,22 @@ OdometryResult run_odometry(FrameStore& frames, std::span<const Eigen::Isometry3
 OdometryResult run_scan_odometry(
     FrameStore& frames, const AlignSettings& settings,
     const std::function<void(std::size_t, std::size_t)>& progress = {});
+
+/// Deprecated: run_odometry() from frames in memory.
+[[deprecated("wrap the frames in a carat::FrameStore")]] inline OdometryResult run_odometry(
+    std::span<const std::shared_ptr<const Frame>> frames,
+    std::span<const Eigen::Isometry3d> T_world_guess, const AlignSettings& settings,
+    int num_threads, const std::function<void(std::size_t, std::size_t)>& progress = {}) {
+  FrameStore store = resident_store(frames);
+  return run_odometry(store, T_world_guess, settings, num_threads, progress);
+}
+
+/// Deprecated: run_scan_odometry() from frames in memory.
+[[deprecated("wrap the frames in a carat::FrameStore")]] inline OdometryResult run_scan_odometry(
+    std::span<const std::shared_ptr<const Frame>> frames, const AlignSettings& settings,
+    const std::function<void(std::size_t, std::size_t)>& progress = {}) {
+  FrameStore store = resident_store(frames);
+  return run_scan_odometry(store, settings, progress);
+}
 
 }  // namespace carat

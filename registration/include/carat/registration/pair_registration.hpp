@@ -46,4 +46,14 @@ std::vector<PairRegistration> register_pairs(
     std::span<const Eigen::Isometry3d> T_world_frame, const AlignSettings& settings,
     int num_threads, const std::function<void(std::size_t, std::size_t)>& progress = {});
 
+/// Deprecated: the same from frames in memory.
+[[deprecated("wrap the frames in a carat::FrameStore")]] inline std::vector<PairRegistration>
+register_pairs(std::span<const std::shared_ptr<const Frame>> frames,
+               std::span<const FramePair> pairs, std::span<const Eigen::Isometry3d> T_world_frame,
+               const AlignSettings& settings, int num_threads,
+               const std::function<void(std::size_t, std::size_t)>& progress = {}) {
+  FrameStore store = resident_store(frames);
+  return register_pairs(store, pairs, T_world_frame, settings, num_threads, progress);
+}
+
 }  // namespace carat
