@@ -276,6 +276,9 @@ GlobalRegistrationOptions unusual_options() {
   v.gradient_tolerance = 1e-9;
   v.parameter_tolerance = 1e-7;
   v.initial_trust_region_radius = 1e3;
+  v.lm_start = LmStart::kTrustRegion;
+  v.gauss_newton_phase_min_gain = 0.25;
+  v.gauss_newton_phase_radius = 1e9;
   v.max_trust_region_radius = 1e15;
   v.max_trust_region_growth = 8.0;
   v.min_trust_region_radius = 1e-30;
@@ -328,6 +331,9 @@ TEST(OptionBytesTest, EveryFieldButTheCallbacksRoundTrips) {
   EXPECT_EQ(a.gradient_tolerance, b.gradient_tolerance);
   EXPECT_EQ(a.parameter_tolerance, b.parameter_tolerance);
   EXPECT_EQ(a.initial_trust_region_radius, b.initial_trust_region_radius);
+  EXPECT_EQ(a.lm_start, b.lm_start);
+  EXPECT_EQ(a.gauss_newton_phase_min_gain, b.gauss_newton_phase_min_gain);
+  EXPECT_EQ(a.gauss_newton_phase_radius, b.gauss_newton_phase_radius);
   EXPECT_EQ(a.max_trust_region_radius, b.max_trust_region_radius);
   EXPECT_EQ(a.max_trust_region_growth, b.max_trust_region_growth);
   EXPECT_EQ(a.min_trust_region_radius, b.min_trust_region_radius);

@@ -241,6 +241,34 @@ TEST(PoseGraphTest, SyntheticCityBlockIsRecovered) {
   EXPECT_NEAR(summary.final_cost, 0.5 * dof, 0.2 * 0.5 * dof);
 }
 
+TEST(PoseGraphTest, GaussNewtonStartAndConvergenceProbeReachTheSameOptimumSooner) {
+  SyntheticPoseGraphOptions options;
+  options.poses_per_lap = 100;
+  options.laps = 2;
+  options.seed = 3;
+  const SyntheticPoseGraph synthetic = make_synthetic_pose_graph(options);
+  // Defaults: LmStart::kAuto is the Gauss-Newton phase.
+  PoseGraphProblem fast = build_pose_graph_problem(synthetic.graph);
+  const SolverSummary summary = solve(SolverOptions{}, fast.problem);
+  ASSERT_EQ(summary.termination, TerminationType::kConvergence) << summary.full_report();
+  EXPECT_EQ(summary.iterations.front().trust_region_radius,
+            SolverOptions{}.gauss_newton_phase_radius);
+  // The last iteration only confirmed convergence, on the previous factorization.
+  EXPECT_TRUE(summary.iterations.back().reused_factorization) << summary.full_report();
+  EXPECT_GT(summary.factor_flops, 0.0);
+  // Ceres's start, every step factorized afresh: the same optimum, with more factorizations.
+  SolverOptions plain;
+  plain.lm_start = LmStart::kTrustRegion;
+  plain.reuse_factorization = false;
+  PoseGraphProblem slow = build_pose_graph_problem(synthetic.graph);
+  const SolverSummary reference = solve(plain, slow.problem);
+  ASSERT_EQ(reference.termination, TerminationType::kConvergence) << reference.full_report();
+  EXPECT_EQ(reference.iterations.front().trust_region_radius, plain.initial_trust_region_radius);
+  EXPECT_NEAR(summary.final_cost, reference.final_cost, 1e-9 * reference.final_cost);
+  EXPECT_LT(summary.num_iterations - summary.num_reused_factorizations, reference.num_iterations)
+      << summary.full_report() << reference.full_report();
+}
+
 TEST(PoseGraphTest, FirstVertexIsTheGaugeAndEdgesMustNameVertices) {
   PoseGraph graph;
   graph.vertices.push_back({0, Eigen::Isometry3d::Identity()});

@@ -148,6 +148,12 @@ TEST(BalSceneTest, SolvingASmallSceneReachesTheNoiseFloor) {
   EXPECT_GT(initial, 20.0 * floor);
   const SolverSummary summary = solve(SolverOptions{}, problem);
   ASSERT_TRUE(summary.is_solution_usable()) << summary.brief_report();
+  // The Gauss-Newton phase on the Schur complement: its radius leaves the gauge freedom
+  // (nothing is held constant) damped just enough for every reduced system to factorize.
+  ASSERT_NE(summary.linear_solver.find("schur complement"), std::string::npos);
+  EXPECT_EQ(summary.iterations.front().trust_region_radius,
+            SolverOptions{}.gauss_newton_phase_radius);
+  EXPECT_EQ(summary.num_linear_solver_failures, 0) << summary.full_report();
   // Least squares fits part of the noise: the optimum lies below the floor, by about
   // 1/2 sigma^2 (parameters - 7 gauge freedoms) in expectation.
   EXPECT_LE(summary.final_cost, floor);

@@ -589,6 +589,7 @@ TEST(SolveTest, TrustRegionGrowsByAtMostTheSetFactor) {
   for (const double growth : {3.0, 10.0}) {
     RandomLinear lin = make_random_linear(15, 4);
     SolverOptions options;
+    options.lm_start = LmStart::kTrustRegion;  // the growth from the initial radius
     options.max_trust_region_growth = growth;
     options.function_tolerance = 0.0;
     options.max_iterations = 2;
@@ -618,6 +619,10 @@ TEST(SolverOptionsTest, ValidateNamesTheBadSetting) {
                  "max_trust_region_growth must be 0 (automatic) or finite and >= 1, got 0.500000");
   expect_invalid([](SolverOptions& o) { o.factor_reuse_ratio = -1.0; },
                  "factor_reuse_ratio must be finite and >= 0, got -1.000000");
+  expect_invalid([](SolverOptions& o) { o.gauss_newton_phase_min_gain = 1.5; },
+                 "gauss_newton_phase_min_gain must be in [0, 1], got 1.500000");
+  expect_invalid([](SolverOptions& o) { o.gauss_newton_phase_radius = 1e20; },
+                 "gauss_newton_phase_radius must be > 0 and <= max_trust_region_radius");
   options.initial_trust_region_radius = 0.0;
   EXPECT_FALSE(options.validate(&error));
   // solve() reports invalid options through the summary instead of throwing.
@@ -639,6 +644,12 @@ TEST(SolverOptionsTest, MethodAndOrderingNamesRoundTrip) {
     EXPECT_EQ(parse_ordering(to_string(ordering)), ordering) << to_string(ordering);
   }
   EXPECT_STREQ(to_string(Ordering::kMetis), "metis");
+  for (LmStart start : {LmStart::kAuto, LmStart::kGaussNewton, LmStart::kTrustRegion}) {
+    EXPECT_EQ(parse_lm_start(to_string(start)), start) << to_string(start);
+  }
+  EXPECT_STREQ(to_string(LmStart::kGaussNewton), "gauss_newton");
+  EXPECT_EQ(test::error_of([] { parse_lm_start("gn"); }),
+            "unknown LM start 'gn' (valid: auto, gauss_newton, trust_region)");
   EXPECT_EQ(test::error_of([] { parse_method("newton"); }),
             "unknown method 'newton' (valid: lm, gn)");
   EXPECT_EQ(test::error_of([] { parse_method("LM"); }), "unknown method 'LM' (valid: lm, gn)");

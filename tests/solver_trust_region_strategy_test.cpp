@@ -1,6 +1,7 @@
 // The Levenberg-Marquardt trust region on its own: the damping it asks for, which gain ratios
 // it accepts, Nielsen's growth after an accepted step and the doubling shrink after rejections;
-// and the clamped diagonal and Gauss-Newton damping factors both methods build on.
+// the Gauss-Newton phase at the start; and the clamped diagonal and Gauss-Newton damping factors
+// both methods build on.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -132,6 +133,50 @@ TEST(TrustRegionStrategyTest, DampingIsTheClampedDiagonalOverTheRadius) {
   region.on_rejected();
   region.damping(diagonal, &damping);
   EXPECT_EQ(damping[1], 2.0 / 5000.0);
+}
+
+TEST(TrustRegionStrategyTest, GaussNewtonPhaseHoldsTheLargestRadiusWhileStepsGainEnough) {
+  SolverOptions options;
+  options.lm_start = LmStart::kGaussNewton;
+  options.initial_trust_region_radius = 1e4;
+  options.gauss_newton_phase_radius = 1e12;
+  options.max_trust_region_growth = 10.0;
+  options.gauss_newton_phase_min_gain = 0.5;
+  TrustRegionStrategy region(options);
+  EXPECT_TRUE(region.in_gauss_newton_phase());
+  EXPECT_EQ(region.radius(), 1e12);
+  region.on_accepted(0.5);  // at the threshold: the phase goes on, the radius stays
+  region.on_accepted(1.7);
+  EXPECT_TRUE(region.in_gauss_newton_phase());
+  EXPECT_EQ(region.radius(), 1e12);
+  // Below the threshold (the step itself is taken): LM from the initial radius, as at a start.
+  region.on_accepted(0.3);
+  EXPECT_FALSE(region.in_gauss_newton_phase());
+  EXPECT_EQ(region.radius(), 1e4);
+  EXPECT_EQ(region.shrink_factor(), 2.0);
+  // Afterwards the ordinary rules: Nielsen's growth, the doubling shrink.
+  region.on_accepted(1.0);
+  EXPECT_EQ(region.radius(), 1e5);
+  region.on_rejected();
+  EXPECT_EQ(region.radius(), 5e4);
+}
+
+TEST(TrustRegionStrategyTest, ARejectionEndsTheGaussNewtonPhaseAtTheInitialRadius) {
+  SolverOptions options;
+  options.lm_start = LmStart::kGaussNewton;
+  options.initial_trust_region_radius = 1e4;
+  TrustRegionStrategy region(options);
+  region.on_rejected();
+  EXPECT_FALSE(region.in_gauss_newton_phase());
+  // Exactly where a solve that started at the initial radius stands before its first step.
+  EXPECT_EQ(region.radius(), 1e4);
+  EXPECT_EQ(region.shrink_factor(), 2.0);
+  region.on_rejected();
+  EXPECT_EQ(region.radius(), 5000.0);
+  // kTrustRegion (and the unresolved kAuto) start at the initial radius with no phase.
+  options.lm_start = LmStart::kTrustRegion;
+  EXPECT_FALSE(TrustRegionStrategy(options).in_gauss_newton_phase());
+  EXPECT_EQ(TrustRegionStrategy(options).radius(), 1e4);
 }
 
 TEST(HessianDampingTest, ClampsEveryEntryToTheSetRange) {

@@ -1,6 +1,7 @@
 // carat solve-bal FILE [--out FILE] [--linear-solver auto|schur|cholesky] [--max-iterations N]
 //                      [--threads T] [--loss none|huber|cauchy] [--loss-scale S]
 //                      [--trust-region-growth G] [--no-factor-reuse]
+//                      [--lm-start auto|gauss_newton|trust_region]
 //                      [--covariance FILE [--covariance-gauge error|pseudo-inverse]] [--json]
 #include <cstdio>
 #include <memory>
@@ -31,6 +32,7 @@ struct SolveBalArgs {
   std::string loss = "none";
   double loss_scale = 1.0;
   double trust_region_growth = SolverOptions{}.max_trust_region_growth;
+  std::string lm_start = to_string(SolverOptions{}.lm_start);
   bool no_factor_reuse = false;
   CovarianceRequest covariance;
   bool json = false;
@@ -59,6 +61,7 @@ int run_solve_bal(const CLI::App& command, const SolveBalArgs& args) {
   options.num_threads = args.threads;
   options.max_trust_region_growth = args.trust_region_growth;
   options.reuse_factorization = !args.no_factor_reuse;
+  options.lm_start = parse_lm_start(args.lm_start);
   const SolverSummary summary = solve(options, problem);
   if (summary.termination == TerminationType::kFailure) {
     throw Error(args.input + ": the solve failed: " + summary.message);
@@ -168,6 +171,11 @@ void register_solve_bal(CLI::App& app, CommandRegistry& registry) {
       ->capture_default_str();
   cmd->add_option("--loss-scale", args->loss_scale, "scale of the robust loss (pixels)")
       ->check(real_in(1e-6, 1e6))
+      ->capture_default_str();
+  cmd->add_option("--lm-start", args->lm_start,
+                  "how LM begins: gauss_newton (undamped steps while they keep their gain), "
+                  "trust_region (Ceres's start) or auto (gauss_newton)")
+      ->check(CLI::IsMember({"auto", "gauss_newton", "trust_region"}))
       ->capture_default_str();
   cmd->add_option("--trust-region-growth", args->trust_region_growth,
                   "most the LM radius grows after one step (0: automatic, 3 with the Schur "

@@ -1,6 +1,7 @@
 // carat solve-g2o FILE [--out FILE] [--max-iterations N] [--threads T] [--method lm|gn]
 //                      [--loss none|huber|cauchy] [--loss-scale S] [--no-factor-reuse]
-//                      [--trust-region-growth G] [--repair-information]
+//                      [--trust-region-growth G] [--lm-start auto|gauss_newton|trust_region]
+//                      [--repair-information]
 //                      [--covariance FILE [--covariance-gauge error|pseudo-inverse]] [--json]
 #include <cstdio>
 #include <memory>
@@ -37,6 +38,7 @@ struct SolveG2oArgs {
   bool no_factor_reuse = false;
   bool repair_information = false;
   double trust_region_growth = SolverOptions{}.max_trust_region_growth;
+  std::string lm_start = to_string(SolverOptions{}.lm_start);
   CovarianceRequest covariance;
   bool json = false;
 };
@@ -62,6 +64,7 @@ int solve_graph(const SolveG2oArgs& args, Method method, LossKind loss,
   options.method = method;
   options.ordering = parse_ordering(args.ordering);
   options.reuse_factorization = !args.no_factor_reuse;
+  options.lm_start = parse_lm_start(args.lm_start);
   options.max_trust_region_growth = args.trust_region_growth;
   const SolverSummary summary = solve(options, built.problem);
   if (summary.termination == TerminationType::kFailure) {
@@ -133,6 +136,7 @@ int run_solve_g2o(const CLI::App& command, const SolveG2oArgs& args) {
   const bool lm = method == Method::kLevenbergMarquardt;
   refuse_unused(command, "--trust-region-growth", lm, "to --method gn");
   refuse_unused(command, "--no-factor-reuse", lm, "to --method gn");
+  refuse_unused(command, "--lm-start", lm, "to --method gn");
   if (!args.output.empty()) check_output_file("--out", args.output, {{"FILE", args.input}});
   check_covariance_request(command, args.covariance, {{"FILE", args.input}}, "--out", args.output);
   G2oReadOptions read_options;
@@ -174,6 +178,11 @@ void register_solve_g2o(CLI::App& app, CommandRegistry& registry) {
       ->capture_default_str();
   cmd->add_flag("--no-factor-reuse", args->no_factor_reuse,
                 "factorize afresh every iteration (no steps on an earlier factorization)");
+  cmd->add_option("--lm-start", args->lm_start,
+                  "how LM begins: gauss_newton (undamped steps while they keep their gain), "
+                  "trust_region (Ceres's start) or auto (gauss_newton)")
+      ->check(CLI::IsMember({"auto", "gauss_newton", "trust_region"}))
+      ->capture_default_str();
   cmd->add_option("--trust-region-growth", args->trust_region_growth,
                   "most the LM radius grows after one step (0: automatic, 10 here; Ceres: 3)")
       ->check(zero_or_real_in(1.0, 1e6, "automatic"))

@@ -84,6 +84,12 @@ SolverOptions solver_options(const py::kwargs& kwargs, const char* who) {
         options.parameter_tolerance = value.cast<double>();
       } else if (key == "initial_trust_region_radius") {
         options.initial_trust_region_radius = value.cast<double>();
+      } else if (key == "lm_start") {
+        options.lm_start = parse_lm_start(value.cast<std::string>());
+      } else if (key == "gauss_newton_phase_radius") {
+        options.gauss_newton_phase_radius = value.cast<double>();
+      } else if (key == "gauss_newton_phase_min_gain") {
+        options.gauss_newton_phase_min_gain = value.cast<double>();
       } else if (key == "max_trust_region_radius") {
         options.max_trust_region_radius = value.cast<double>();
       } else if (key == "max_trust_region_growth") {
@@ -415,7 +421,9 @@ variables.)");
 
 Options as keywords: max_iterations (50), method ('lm' or 'gn'), linear_solver ('auto',
 'schur', 'cholesky'), ordering, function_tolerance (1e-6), gradient_tolerance (1e-10),
-parameter_tolerance (1e-8), initial_trust_region_radius, max_trust_region_radius,
+parameter_tolerance (1e-8), initial_trust_region_radius, lm_start ('auto', 'gauss_newton',
+'trust_region'), gauss_newton_phase_radius (1e10), gauss_newton_phase_min_gain (0.5),
+max_trust_region_radius,
 max_trust_region_growth, min_relative_decrease, reuse_factorization, threads (1),
 check_blocks (False). Returns a carat.SolverSummary; raises carat.Error when the solve fails
 (e.g. a non-finite row at the start, naming the block and row) and re-raises an exception a

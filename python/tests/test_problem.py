@@ -67,6 +67,16 @@ def test_curve_fit_reaches_the_dense_gauss_newton_optimum():
     assert "iter" in s.full_report() and s.iterations >= 1
 
 
+def test_every_lm_start_reaches_the_same_optimum():
+    X, Y = curve_data()
+    reference, _ = dense_gauss_newton(X, Y, np.array([0.3, 0.1]))
+    for start in ("auto", "gauss_newton", "trust_region"):
+        p, v = curve_problem(X, Y)
+        s = carat.solve(p, lm_start=start, gauss_newton_phase_min_gain=0.25, **TIGHT)
+        assert s.termination == "CONVERGENCE", start
+        np.testing.assert_allclose(p.value(v), reference, rtol=1e-9, atol=0)
+
+
 def test_residuals_alone_get_central_differences_to_the_same_optimum():
     X, Y = curve_data()
     p, v = curve_problem(X, Y, residual=lambda mc, rows: Y[rows] - np.exp(mc[0] * X[rows] + mc[1]))
@@ -239,7 +249,9 @@ def test_bundle_adjustment_rows_match_carats_reprojection_blocks():
     np.testing.assert_allclose(rows.gradient(), cpp.gradient(), rtol=1e-9, atol=1e-9)
     # Stopped before the cost changes only by rounding: past that point, steps along the
     # similarity gauge (which leaves the cost unchanged) follow the rounding of each Jacobian.
-    options = dict(TIGHT, function_tolerance=1e-10)
+    # For the same reason the trust region from the start: the Gauss-Newton phase damps the
+    # gauge by 1e-10 only, so two roundings of one Jacobian drift apart along it (by ~1e-6).
+    options = dict(TIGHT, function_tolerance=1e-10, lm_start="trust_region")
     s_cpp, s_rows = carat.solve(cpp, **options), carat.solve(rows, **options)
     assert s_rows.final_cost == pytest.approx(s_cpp.final_cost, rel=1e-12)
     assert s_rows.iterations == s_cpp.iterations
@@ -360,6 +372,8 @@ def test_bad_arguments_are_named():
         p.add_rows(lambda mc, rows: mc, [v], rows=4, loss="tukey")
     with pytest.raises(TypeError, match="unexpected keyword argument 'max_iteration'"):
         carat.solve(p, max_iteration=3)
+    with pytest.raises(ValueError, match="unknown LM start 'newton'"):
+        carat.solve(p, lm_start="newton")
 
 
 def test_ctrl_c_in_a_slow_residual_ends_the_solve():

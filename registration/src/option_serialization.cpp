@@ -13,7 +13,7 @@ namespace {
 static_assert(field_count<ReadOptions>() == 2, "option_serialization: write the new field");
 static_assert(field_count<PreprocessOptions>() == 4, "option_serialization: write the new field");
 static_assert(field_count<OpenScansOptions>() == 5, "option_serialization: write the new field");
-static_assert(field_count<SolverOptions>() == 22, "option_serialization: write the new field");
+static_assert(field_count<SolverOptions>() == 25, "option_serialization: write the new field");
 static_assert(field_count<GlobalRegistrationOptions>() == 14,
               "option_serialization: write the new field");
 
@@ -72,6 +72,9 @@ void write_options(ByteWriter& out, const SolverOptions& options) {
   out.put(options.gradient_tolerance);
   out.put(options.parameter_tolerance);
   out.put(options.initial_trust_region_radius);
+  put_enum(out, options.lm_start);
+  out.put(options.gauss_newton_phase_radius);
+  out.put(options.gauss_newton_phase_min_gain);
   out.put(options.max_trust_region_radius);
   out.put(options.max_trust_region_growth);
   out.put(options.min_trust_region_radius);
@@ -141,6 +144,9 @@ SolverOptions read_solver_options(ByteReader& in) {
   options.gradient_tolerance = in.get<double>();
   options.parameter_tolerance = in.get<double>();
   options.initial_trust_region_radius = in.get<double>();
+  options.lm_start = get_enum(in, LmStart::kTrustRegion, "lm start");
+  options.gauss_newton_phase_radius = in.get<double>();
+  options.gauss_newton_phase_min_gain = in.get<double>();
   options.max_trust_region_radius = in.get<double>();
   options.max_trust_region_growth = in.get<double>();
   options.min_trust_region_radius = in.get<double>();

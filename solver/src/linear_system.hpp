@@ -30,6 +30,8 @@ class LinearSystem {
   virtual std::size_t hessian_nonzeros() const = 0;
   /// Nonzeros of the Cholesky factor.
   virtual std::size_t factor_nonzeros() const = 0;
+  /// Floating-point operations of one numeric factorization, as CHOLMOD's analysis counts them.
+  virtual double factor_flops() const = 0;
   /// Name of the factorization and ordering for reports.
   const std::string& description() const { return description_; }
 

@@ -160,6 +160,7 @@ SchurEliminator::SchurEliminator(const SchurStructure& structure, const SchurVal
   cholmod_->analyze("Schur complement");
   ordering_name_ = cholmod_->chosen_ordering();
   factor_nnz_ = static_cast<std::size_t>(cholmod_->common().lnz);
+  factor_flops_ = cholmod_->common().fl;
 }
 
 SchurEliminator::~SchurEliminator() = default;

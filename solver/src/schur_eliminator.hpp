@@ -42,6 +42,8 @@ class SchurEliminator {
   double take_seconds();
   /// Nonzeros of S's Cholesky factor (0 with no cameras).
   std::size_t factor_nonzeros() const { return factor_nnz_; }
+  /// Flops of one numeric factorization of S, as CHOLMOD's analysis counts them.
+  double factor_flops() const { return factor_flops_; }
   /// The ordering CHOLMOD chose for S ("AMD", "METIS", "NESDIS"; "none" with no cameras).
   const std::string& ordering_name() const { return ordering_name_; }
   /// S's CHOLMOD session; after factorize(), its factor is of S.
@@ -71,6 +73,7 @@ class SchurEliminator {
   std::unique_ptr<CholmodSession> cholmod_;  // S over the structure's colptr, rows and reduced_
   std::vector<double> x_cameras_;            // the reduced solve's solution
   std::size_t factor_nnz_ = 0;
+  double factor_flops_ = 0.0;
   std::string ordering_name_ = "none";
   double seconds_ = 0.0;
 };

@@ -38,6 +38,7 @@ class SchurSystem final : public LinearSystem {
 
   std::size_t hessian_nonzeros() const override { return structure_.rows.size(); }
   std::size_t factor_nonzeros() const override { return eliminator_.factor_nonzeros(); }
+  double factor_flops() const override { return eliminator_.factor_flops(); }
   void assemble(const BlockLinearizations& blocks, Eigen::VectorXd* gradient) override;
   /// Fused (every block with an eliminated variable touches at most one kept variable): the
   /// blocks with a point are evaluated a chunk of points at a time and scattered while in

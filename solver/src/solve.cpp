@@ -248,10 +248,12 @@ bool Solver::reject_step(IterationSummary& row, internal::TrustRegionStrategy& r
 /// A step solved with the factorization of an earlier iterate: no numeric factorization, only
 /// a triangular solve, H delta for the model at the current iterate, and one cost evaluation.
 /// Kept if keeps_reused_step() says so: a run of reused steps ends once they fall to half of
-/// what a fresh one achieved. Then returns true (*stop: the solve ends); otherwise nothing is
-/// recorded and the caller factorizes afresh.
+/// what a fresh one achieved; a convergence probe is kept only when probe_converged() says the
+/// solve is over (take_step() then stops on the function tolerance). Then returns true (*stop:
+/// the solve ends); otherwise nothing is recorded and the caller factorizes afresh.
 bool Solver::try_reused_factorization(IterationSummary& row, int iteration,
-                                      const Stopwatch& iteration_time, bool* stop) {
+                                      const Stopwatch& iteration_time, bool convergence_probe,
+                                      bool* stop) {
   const Stopwatch ts;
   rhs_ = -gradient_;
   system_->solve(rhs_, &delta_);
@@ -266,7 +268,13 @@ bool Solver::try_reused_factorization(IterationSummary& row, int iteration,
   const double predicted = internal::model_decrease(gradient_, delta_, h_delta_);
   const double new_cost = trial_cost();
   const internal::StepQuality step = internal::judge_step(cost_, new_cost, predicted);
-  if (!internal::keeps_reused_step(step, fresh_decrease_, cost_, options_.function_tolerance)) {
+  // A convergence probe is kept only when it ends the solve; other reused steps by the rule of
+  // slow tails.
+  const bool keep =
+      convergence_probe
+          ? internal::probe_converged(step, cost_, options_.function_tolerance)
+          : internal::keeps_reused_step(step, fresh_decrease_, cost_, options_.function_tolerance);
+  if (!keep) {
     ++summary_.num_refused_reuses;
     return false;
   }
@@ -316,10 +324,12 @@ bool Solver::initialize() {
     options_.max_trust_region_growth = system_->automatic_trust_region_growth();
   }
   summary_.trust_region_growth = options_.max_trust_region_growth;
+  if (options_.lm_start == LmStart::kAuto) options_.lm_start = LmStart::kGaussNewton;
   if (!system_->reuses_factorization()) options_.reuse_factorization = false;
   summary_.num_tangent_parameters = system_->size();
   summary_.hessian_nonzeros = system_->hessian_nonzeros();
   summary_.factor_nonzeros = system_->factor_nonzeros();
+  summary_.factor_flops = system_->factor_flops();
   summary_.linear_solver = system_->description();
 
   const auto values = problem_.all_values();
@@ -349,7 +359,10 @@ bool Solver::initialize() {
   IterationSummary row0;
   row0.cost = cost_;
   row0.gradient_max_norm = gradient_.size() ? gradient_.cwiseAbs().maxCoeff() : 0.0;
-  row0.trust_region_radius = options_.initial_trust_region_radius;
+  row0.trust_region_radius =
+      options_.method == Method::kLevenbergMarquardt && options_.lm_start == LmStart::kGaussNewton
+          ? options_.gauss_newton_phase_radius
+          : options_.initial_trust_region_radius;
   row0.step_is_successful = true;
   record(row0, iteration0);
   if (abort_if_requested()) return false;

@@ -15,6 +15,7 @@ namespace carat::internal {
 void Solver::run_levenberg_marquardt() {
   internal::TrustRegionStrategy region(options_);
   bool reuse_next = false;  // try the next step with the current factorization
+  bool probe_next = false;  // ... as a probe for convergence (should_probe_convergence)
   for (int iteration = 1;; ++iteration) {
     IterationSummary row;
     if (!begin_iteration(iteration, &row)) return;
@@ -24,7 +25,7 @@ void Solver::run_levenberg_marquardt() {
       reuse_next = false;
       row.trust_region_radius = region.radius();
       bool stop = false;
-      if (try_reused_factorization(row, iteration, iteration_time, &stop)) {
+      if (try_reused_factorization(row, iteration, iteration_time, probe_next, &stop)) {
         if (stop) return;
         reuse_next = true;
         continue;
@@ -63,7 +64,11 @@ void Solver::run_levenberg_marquardt() {
     // A gain ratio well above 1 (the cost fell faster than the model said, as in a slow,
     // linearly converging tail): the exact H buys little over this one, so the next step
     // first tries this factorization.
-    reuse_next = internal::should_try_reuse(step, options_);
+    // A step the model predicted well that changed the cost by at most sqrt(function_tolerance):
+    // the next one, solved with this factorization, probably confirms convergence.
+    probe_next = !internal::should_try_reuse(step, options_) &&
+                 internal::should_probe_convergence(step, cost_, options_);
+    reuse_next = probe_next || internal::should_try_reuse(step, options_);
     if (take_step(row, new_cost, iteration, iteration_time)) return;
   }
 }

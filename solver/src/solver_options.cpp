@@ -15,6 +15,18 @@ bool fail(std::string* error, const std::string& message) {
 
 }  // namespace
 
+const char* to_string(LmStart start) {
+  switch (start) {
+    case LmStart::kAuto:
+      return "auto";
+    case LmStart::kGaussNewton:
+      return "gauss_newton";
+    case LmStart::kTrustRegion:
+      return "trust_region";
+  }
+  return "unknown";
+}
+
 const char* to_string(Method method) {
   switch (method) {
     case Method::kLevenbergMarquardt:
@@ -23,6 +35,14 @@ const char* to_string(Method method) {
       return "gn";
   }
   return "unknown";
+}
+
+LmStart parse_lm_start(std::string_view name) {
+  for (LmStart start : {LmStart::kAuto, LmStart::kGaussNewton, LmStart::kTrustRegion}) {
+    if (name == to_string(start)) return start;
+  }
+  throw Error("unknown LM start " + quote_bytes(name) +
+              " (valid: auto, gauss_newton, trust_region)");
 }
 
 Method parse_method(std::string_view name) {
@@ -105,6 +125,14 @@ bool SolverOptions::validate(std::string* error) const {
     return fail(error, "max_lm_diagonal must be >= min_lm_diagonal");
   }
   if (min_relative_decrease >= 1.0) return fail(error, "min_relative_decrease must be < 1");
+  if (!(gauss_newton_phase_radius > 0.0) ||
+      !(gauss_newton_phase_radius <= max_trust_region_radius)) {
+    return fail(error, "gauss_newton_phase_radius must be > 0 and <= max_trust_region_radius");
+  }
+  if (!(gauss_newton_phase_min_gain >= 0.0 && gauss_newton_phase_min_gain <= 1.0)) {
+    return fail(error, "gauss_newton_phase_min_gain must be in [0, 1], got " +
+                           std::to_string(gauss_newton_phase_min_gain));
+  }
   if (!(factor_reuse_ratio >= 0.0) || !std::isfinite(factor_reuse_ratio)) {
     return fail(error, "factor_reuse_ratio must be finite and >= 0, got " +
                            std::to_string(factor_reuse_ratio));

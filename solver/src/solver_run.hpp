@@ -53,7 +53,8 @@ class Solver {
   bool take_step(IterationSummary& row, double new_cost, int iteration,
                  const Stopwatch& iteration_time);
   bool try_reused_factorization(IterationSummary& row, int iteration,
-                                const Stopwatch& iteration_time, bool* stop);
+                                const Stopwatch& iteration_time, bool convergence_probe,
+                                bool* stop);
   void record(IterationSummary row, const Stopwatch& iteration_time);
   bool finish(TerminationType type, std::string message);
   /// Ends the solve with kUserAbort when the iteration callback asked for it: then true.

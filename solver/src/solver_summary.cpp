@@ -83,6 +83,11 @@ std::string SolverSummary::full_report() const {
   out += format("  %-28s %s\n", "method", method.c_str());
   out += format("  %-28s %s\n", "linear solver", linear_solver.c_str());
   out += format("  %-28s %zu / %zu\n", "nonzeros H (upper) / L", hessian_nonzeros, factor_nonzeros);
+  const int factorizations = num_iterations - num_reused_factorizations;
+  if (factor_flops > 0.0 && factorizations > 0 && time.numeric_s > 0.0) {
+    out += format("  %-28s %.3e (%.2f GFLOP/s over %d)\n", "flops per factorization", factor_flops,
+                  factor_flops * factorizations / time.numeric_s * 1e-9, factorizations);
+  }
   out += format("  %-28s %d\n", "threads", num_threads);
   out += format("  %-28s %.9e\n", "initial cost", initial_cost);
   out += format("  %-28s %.9e\n", "final cost", final_cost);
@@ -124,6 +129,7 @@ std::string SolverSummary::to_json() const {
   j["residual_rows"] = num_residual_rows;
   j["hessian_nonzeros"] = hessian_nonzeros;
   j["factor_nonzeros"] = factor_nonzeros;
+  j["factor_flops"] = factor_flops;
   j["residual_memory_bytes"] = residual_memory_bytes;
   j["threads"] = num_threads;
   j["method"] = method;
@@ -155,7 +161,7 @@ std::string SolverSummary::to_json() const {
 
 // merge_later_solve() is written for these members: a new one must be merged there (or left as
 // `later`'s on purpose), and the count here raised.
-static_assert(field_count<SolverSummary>() == 24, "merge_later_solve: merge the new field");
+static_assert(field_count<SolverSummary>() == 25, "merge_later_solve: merge the new field");
 static_assert(field_count<TimeBreakdown>() == 8, "merge_later_solve: sum the new stage time");
 static_assert(field_count<IterationSummary>() == 12, "merge_later_solve: continue the new field");
 

@@ -32,7 +32,7 @@ class SparseSystem final : public LinearSystem {
   std::size_t hessian_nonzeros() const override { return rows_.size(); }
   std::size_t factor_nonzeros() const override { return factor_nnz_; }
   /// Flops of one numeric factorization (CHOLMOD's estimate).
-  double factor_flops() const { return factor_flops_; }
+  double factor_flops() const override { return factor_flops_; }
 
   /// Gathers blocks' H and b into the undamped matrix values and the gradient (parallel over
   /// columns; each destination sums its sources in a fixed order).

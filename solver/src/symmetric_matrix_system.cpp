@@ -45,6 +45,8 @@ std::size_t SymmetricMatrixSystem::factor_nonzeros() const {
   return static_cast<std::size_t>(cholmod_->common().lnz);
 }
 
+double SymmetricMatrixSystem::factor_flops() const { return cholmod_->common().fl; }
+
 void SymmetricMatrixSystem::assemble(const BlockLinearizations&, Eigen::VectorXd*) {
   throw Error("symmetric matrix: the matrix is given, not assembled");
 }

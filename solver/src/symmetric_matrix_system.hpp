@@ -25,6 +25,7 @@ class SymmetricMatrixSystem final : public LinearSystem {
 
   std::size_t hessian_nonzeros() const override { return rows_.size(); }
   std::size_t factor_nonzeros() const override;
+  double factor_flops() const override;
   /// Not available: A is given. Throws carat::Error.
   void assemble(const BlockLinearizations& blocks, Eigen::VectorXd* gradient) override;
   Eigen::VectorXd diagonal() const override;

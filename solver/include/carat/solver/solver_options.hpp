@@ -18,6 +18,26 @@ enum class Method {
 
 /// Name of a method: "lm" (Levenberg-Marquardt) or "gn" (Gauss-Newton).
 const char* to_string(Method method);
+
+/// How Levenberg-Marquardt begins. In the Gauss-Newton phase the radius is
+/// gauss_newton_phase_radius (damping 1e-10 clamped diag(H): steps all but undamped, yet a gauge
+/// freedom's directions stay positive definite) for as long as every step's gain ratio is at
+/// least gauss_newton_phase_min_gain; the first step below it (taken if min_relative_decrease
+/// accepts it), a rejected step or a system that is not positive definite ends the phase, and
+/// LM goes on from initial_trust_region_radius as a solve that started there. The phase pays
+/// where Gauss-Newton converges from the start (pose graphs from odometry, bundle adjustment
+/// from a fair start: 5-85 % fewer iterations, measured in docs/benchmarks.md) and costs one
+/// factorization where it does not.
+enum class LmStart {
+  kAuto,         ///< the Gauss-Newton phase on every path (the choice may become per path)
+  kGaussNewton,  ///< the Gauss-Newton phase, then the trust region from its initial radius
+  kTrustRegion,  ///< the trust region from initial_trust_region_radius (Ceres's start)
+};
+
+/// Name of an LM start: "auto", "gauss_newton" or "trust_region".
+const char* to_string(LmStart start);
+/// The LM start named by to_string(LmStart); throws carat::Error naming the valid names.
+LmStart parse_lm_start(std::string_view name);
 /// Parses "lm" or "gn"; throws carat::Error listing them otherwise.
 Method parse_method(std::string_view name);
 
@@ -79,6 +99,9 @@ struct SolverOptions {
   double gradient_tolerance = 1e-10;         ///< stop when max |gradient| < this
   double parameter_tolerance = 1e-8;         ///< stop when |step| < this * (|x| + this)
   double initial_trust_region_radius = 1e4;  ///< LM: initial radius mu (damping is 1/mu)
+  LmStart lm_start = LmStart::kAuto;         ///< LM: how the trust region begins (LmStart)
+  double gauss_newton_phase_radius = 1e10;   ///< LM: the radius mu during the Gauss-Newton phase
+  double gauss_newton_phase_min_gain = 0.5;  ///< LM: lowest gain ratio that stays in the phase
   double max_trust_region_radius = 1e16;     ///< LM: largest radius
   /// LM: most the radius can grow after one step: radius / max(1 / this, 1 - (2 rho - 1)^3)
   /// for gain ratio rho; 0 (automatic): 10 when the whole system is factorized (pose graphs

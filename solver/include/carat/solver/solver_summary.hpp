@@ -65,7 +65,10 @@ struct SolverSummary {
   int num_residual_blocks = 0;         ///< residual blocks
   std::size_t num_residual_rows = 0;   ///< scalar residual rows
   std::size_t factor_nonzeros = 0;     ///< nonzeros of the Cholesky factor
-  std::size_t hessian_nonzeros = 0;    ///< stored nonzeros of the upper triangle of H
+  /// Floating-point operations of one numeric factorization (CHOLMOD's count for the chosen
+  /// ordering); with time.numeric_s and the factorizations (iterations - reused), the flop rate.
+  double factor_flops = 0.0;
+  std::size_t hessian_nonzeros = 0;          ///< stored nonzeros of the upper triangle of H
   std::size_t residual_memory_bytes = 0;     ///< bytes held by residual blocks
   int num_threads = 1;                       ///< threads used for linearization
   std::string method;                        ///< "levenberg_marquardt" or "gauss_newton"
