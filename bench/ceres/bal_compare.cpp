@@ -23,6 +23,7 @@
 #include <string>
 #include <vector>
 
+#include "../synthetic_bal_cases.hpp"
 #include "carat/base/stopwatch.hpp"
 #include "carat/residuals/bal_problem.hpp"
 #include "carat/residuals/io/bal_io.hpp"
@@ -182,15 +183,6 @@ int main(int argc, char** argv) {
     std::printf("%s\n", out.dump().c_str());
     return 0;
   }
-  struct Case {
-    const char* name;
-    carat::BalLayout layout;
-    int cameras, points, views;
-  };
-  std::vector<Case> cases = {{"ring-16x22106", carat::BalLayout::kRing, 16, 22106, 4},
-                             {"ring-100x20000", carat::BalLayout::kRing, 100, 20000, 8},
-                             {"street-500x60000", carat::BalLayout::kStreet, 500, 60000, 5}};
-  if (quick) cases.resize(1);
   const std::filesystem::path folder =
       keep.empty() ? std::filesystem::temp_directory_path() / "carat_bal_compare"
                    : std::filesystem::path(keep);
@@ -198,21 +190,16 @@ int main(int argc, char** argv) {
   const std::string self = std::filesystem::read_symlink("/proc/self/exe").string();
   const std::string system_blas = "libblas.so.3";  // see ceres_compare.cpp
   int exit_code = 0;
-  for (const Case& c : cases) {
-    carat::BalSimulationOptions options;
-    options.layout = c.layout;
-    options.cameras = c.cameras;
-    options.points = c.points;
-    options.observations_per_point = c.views;
-    options.seed = 7;
+  for (const SyntheticBalCase& c : synthetic_bal_cases(quick)) {
+    const carat::BalSimulationOptions& options = c.options;
     const carat::BalScene scene = carat::simulate_bal(options);
     const std::string path = (folder / (std::string(c.name) + ".bal")).string();
     carat::write_bal(path, scene.problem);
 
     nlohmann::json j;
     j["problem"] = c.name;
-    j["cameras"] = c.cameras;
-    j["points"] = c.points;
+    j["cameras"] = options.cameras;
+    j["points"] = options.points;
     j["observations"] = scene.problem.observations.size();
     double wall_s = 0.0;
     int status = 0;

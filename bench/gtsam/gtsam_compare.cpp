@@ -61,6 +61,7 @@
 #ifdef GTSAM_USE_TBB
 #include <tbb/global_control.h>
 #endif
+#include "../synthetic_bal_cases.hpp"
 #include "carat/residuals/bal_problem.hpp"
 #include "carat/residuals/io/g2o_io.hpp"
 #include "carat/residuals/pose_graph.hpp"
@@ -434,23 +435,8 @@ nlohmann::json interleave(
 }
 
 int run_bal(int repeat, bool quick) {
-  struct Case {
-    const char* name;
-    carat::BalLayout layout;
-    int cameras, points, views;
-  };
-  std::vector<Case> cases = {{"ring-16x22106", carat::BalLayout::kRing, 16, 22106, 4},
-                             {"ring-100x20000", carat::BalLayout::kRing, 100, 20000, 8},
-                             {"street-500x60000", carat::BalLayout::kStreet, 500, 60000, 5}};
-  if (quick) cases.resize(1);
-  for (const Case& c : cases) {
-    carat::BalSimulationOptions options;
-    options.layout = c.layout;
-    options.cameras = c.cameras;
-    options.points = c.points;
-    options.observations_per_point = c.views;
-    options.seed = 7;
-    const carat::BalProblem bal = carat::simulate_bal(options).problem;
+  for (const SyntheticBalCase& c : synthetic_bal_cases(quick)) {
+    const carat::BalProblem bal = carat::simulate_bal(c.options).problem;
     nlohmann::json j;
     j["problem"] = c.name;
     j["initial_cost"] = carat::bal_cost(bal);
