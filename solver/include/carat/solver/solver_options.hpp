@@ -18,6 +18,8 @@ enum class Method {
 
 /// Name of a method: "lm" (Levenberg-Marquardt) or "gn" (Gauss-Newton).
 const char* to_string(Method method);
+/// Parses "lm" or "gn"; throws carat::Error listing them otherwise.
+Method parse_method(std::string_view name);
 
 /// How Levenberg-Marquardt begins. In the Gauss-Newton phase the radius is
 /// gauss_newton_phase_radius (damping 1e-10 clamped diag(H): steps all but undamped, yet a gauge
@@ -38,8 +40,6 @@ enum class LmStart {
 const char* to_string(LmStart start);
 /// The LM start named by to_string(LmStart); throws carat::Error naming the valid names.
 LmStart parse_lm_start(std::string_view name);
-/// Parses "lm" or "gn"; throws carat::Error listing them otherwise.
-Method parse_method(std::string_view name);
 
 /// Fill-reducing ordering of the matrix that is factorized, computed once in the symbolic
 /// analysis: for the whole system on the variable-level graph (then expanded to scalars and
