@@ -66,9 +66,9 @@ void Solver::run_levenberg_marquardt() {
     // first tries this factorization.
     // A step the model predicted well that changed the cost by at most sqrt(function_tolerance):
     // the next one, solved with this factorization, probably confirms convergence.
-    probe_next = !internal::should_try_reuse(step, options_) &&
-                 internal::should_probe_convergence(step, cost_, options_);
-    reuse_next = probe_next || internal::should_try_reuse(step, options_);
+    const bool slow_tail = internal::should_try_reuse(step, options_);
+    probe_next = !slow_tail && internal::should_probe_convergence(step, cost_, options_);
+    reuse_next = slow_tail || probe_next;
     if (take_step(row, new_cost, iteration, iteration_time)) return;
   }
 }
