@@ -33,11 +33,15 @@ PointCloud make_scene(std::uint64_t seed, int n = 20000) {
   for (int i = 0; i < n; ++i) {
     const int kind = i % 5;
     Eigen::Vector3f p;
-    if (kind == 0 || kind == 1) p = {u(rng), u(rng), -1.5f};              // floor
-    if (kind == 2) p = {8.0f, u(rng), 0.25f * std::abs(u(rng)) - 1.5f};   // wall x = 8
-    if (kind == 3) p = {u(rng), -7.0f, 0.25f * std::abs(u(rng)) - 1.5f};  // wall y = -7
-    if (kind == 4)
+    if (kind == 0 || kind == 1) {
+      p = {u(rng), u(rng), -1.5f};  // floor
+    } else if (kind == 2) {
+      p = {8.0f, u(rng), 0.25f * std::abs(u(rng)) - 1.5f};  // wall x = 8
+    } else if (kind == 3) {
+      p = {u(rng), -7.0f, 0.25f * std::abs(u(rng)) - 1.5f};  // wall y = -7
+    } else {
       p = {2.0f + 0.1f * u(rng), 3.0f + 0.05f * u(rng), 0.1f * std::abs(u(rng)) - 1.5f};  // box
+    }
     cloud.points.push_back(p + Eigen::Vector3f(noise(rng), noise(rng), noise(rng)));
   }
   return cloud;
