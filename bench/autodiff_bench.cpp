@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "../tests/curve_fit_problem.hpp"
+#include "benchmark_main.hpp"
 #include "carat/coreset/compress.hpp"
 #include "carat/residuals/gicp_block.hpp"
 #include "carat/residuals/relative_pose_autodiff_block.hpp"
@@ -182,4 +183,4 @@ BENCHMARK(BM_GicpRows)->Arg(0)->Arg(1)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_GicpAccumulate)->Arg(0)->Arg(1)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_GicpCompress)->Arg(0)->Arg(1)->Unit(benchmark::kMicrosecond);
 
-BENCHMARK_MAIN();
+CARAT_BENCHMARK_MAIN()

@@ -16,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "benchmark_main.hpp"
 #include "carat/residuals/io/bal_io.hpp"
 #include "carat/residuals/snavely_block.hpp"
 #include "carat/residuals/snavely_camera.hpp"
@@ -135,4 +136,4 @@ BENCHMARK(BM_WriteBal)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 
-BENCHMARK_MAIN();
+CARAT_BENCHMARK_MAIN()

@@ -9,6 +9,7 @@
 
 #include <random>
 
+#include "benchmark_main.hpp"
 #include "carat/coreset/row_coreset.hpp"
 
 namespace {
@@ -93,4 +94,4 @@ BENCHMARK(BM_Coreset)->Args({30000, 92, 1, 12})->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_Coreset)->Args({1000000, 7, 1, 2})->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_EigenHbc)->Args({1000000, 2})->Unit(benchmark::kMicrosecond);
 
-BENCHMARK_MAIN();
+CARAT_BENCHMARK_MAIN()

@@ -17,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include "carat/base/blas_kernels.hpp"
 #include "carat/base/error.hpp"
 #include "carat/base/stopwatch.hpp"
 #include "carat/coreset/compressed_solve.hpp"
@@ -46,6 +47,7 @@ int usage(const char* message) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  carat::use_cpu_blas_kernels(argv);  // OpenBLAS's kernels for this CPU, as `carat` runs them
   if (argc < 2) return usage("missing DATA");
   int repeat = 1;
   std::string mode = "full";

@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "carat/base/blas_kernels.hpp"
 #include "carat/registration/align.hpp"
 #include "carat/registration/covariance.hpp"
 #include "carat/registration/io/kitti_io.hpp"
@@ -25,7 +26,8 @@ const std::filesystem::path kDir = std::filesystem::path(CARAT_DATA_DIR) / "kitt
 
 }  // namespace
 
-int main() {
+int main(int, char** argv) {
+  carat::use_cpu_blas_kernels(argv);  // OpenBLAS's kernels for this CPU, as `carat` runs them
   if (!std::filesystem::exists(kDir / "graph.txt")) {
     std::printf("kitti07_pairs_sweep: %s is absent; skipped\n", kDir.c_str());
     return 0;

@@ -9,6 +9,7 @@
 #include <memory>
 #include <vector>
 
+#include "benchmark_main.hpp"
 #include "carat/coreset/compress.hpp"
 #include "carat/registration/correspondences.hpp"
 #include "carat/registration/dense_graph.hpp"
@@ -175,4 +176,4 @@ BENCHMARK(BM_LinearizeLossless)->Unit(benchmark::kMicrosecond);
 
 }  // namespace
 
-BENCHMARK_MAIN();
+CARAT_BENCHMARK_MAIN()

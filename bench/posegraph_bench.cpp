@@ -10,6 +10,7 @@
 #include <string>
 #include <variant>
 
+#include "carat/base/blas_kernels.hpp"
 #include "carat/residuals/io/g2o_io.hpp"
 #include "carat/residuals/pose_graph.hpp"
 #include "carat/sim/pose_graph.hpp"
@@ -56,6 +57,7 @@ void register_file(const std::string& name, const carat::G2oReadOptions& read_op
 }  // namespace
 
 int main(int argc, char** argv) {
+  carat::use_cpu_blas_kernels(argv);  // OpenBLAS's kernels for this CPU, as `carat` runs them
   carat::SyntheticPoseGraphOptions options;
   options.poses_per_lap = 1000;
   const auto synthetic =

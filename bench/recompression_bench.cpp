@@ -25,6 +25,7 @@
 
 #include "../examples/camera_localization/camera_scene.hpp"
 #include "../tests/curve_fit_problem.hpp"
+#include "benchmark_main.hpp"
 #include "carat/coreset/problem_compression.hpp"
 #include "carat/registration/dense_graph.hpp"
 #include "carat/registration/frame.hpp"
@@ -183,4 +184,4 @@ BENCHMARK(BM_Solve)
     ->Unit(benchmark::kMillisecond)
     ->MeasureProcessCPUTime();
 
-BENCHMARK_MAIN();
+CARAT_BENCHMARK_MAIN()

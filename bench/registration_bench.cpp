@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <memory>
 
+#include "carat/base/blas_kernels.hpp"
 #include "carat/registration/align.hpp"
 #include "carat/registration/covariance.hpp"
 #include "carat/registration/io/kitti_io.hpp"
@@ -72,6 +73,7 @@ void BM_PerScan(benchmark::State& state) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  carat::use_cpu_blas_kernels(argv);  // OpenBLAS's kernels for this CPU, as `carat` runs them
   if (std::filesystem::exists(kDir / "000000.bin")) {
     for (auto* fn : {&BM_Preprocess, &BM_Align, &BM_PerScan}) {
       const char* name = fn == &BM_Preprocess ? "BM_Preprocess"

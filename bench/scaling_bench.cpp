@@ -44,6 +44,7 @@
 #include <string>
 #include <vector>
 
+#include "carat/base/blas_kernels.hpp"
 #include "carat/base/stopwatch.hpp"
 #include "carat/registration/dense_graph.hpp"
 #include "carat/registration/frame.hpp"
@@ -417,6 +418,7 @@ void register_all() {
 }  // namespace
 
 int main(int argc, char** argv) {
+  carat::use_cpu_blas_kernels(argv);  // OpenBLAS's kernels for this CPU, as `carat` runs them
   register_all();
   benchmark::Initialize(&argc, argv);
   if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;

@@ -6,8 +6,23 @@ source "$(dirname "$0")/cli_common.sh"
 # --version: the version of CMakeLists.txt's project(VERSION).
 project_version=$(sed -n 's/^project(carat VERSION \([0-9.]*\).*/\1/p' "$(dirname "$0")/../CMakeLists.txt")
 check version 0 "" -- "$CARAT" --version
-if [[ -z $project_version || "$(cat "$scratch/out")" != "carat $project_version" ]]; then
+if [[ -z $project_version || "$(head -n 1 "$scratch/out")" != "carat $project_version" ]]; then
   echo "FAIL --version printed '$(cat "$scratch/out")', expected 'carat $project_version'"; fail=$((fail + 1))
+else pass=$((pass + 1)); fi
+# Its second line names OpenBLAS's kernels; on a CPU with AVX2 and FMA never the Prescott fallback
+# (carat restarts itself with OPENBLAS_CORETYPE set), unless the user set OPENBLAS_CORETYPE.
+blas_line=$(sed -n 2p "$scratch/out")
+if [[ $blas_line == "BLAS: OpenBLAS, kernels "* && -z ${OPENBLAS_CORETYPE+x} ]] &&
+   grep -qw avx2 /proc/cpuinfo && grep -qw fma /proc/cpuinfo &&
+   [[ ${blas_line,,} == *prescott ]]; then
+  echo "FAIL --version: OpenBLAS runs its Prescott fallback on an AVX2 CPU: '$blas_line'"
+  fail=$((fail + 1))
+else pass=$((pass + 1)); fi
+OPENBLAS_CORETYPE=Prescott "$CARAT" --version >"$scratch/out" 2>&1
+if [[ $(sed -n 2p "$scratch/out") == "BLAS: OpenBLAS, kernels "* &&
+      $(sed -n 2p "$scratch/out") != "BLAS: OpenBLAS, kernels Prescott" ]]; then
+  echo "FAIL --version: OPENBLAS_CORETYPE=Prescott was not left as set: '$(cat "$scratch/out")'"
+  fail=$((fail + 1))
 else pass=$((pass + 1)); fi
 
 # solve-g2o on the tiny graph from cli_common.sh.

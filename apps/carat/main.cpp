@@ -7,6 +7,7 @@
 #include <new>
 #include <string>
 
+#include "carat/base/blas_kernels.hpp"
 #include "carat/base/version.hpp"
 #include "cli_support.hpp"
 #include "commands.hpp"
@@ -26,6 +27,9 @@ std::string one_line(const std::string& message) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  // First of all: OpenBLAS's kernels for this CPU where it fell back to its oldest ones (a
+  // restart with OPENBLAS_CORETYPE set; docs/cli.md, "BLAS kernels").
+  carat::use_cpu_blas_kernels(argv);
   // Under mpirun only rank 0 prints (help, usage errors, errors: one message, not one per rank),
   // and only `carat map` runs on the other ranks; every other subcommand runs on rank 0 alone.
   const bool quiet = carat::cli::mpi_launch().secondary();
@@ -35,7 +39,12 @@ int main(int argc, char** argv) {
   carat::cli::install_interrupt_cleanup(quiet ? 500 : 0);
   CLI::App app{"carat: sparse nonlinear least squares with exact residual-block compression"};
   app.require_subcommand(1);
-  app.set_version_flag("--version", std::string("carat ") + carat::version());
+  const carat::BlasKernels blas = carat::blas_kernels();
+  // The version, then the BLAS kernels the solves run on (OpenBLAS reports them).
+  app.set_version_flag(
+      "--version",
+      std::string("carat ") + carat::version() +
+          (blas.library.empty() ? "" : "\nBLAS: " + blas.library + ", kernels " + blas.core));
   carat::cli::CommandRegistry registry;
   carat::cli::register_demo(app, registry);
   carat::cli::register_solve_g2o(app, registry);

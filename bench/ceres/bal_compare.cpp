@@ -24,6 +24,7 @@
 #include <vector>
 
 #include "../synthetic_bal_cases.hpp"
+#include "carat/base/blas_kernels.hpp"
 #include "carat/base/stopwatch.hpp"
 #include "carat/residuals/bal_problem.hpp"
 #include "carat/residuals/io/bal_io.hpp"
@@ -160,6 +161,7 @@ std::string run(const std::string& command, double* wall_s, int* status) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  carat::use_cpu_blas_kernels(argv);  // OpenBLAS's kernels for this CPU, as `carat` runs them
   bool quick = false;
   std::string solver, file, keep;
   for (int i = 1; i < argc; ++i) {

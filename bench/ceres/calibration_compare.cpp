@@ -38,6 +38,7 @@
 #include <vector>
 
 #include "../../examples/calibration/calibration_scene.hpp"
+#include "carat/base/blas_kernels.hpp"
 #include "carat/base/stopwatch.hpp"
 #include "carat/coreset/problem_compression.hpp"
 #include "carat/solver/autodiff_block.hpp"
@@ -193,6 +194,7 @@ nlohmann::json run_carat_full(const Scene& scene, double huber, const carat::Sol
 }  // namespace
 
 int main(int argc, char** argv) {
+  carat::use_cpu_blas_kernels(argv);  // OpenBLAS's kernels for this CPU, as `carat` runs them
   Options options;
   for (int k = 1; k < argc; ++k) {
     const std::string arg = argv[k];

@@ -24,6 +24,7 @@
 #include <vector>
 
 #include "../../examples/camera_localization/camera_scene.hpp"
+#include "carat/base/blas_kernels.hpp"
 #include "carat/base/stopwatch.hpp"
 #include "carat/coreset/problem_compression.hpp"
 #include "carat/residuals/relative_pose_block.hpp"
@@ -162,6 +163,7 @@ nlohmann::json run_ceres(const camera_scene::Scene& scene) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  carat::use_cpu_blas_kernels(argv);  // OpenBLAS's kernels for this CPU, as `carat` runs them
   int frames = 20, matches = 3000, repeat = 1;
   for (int k = 1; k + 1 < argc; k += 2) {
     if (std::strcmp(argv[k], "--frames") == 0) frames = std::atoi(argv[k + 1]);

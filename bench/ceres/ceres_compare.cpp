@@ -31,6 +31,7 @@
 #include <variant>
 #include <vector>
 
+#include "carat/base/blas_kernels.hpp"
 #include "carat/base/stopwatch.hpp"
 #include "carat/residuals/io/g2o_io.hpp"
 #include "carat/residuals/pose_graph.hpp"
@@ -304,6 +305,7 @@ nlohmann::json run_child(const std::string& self, const std::string& solver,
 }
 
 int main(int argc, char** argv) {
+  carat::use_cpu_blas_kernels(argv);  // OpenBLAS's kernels for this CPU, as `carat` runs them
   int repeat = 1;
   std::string solver;
   std::vector<std::string> files;

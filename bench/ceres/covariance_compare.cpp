@@ -33,6 +33,7 @@
 #include <string>
 #include <vector>
 
+#include "carat/base/blas_kernels.hpp"
 #include "carat/base/stopwatch.hpp"
 #include "carat/residuals/io/g2o_io.hpp"
 #include "carat/residuals/pose_graph.hpp"
@@ -220,6 +221,7 @@ double max_relative_difference(const std::vector<Matrix6d>& a, const std::vector
 }  // namespace
 
 int main(int argc, char** argv) {
+  carat::use_cpu_blas_kernels(argv);  // OpenBLAS's kernels for this CPU, as `carat` runs them
   std::string solver, poses_path, blocks_path;
   std::vector<std::string> files;
   for (int i = 1; i < argc; ++i) {

@@ -57,6 +57,7 @@
 #include <variant>
 #include <vector>
 
+#include "carat/base/blas_kernels.hpp"
 #include "carat/base/stopwatch.hpp"
 #ifdef GTSAM_USE_TBB
 #include <tbb/global_control.h>
@@ -454,6 +455,7 @@ int run_bal(int repeat, bool quick) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  carat::use_cpu_blas_kernels(argv);  // OpenBLAS's kernels for this CPU, as `carat` runs them
   int repeat = 3;
   bool bal = false;
   bool quick = false;

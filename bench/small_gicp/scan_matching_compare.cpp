@@ -27,6 +27,7 @@
 #include <thread>
 #include <vector>
 
+#include "carat/base/blas_kernels.hpp"
 #include "carat/base/stopwatch.hpp"
 #include "carat/registration/align.hpp"
 #include "carat/registration/covariance.hpp"
@@ -130,6 +131,7 @@ int usage() {
 }  // namespace
 
 int main(int argc, char** argv) {
+  carat::use_cpu_blas_kernels(argv);  // OpenBLAS's kernels for this CPU, as `carat` runs them
   int repeat = 15;
   int pause_ms = 20;
   std::filesystem::path dir = std::filesystem::path(CARAT_DATA_DIR) / "kitti00_pair";

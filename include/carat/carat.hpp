@@ -4,6 +4,7 @@
 // would rather include one file. Each header stands alone as well.
 
 #include <carat/base/atomic_file.hpp>
+#include <carat/base/blas_kernels.hpp>
 #include <carat/base/byte_stream.hpp>
 #include <carat/base/error.hpp>
 #include <carat/base/field_count.hpp>

@@ -108,3 +108,15 @@ def test_covariance_gauge_is_checked(tmp_path):
         carat.solve_g2o(path, covariance=True, covariance_gauge="none")
     result = carat.solve_g2o(path, covariance=True, covariance_gauge="pseudo-inverse")
     np.testing.assert_allclose(result["covariance"][0], np.eye(3), rtol=1e-12)
+
+
+def test_blas_kernels_suggest_only_for_openblas_fallback():
+    k = carat.blas_kernels()
+    assert set(k) == {"library", "core", "suggested_core"}
+    if k["library"] == "":
+        assert k["core"] == "" and k["suggested_core"] == ""
+        return
+    assert k["library"] == "OpenBLAS" and k["core"] != ""
+    assert k["suggested_core"] in ("", "Haswell", "SkylakeX")
+    if k["suggested_core"]:
+        assert k["core"].lower() == "prescott"
