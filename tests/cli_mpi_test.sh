@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # carat map under mpirun: 2 and 3 ranks give the poses of one process bit for bit (the --out
-# files and the JSON ATE), and a rank that fails (a frame it cannot read), rank 0 failing before
-# the ranks build, and sampling the ranks cannot share end the whole run cleanly: one line naming
+# files and the JSON ATE), and a rank that fails (a frame it cannot read), rank 0 failing,
+# and sampling the ranks cannot share end the whole run cleanly: one line naming
 # the rank and the frame, exit non-zero, no --out, no hang. Other subcommands run on rank 0 alone,
 # usage errors print once, and a signal to mpirun leaves no temporary. Skips (exit 77) when carat was built
 # without MPI or mpirun is missing. Needs CARAT (the binary) and CARAT_WITH_MPI (ON or OFF).
@@ -47,13 +47,15 @@ print(a['ate_rmse'] == b['ate_rmse'] and a['iterations'] == b['iterations']
       and 'mpi' not in a and m['ranks'] == ranks and m['bytes_gathered'] > 0
       and sum(m['factors_per_rank']) == b['factors'] and len(m['factors_per_rank']) == ranks
       and m['rounds'] >= 1 and len(m['build_s_per_rank']) == ranks
-      and m['frames_read_per_rank'][0] == b['frames']
-      and all(0 < n < b['frames'] for n in m['frames_read_per_rank'][1:]))" "$a.json" "$b.json" "${b##*_}")"
+      and len(m['frames_read_per_rank']) == ranks
+      and all(0 < n <= b['frames'] for n in m['frames_read_per_rank'])
+      and len(m['pairs_measured_per_rank']) == ranks and len(m['overlap_s_per_rank']) == ranks
+      and all(n > 0 for n in m['pairs_measured_per_rank']))" "$a.json" "$b.json" "${b##*_}")"
 done
 
 # A rank that cannot read a frame: each rank runs in its own folder, as if the shared
-# filesystem served rank 1 a truncated copy of frame 3 (rank 0 reads every frame; rank 1 only the
-# frames of its factors, frame 3 among them).
+# filesystem served rank 1 a truncated copy of frame 3 (each rank reads the frames of its share
+# of the dense graph's candidate pairs, frame 3 among them).
 mkdir -p good bad/seq
 ln -s ../seq good/seq
 cp seq/* bad/seq/
@@ -62,8 +64,8 @@ check rank_fails 1 "carat: error: rank 1 of 2: seq/000003.bin: 100 bytes is not 
   timeout 300 mpirun -q --oversubscribe -np 1 --wdir "$scratch/good" "$CARAT" "${args[@]}" --out out.txt : \
   -np 1 --wdir "$scratch/bad" "$CARAT" "${args[@]}" --out out.txt
 expect rank_fails_no_out "$([[ ! -e good/out.txt && ! -e bad/out.txt ]] && echo True)"
-# Rank 0 fails before the ranks build: the others are told to stop.
-check rank0_fails 1 "carat: error: seq/000003.bin: 100 bytes is not a whole number" -- \
+# Rank 0 fails (in its share of the dense graph): the others are told to stop.
+check rank0_fails 1 "carat: error: rank 0 of 2: seq/000003.bin: 100 bytes is not a whole number" -- \
   timeout 300 mpirun -q --oversubscribe -np 1 --wdir "$scratch/bad" "$CARAT" "${args[@]}" --out out.txt : \
   -np 1 --wdir "$scratch/good" "$CARAT" "${args[@]}" --out out.txt
 expect rank0_fails_no_out "$([[ ! -e good/out.txt && ! -e bad/out.txt ]] && echo True)"

@@ -1,6 +1,7 @@
 // FrameStore: frames on demand under a byte cap (least recently used dropped first, frames in
 // use kept, loader errors passed on and retried), the locality order of pairs, and the dense
-// graph, factors, registration and loop closure from a capped store equal to the resident run.
+// graph, factors, registration and loop closure from a capped store equal to the resident run;
+// the dense graph measured in shares reading only the frames each share names.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
@@ -173,6 +174,43 @@ TEST(FrameStoreTest, ACappedStoreGivesTheResidentResults) {
   ASSERT_EQ(a.size(), b.size());
   for (std::size_t k = 0; k < a.size(); ++k)
     EXPECT_EQ(a[k].T_target_source.matrix(), b[k].T_target_source.matrix()) << k;
+}
+
+TEST(FrameStoreTest, SharesOfTheCandidatesMeasureTheWholeGraphReadingOnlyTheirFrames) {
+  const Drive& d = drive();
+  FrameStore resident(d.frames);
+  const std::vector<FramePair> whole = build_dense_graph(resident, d.initial);
+  std::vector<FramePair> candidates = dense_graph_candidates(d.initial);
+  ASSERT_GT(candidates.size(), whole.size());
+  // Two shares, each measured from its own store, as two ranks of an MPI job do.
+  const std::size_t half = candidates.size() / 2;
+  std::vector<FramePair> first(candidates.begin(), candidates.begin() + half);
+  std::vector<FramePair> second(candidates.begin() + half, candidates.end());
+  int fewest = static_cast<int>(d.frames.size());
+  for (std::vector<FramePair>* share : {&first, &second}) {
+    CountingStore s(1e9);
+    measure_overlaps(*s.store, d.initial, *share);
+    std::vector<char> named(d.frames.size(), 0);
+    for (const FramePair& pair : *share) {
+      named[static_cast<std::size_t>(pair.target)] = 1;
+      named[static_cast<std::size_t>(pair.source)] = 1;
+    }
+    EXPECT_EQ(*s.calls, std::count(named.begin(), named.end(), 1)) << "each named frame once";
+    fewest = std::min(fewest, s.calls->load());
+  }
+  EXPECT_LT(fewest, static_cast<int>(d.frames.size())) << "a share that names fewer frames";
+  std::copy(first.begin(), first.end(), candidates.begin());
+  std::copy(second.begin(), second.end(), candidates.begin() + static_cast<std::ptrdiff_t>(half));
+  const std::vector<FramePair> joined = select_dense_graph(candidates);
+  ASSERT_EQ(joined.size(), whole.size());
+  for (std::size_t k = 0; k < whole.size(); ++k) {
+    EXPECT_EQ(joined[k].target, whole[k].target);
+    EXPECT_EQ(joined[k].source, whole[k].source);
+    EXPECT_EQ(joined[k].overlap, whole[k].overlap);
+  }
+  std::vector<FramePair> bad = {{0, 24, 0.0}};
+  EXPECT_THAT(error_of([&] { measure_overlaps(resident, d.initial, bad); }),
+              HasSubstr("pair (0, 24) names a frame out of range (24 frames)"));
 }
 
 TEST(FrameStoreTest, ASubsetOfFactorsEqualsTheSameFactorsOfTheWhole) {

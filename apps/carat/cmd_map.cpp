@@ -9,6 +9,7 @@
 // pairs at the start, and the registration errors of all pairs (gre) or a pose graph of pairwise
 // GICP results (pgo) optimized. Reports the ATE against --poses when given, and writes the
 // optimized trajectory to --out.
+#include <cstdint>
 #include <cstdio>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -108,18 +109,21 @@ MappingOptions mapping_options(const MapArgs& args, int threads, bool run_loops)
   return options;
 }
 
-/// The scans of --frames as frames: all read now, or on demand under --max-frame-memory.
+/// The scans of --frames as frames: all read now, or on demand under --max-frame-memory (or
+/// on demand without a cap when `on_demand`: rank 0 of an MPI job reads only the frames of its
+/// shares).
 std::shared_ptr<FrameStore> open_frames(const MapArgs& args, const std::vector<ScanFile>& files,
-                                        int threads, OpenScansOptions* scans) {
+                                        int threads, bool on_demand, OpenScansOptions* scans) {
   scans->read.drop_non_finite = args.drop_non_finite;
   scans->preprocess.voxel_size = args.voxel;
   scans->num_threads = threads;
   const double cap = args.max_frame_memory_mb * 1024.0 * 1024.0;
   scans->max_bytes = static_cast<std::size_t>(cap);
+  if (scans->max_bytes == 0 && on_demand) scans->max_bytes = SIZE_MAX;
   ProgressBar bar("reading and preprocessing", scans->max_bytes == 0);
   std::shared_ptr<FrameStore> store = open_scans(files, *scans, bar.callback());
   // A cap that cannot hold the two frames of one factor cannot build any: say so up front.
-  if (scans->max_bytes > 0) {
+  if (scans->max_bytes > 0 && scans->max_bytes != SIZE_MAX) {
     const std::size_t pair_bytes = store->get(0)->memory_bytes() + store->get(1)->memory_bytes();
     if (static_cast<double>(pair_bytes) > cap) {
       char text[32];
@@ -163,9 +167,12 @@ void print_run(const MapArgs& args, const MappingResult& map, FrameStore& store,
               args.frames.c_str(), map.graph.pairs.size());
   if (!store.resident()) {
     const FrameStoreStats stats = store.stats();
-    std::printf("  frames read on demand under %s: %zu reads for %zu requests, at most %s held\n",
-                format_bytes(static_cast<double>(stats.max_bytes)).c_str(), stats.loads,
-                stats.requests, format_bytes(static_cast<double>(stats.peak_bytes)).c_str());
+    const std::string cap = stats.max_bytes == SIZE_MAX
+                                ? std::string("without a cap")
+                                : "under " + format_bytes(static_cast<double>(stats.max_bytes));
+    std::printf("  frames read on demand %s: %zu reads for %zu requests, at most %s held\n",
+                cap.c_str(), stats.loads, stats.requests,
+                format_bytes(static_cast<double>(stats.peak_bytes)).c_str());
   }
   if (initial_ate && !args.initial.empty()) {
     std::printf("  start (%s): ATE RMSE %.4f m, %.3f deg\n", args.initial.c_str(),
@@ -206,10 +213,12 @@ int run_map(const CLI::App& command, const MapArgs& args) {
   // Open the scans, close loops and build the dense graph, then optimize.
   const Stopwatch preprocess_time;
   OpenScansOptions scans;
-  const std::shared_ptr<FrameStore> store = open_frames(args, files, threads, &scans);
+  const std::shared_ptr<FrameStore> store =
+      open_frames(args, files, threads, mpi != nullptr, &scans);
   const double preprocess_s = preprocess_time.elapsed_s();
   MappingOptions options = mapping_options(args, threads, run_loops);
   StageBars<MappingStage> bars(mapping_stage_label, !args.json);
+  if (mpi) mpi->attach({files, scans}, store, &options);
   MapGraph graph = build_map_graph(*store, t.T_world_initial, options, bars.callback());
   bars.finish();
   const bool full = options.method == MappingMethod::kRegistration &&
@@ -218,7 +227,6 @@ int run_map(const CLI::App& command, const MapArgs& args) {
     check_full_factor_memory(store->frame_points(), graph.pairs,
                              "use --sampling exact or lossless, which keep a few rows per factor");
   }
-  if (mpi) mpi->attach({files, scans}, store, &options);
   const MappingResult map = optimize_map(*store, std::move(graph), options, bars.callback());
   bars.finish();
   MethodResult result = describe_method(map, options);

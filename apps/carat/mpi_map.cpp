@@ -13,6 +13,7 @@
 
 #include "carat/base/error.hpp"
 #include "carat/base/stopwatch.hpp"
+#include "carat/registration/dense_graph.hpp"
 #include "carat/registration/frame_store.hpp"
 #include "cli_support.hpp"
 #include "mpi_launch.hpp"
@@ -36,7 +37,7 @@ std::shared_ptr<FrameStore> frames_from(const MpiFrameSource& source) {
   return open_scans(source.files, scans);
 }
 
-enum Command : std::uint64_t { kStop = 0, kBuild = 1 };
+enum Command : std::uint64_t { kStop = 0, kBuild = 1, kOverlaps = 2 };
 constexpr int kAnswerTag = 7;
 constexpr std::size_t kChunk = std::size_t{1} << 30;  // MPI counts are int
 
@@ -134,23 +135,33 @@ int MpiMapJob::serve(int threads) {
     std::uint64_t command = kStop;
     std::vector<std::byte> payload;
     broadcast(&command, &payload);
-    if (command != kBuild) return 0;
+    if (command != kBuild && command != kOverlaps) return 0;
     std::vector<std::byte> answer;
     try {
-      BuildJob job = decode_job(payload);
-      job.options.num_threads = threads;
-      if (!store) store = frames_from(job.source);
-      if (job.shares.size() != static_cast<std::size_t>(size_))
-        throw Error("the job from rank 0 has " + std::to_string(job.shares.size()) +
-                    " shares for " + std::to_string(size_) + " ranks");
-      const std::vector<std::size_t>& indices = job.shares[static_cast<std::size_t>(rank_)];
-      const Stopwatch build_time;
-      std::vector<RegistrationFactor> factors;
-      if (!indices.empty()) {
-        factors =
-            build_registration_factors(*store, job.pairs, indices, job.T_world_frame, job.options);
+      const Stopwatch time;
+      if (command == kOverlaps) {
+        OverlapJob job = decode_overlap_job(payload);
+        job.options.num_threads = threads;
+        if (!store) store = frames_from(job.source);
+        check_shares(job.shares.size());
+        std::vector<FramePair> share;
+        for (const std::size_t k : job.shares[static_cast<std::size_t>(rank_)])
+          share.push_back(job.pairs[k]);
+        if (!share.empty()) measure_overlaps(*store, job.T_world_frame, share, job.options);
+        answer = encode_overlaps(share, time.elapsed_s(), store->stats().loads);
+      } else {
+        BuildJob job = decode_job(payload);
+        job.options.num_threads = threads;
+        if (!store) store = frames_from(job.source);
+        check_shares(job.shares.size());
+        const std::vector<std::size_t>& indices = job.shares[static_cast<std::size_t>(rank_)];
+        std::vector<RegistrationFactor> factors;
+        if (!indices.empty()) {
+          factors = build_registration_factors(*store, job.pairs, indices, job.T_world_frame,
+                                               job.options);
+        }
+        answer = encode_factors(indices, factors, time.elapsed_s(), store->stats().loads);
       }
-      answer = encode_factors(indices, factors, build_time.elapsed_s(), store->stats().loads);
     } catch (const std::bad_alloc&) {
       answer = encode_failure("out of memory");
     } catch (const std::exception& e) {
@@ -162,6 +173,13 @@ int MpiMapJob::serve(int threads) {
   (void)threads;
   return 1;
 #endif
+}
+
+void MpiMapJob::check_shares(std::size_t shares) const {
+  if (shares != static_cast<std::size_t>(size_)) {
+    throw Error("the job from rank 0 has " + std::to_string(shares) + " shares for " +
+                std::to_string(size_) + " ranks");
+  }
 }
 
 void check_mpi_applicable(const std::string& method, ResidualSampling sampling) {
@@ -181,6 +199,72 @@ void MpiMapJob::attach(MpiFrameSource source, std::shared_ptr<FrameStore> frames
   options->build_factors =
       [this](std::span<const FramePair> pairs, std::span<const Eigen::Isometry3d> T_world_frame,
              const GlobalRegistrationOptions& gre) { return build(pairs, T_world_frame, gre); };
+  options->measure_overlaps =
+      [this](std::span<FramePair> pairs, std::span<const Eigen::Isometry3d> T_world_frame,
+             const DenseGraphOptions& graph) { measure(pairs, T_world_frame, graph); };
+}
+
+std::vector<std::vector<std::byte>> MpiMapJob::collect_answers(const std::string& own_failure) {
+  std::vector<std::vector<std::byte>> answers(static_cast<std::size_t>(size_));
+#if CARAT_WITH_MPI
+  for (int r = 1; r < size_; ++r) answers[static_cast<std::size_t>(r)] = receive_answer(r);
+#endif
+  const auto failed = [&](int r, const std::string& message) {
+    return Error("rank " + std::to_string(r) + " of " + std::to_string(size_) + ": " + message);
+  };
+  if (!own_failure.empty()) throw failed(0, own_failure);
+  for (int r = 1; r < size_; ++r) {
+    const std::vector<std::byte>& bytes = answers[static_cast<std::size_t>(r)];
+    bytes_gathered_ += bytes.size();
+    const std::string message = answer_failure(bytes, "the answer of rank " + std::to_string(r));
+    if (!message.empty()) throw failed(r, message);
+  }
+  return answers;
+}
+
+void MpiMapJob::measure(std::span<FramePair> pairs,
+                        std::span<const Eigen::Isometry3d> T_world_frame,
+                        const DenseGraphOptions& options) {
+#if CARAT_WITH_MPI
+  std::uint64_t command = kOverlaps;
+  const std::vector<std::vector<std::size_t>> shares = split_pairs(pairs, T_world_frame, size_);
+  std::vector<std::byte> payload =
+      encode_overlap_job(source_, options, pairs, T_world_frame, shares);
+  broadcast(&command, &payload);
+  std::string own_failure;
+  const Stopwatch own_time;
+  try {
+    std::vector<FramePair> share;
+    for (const std::size_t k : shares[0]) share.push_back(pairs[k]);
+    if (!share.empty()) measure_overlaps(*store_, T_world_frame, share, options);
+    for (std::size_t q = 0; q < share.size(); ++q) pairs[shares[0][q]].overlap = share[q].overlap;
+  } catch (const std::bad_alloc&) {
+    own_failure = "out of memory";
+  } catch (const std::exception& e) {
+    own_failure = e.what();
+  }
+  overlap_s_per_rank_.assign(static_cast<std::size_t>(size_), 0.0);
+  overlap_s_per_rank_[0] = own_time.elapsed_s();
+  pairs_measured_per_rank_.assign(static_cast<std::size_t>(size_), 0);
+  pairs_measured_per_rank_[0] = shares[0].size();
+  frames_read_per_rank_.assign(static_cast<std::size_t>(size_), 0);
+  frames_read_per_rank_[0] = store_->stats().loads;
+  const std::vector<std::vector<std::byte>> answers = collect_answers(own_failure);
+  std::vector<FramePair> measured(pairs.begin(), pairs.end());
+  for (int r = 1; r < size_; ++r) {
+    const auto rank = static_cast<std::size_t>(r);
+    const WorkAnswer answer = read_overlap_answer(
+        answers[rank], "the answer of rank " + std::to_string(r), shares[rank], &measured);
+    overlap_s_per_rank_[rank] = answer.seconds;
+    frames_read_per_rank_[rank] = answer.frames_read;
+    pairs_measured_per_rank_[rank] = shares[rank].size();
+  }
+  std::copy(measured.begin(), measured.end(), pairs.begin());
+#else
+  (void)pairs;
+  (void)T_world_frame;
+  (void)options;
+#endif
 }
 
 std::vector<RegistrationFactor> MpiMapJob::build(std::span<const FramePair> pairs,
@@ -211,8 +295,6 @@ std::vector<RegistrationFactor> MpiMapJob::build(std::span<const FramePair> pair
     own_failure = e.what();
   }
   const double own_s = own_time.elapsed_s();
-  std::vector<std::vector<std::byte>> answers(static_cast<std::size_t>(size_));
-  for (int r = 1; r < size_; ++r) answers[static_cast<std::size_t>(r)] = receive_answer(r);
   ++rounds_;
   factors_per_rank_.assign(static_cast<std::size_t>(size_), 0);
   factors_per_rank_[0] = own.size();
@@ -220,22 +302,12 @@ std::vector<RegistrationFactor> MpiMapJob::build(std::span<const FramePair> pair
   build_s_per_rank_[0] = own_s;
   frames_read_per_rank_.assign(static_cast<std::size_t>(size_), 0);
   frames_read_per_rank_[0] = store_->resident() ? store_->size() : store_->stats().loads;
-  const auto failed = [&](int r, const std::string& message) {
-    return Error("rank " + std::to_string(r) + " of " + std::to_string(size_) + ": " + message);
-  };
-  if (!own_failure.empty()) throw failed(0, own_failure);
-  for (int r = 1; r < size_; ++r) {
-    const std::vector<std::byte>& bytes = answers[static_cast<std::size_t>(r)];
-    bytes_gathered_ += bytes.size();
-    const std::string what = "the answer of rank " + std::to_string(r);
-    const std::string message = answer_failure(bytes, what);
-    if (!message.empty()) throw failed(r, message);
-  }
+  const std::vector<std::vector<std::byte>> answers = collect_answers(own_failure);
   for (int r = 1; r < size_; ++r) {
     const auto rank = static_cast<std::size_t>(r);
-    const FactorAnswer answer = read_factor_answer(
+    const WorkAnswer answer = read_factor_answer(
         answers[rank], "the answer of rank " + std::to_string(r), shares_[rank], &out);
-    build_s_per_rank_[rank] = answer.build_s;
+    build_s_per_rank_[rank] = answer.seconds;
     frames_read_per_rank_[rank] = answer.frames_read;
     factors_per_rank_[rank] = shares_[rank].size();
   }
@@ -257,7 +329,9 @@ std::string MpiMapJob::summary_line() const {
     }
     return out;
   };
-  return "  mpi: " + std::to_string(size_) + " ranks built " + joined(factors_per_rank_, "%zu") +
+  return "  mpi: " + std::to_string(size_) + " ranks measured " +
+         joined(pairs_measured_per_rank_, "%zu") + " candidate pairs in " +
+         joined(overlap_s_per_rank_, "%.2f") + " s, built " + joined(factors_per_rank_, "%zu") +
          " factors in " + joined(build_s_per_rank_, "%.2f") + " s from " +
          joined(frames_read_per_rank_, "%zu") + " frames; " +
          format_bytes(static_cast<double>(bytes_gathered_)) + " gathered over " +
@@ -268,6 +342,8 @@ nlohmann::json MpiMapJob::report() const {
   return {{"ranks", size_},
           {"rounds", rounds_},
           {"bytes_gathered", bytes_gathered_},
+          {"pairs_measured_per_rank", pairs_measured_per_rank_},
+          {"overlap_s_per_rank", overlap_s_per_rank_},
           {"factors_per_rank", factors_per_rank_},
           {"build_s_per_rank", build_s_per_rank_},
           {"frames_read_per_rank", frames_read_per_rank_}};

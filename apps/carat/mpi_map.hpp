@@ -1,12 +1,14 @@
 #pragma once
 
-// `mpirun -np N carat map ...`: global registration with the factors built on N processes. Every
-// rank runs the same command; rank 0 reads the frames, finds the dense graph and, each round,
-// sends the pairs and start poses to the other ranks, which build and compress their share of
-// the factors (a stretch of the pairs in locality order, one part of the map) from the frames
-// those pairs need (read from the same --frames folder: a shared filesystem) and send them back
-// as bytes. Rank 0 builds its own share, assembles, solves
-// and writes the result, so the output is the one a single process writes, bit for bit.
+// `mpirun -np N carat map ...`: the dense graph and global registration's factors on N
+// processes. Every rank runs the same command. Rank 0 lists the dense graph's candidate pairs and
+// sends them with the start poses to the other ranks; each rank measures the overlaps of its
+// share (a stretch of the pairs in locality order, one part of the map), and rank 0 keeps the
+// pairs that overlap enough. Each round, the ranks likewise build and compress their share of
+// the factors and send them back as bytes. Every rank reads only the frames its shares need
+// (from the same --frames folder: a shared filesystem). Rank 0 measures and builds its own
+// shares, assembles, solves and writes the result, so the output is the one a single process
+// writes, bit for bit.
 
 #include <Eigen/Geometry>
 #include <cstddef>
@@ -52,8 +54,9 @@ class MpiMapJob {
   /// a failure is sent to rank 0 (which reports it) instead of factors. Returns the exit status.
   int serve(int threads);
 
-  /// Rank 0: makes the GRE of `options` build its factors over the ranks: rank 0 from `frames`,
-  /// the others from `source`. The job and `frames` must outlive the options' use.
+  /// Rank 0: makes the dense graph of `options` measure its overlaps, and its GRE build its
+  /// factors, over the ranks: rank 0 from `frames`, the others from `source`. The job and
+  /// `frames` must outlive the options' use.
   void attach(MpiFrameSource source, std::shared_ptr<FrameStore> frames, MappingOptions* options);
   /// Rank 0: one round's factors of every pair, parallel to the pairs, built over the ranks at
   /// T_world_frame. Throws carat::Error "rank r of N: ..." with the message of the lowest rank
@@ -61,14 +64,23 @@ class MpiMapJob {
   std::vector<RegistrationFactor> build(std::span<const FramePair> pairs,
                                         std::span<const Eigen::Isometry3d> T_world_frame,
                                         const GlobalRegistrationOptions& options);
-  /// Rank 0: ranks, rounds, bytes gathered, and per rank the factors built, their build time
-  /// and the frames read, for the JSON report.
+  /// Rank 0: the overlap of every candidate pair at T_world_frame, measured over the ranks (each
+  /// its share, as measure_overlaps()). Throws carat::Error "rank r of N: ..." as build().
+  void measure(std::span<FramePair> pairs, std::span<const Eigen::Isometry3d> T_world_frame,
+               const DenseGraphOptions& options);
+  /// Rank 0: ranks, rounds, bytes gathered, and per rank the pairs measured and their time, the
+  /// factors built and their build time, and the frames read, for the JSON report.
   nlohmann::json report() const;
   /// Rank 0: the same as one line of the text report.
   std::string summary_line() const;
 
  private:
   MpiMapJob(int rank, int size) : rank_(rank), size_(size) {}
+  /// Throws unless a job has one share per rank.
+  void check_shares(std::size_t shares) const;
+  /// Rank 0: every other rank's answer (index r), after its own work failed with `own_failure`
+  /// (empty: it did not); throws "rank r of N: ..." for the lowest rank that failed.
+  std::vector<std::vector<std::byte>> collect_answers(const std::string& own_failure);
 
   int rank_ = 0;
   int size_ = 1;
@@ -78,9 +90,11 @@ class MpiMapJob {
   std::size_t shares_pairs_ = 0;                  // the pair count they were made for
   int rounds_ = 0;
   std::size_t bytes_gathered_ = 0;
-  std::vector<std::size_t> factors_per_rank_;      // the last round's
-  std::vector<double> build_s_per_rank_;           // the last round's wall time of each share
-  std::vector<std::size_t> frames_read_per_rank_;  // frames each rank has read so far
+  std::vector<std::size_t> factors_per_rank_;         // the last round's
+  std::vector<double> build_s_per_rank_;              // the last round's wall time of each share
+  std::vector<std::size_t> frames_read_per_rank_;     // frames each rank has read so far
+  std::vector<std::size_t> pairs_measured_per_rank_;  // the dense graph's candidates measured
+  std::vector<double> overlap_s_per_rank_;            // wall time of each share of them
 };
 
 }  // namespace carat::cli

@@ -10,13 +10,9 @@
 
 namespace carat::cli {
 
-std::vector<std::byte> encode_job(const MpiFrameSource& source,
-                                  const GlobalRegistrationOptions& options,
-                                  std::span<const FramePair> pairs,
-                                  std::span<const Eigen::Isometry3d> T_world_frame,
-                                  const std::vector<std::vector<std::size_t>>& shares) {
-  std::vector<std::byte> bytes;
-  ByteWriter out(bytes);
+namespace {
+
+void write_source(ByteWriter& out, const MpiFrameSource& source) {
   out.put(static_cast<std::uint64_t>(source.files.size()));
   for (const ScanFile& file : source.files) {
     out.put_string(file.path.string());
@@ -24,7 +20,27 @@ std::vector<std::byte> encode_job(const MpiFrameSource& source,
     out.put(static_cast<std::uint8_t>(file.bin_format));
   }
   write_options(out, source.scans);
-  write_options(out, options);
+}
+
+MpiFrameSource read_source(ByteReader& in) {
+  MpiFrameSource source;
+  const auto files = in.get<std::uint64_t>();
+  if (files > in.remaining()) in.garbled("frame count");
+  for (std::uint64_t k = 0; k < files; ++k) {
+    ScanFile file;
+    file.path = in.get_string();
+    file.name = in.get_string();
+    file.bin_format = static_cast<KittiFormat>(in.get<std::uint8_t>());
+    source.files.push_back(std::move(file));
+  }
+  source.scans = read_open_scans_options(in);
+  return source;
+}
+
+/// The pairs, the poses and the shares.
+void write_work(ByteWriter& out, std::span<const FramePair> pairs,
+                std::span<const Eigen::Isometry3d> T_world_frame,
+                const std::vector<std::vector<std::size_t>>& shares) {
   out.put(static_cast<std::uint64_t>(pairs.size()));
   out.put_array(pairs);
   out.put(static_cast<std::uint64_t>(T_world_frame.size()));
@@ -35,31 +51,19 @@ std::vector<std::byte> encode_job(const MpiFrameSource& source,
     out.put(static_cast<std::uint64_t>(share.size()));
     for (const std::size_t k : share) out.put(static_cast<std::uint64_t>(k));
   }
-  return bytes;
 }
 
-BuildJob decode_job(std::span<const std::byte> bytes) {
-  ByteReader in(bytes, "the job from rank 0");
-  BuildJob job;
-  const auto files = in.get<std::uint64_t>();
-  if (files > in.remaining()) in.garbled("frame count");
-  for (std::uint64_t k = 0; k < files; ++k) {
-    ScanFile file;
-    file.path = in.get_string();
-    file.name = in.get_string();
-    file.bin_format = static_cast<KittiFormat>(in.get<std::uint8_t>());
-    job.source.files.push_back(std::move(file));
-  }
-  job.source.scans = read_open_scans_options(in);
-  job.options = read_global_registration_options(in);
-  job.pairs = in.get_array<FramePair>(static_cast<std::size_t>(in.get<std::uint64_t>()));
+void read_work(ByteReader& in, std::vector<FramePair>* pairs,
+               std::vector<Eigen::Isometry3d>* T_world_frame,
+               std::vector<std::vector<std::size_t>>* shares) {
+  *pairs = in.get_array<FramePair>(static_cast<std::size_t>(in.get<std::uint64_t>()));
   const auto poses = in.get<std::uint64_t>();
   if (poses > in.remaining() / (16 * sizeof(double))) in.garbled("pose count");
   for (std::uint64_t k = 0; k < poses; ++k) {
     Eigen::Isometry3d T;
     const std::vector<double> m = in.get_array<double>(16);
     std::copy(m.begin(), m.end(), T.matrix().data());
-    job.T_world_frame.push_back(T);
+    T_world_frame->push_back(T);
   }
   const auto ranks = in.get<std::uint64_t>();
   if (ranks > in.remaining() / sizeof(std::uint64_t)) in.garbled("rank count");
@@ -67,13 +71,90 @@ BuildJob decode_job(std::span<const std::byte> bytes) {
     std::vector<std::size_t> share;
     for (const std::uint64_t k :
          in.get_array<std::uint64_t>(static_cast<std::size_t>(in.get<std::uint64_t>()))) {
-      if (k >= job.pairs.size()) in.garbled("pair index " + std::to_string(k));
+      if (k >= pairs->size()) in.garbled("pair index " + std::to_string(k));
       share.push_back(static_cast<std::size_t>(k));
     }
-    job.shares.push_back(std::move(share));
+    shares->push_back(std::move(share));
   }
+}
+
+}  // namespace
+
+std::vector<std::byte> encode_job(const MpiFrameSource& source,
+                                  const GlobalRegistrationOptions& options,
+                                  std::span<const FramePair> pairs,
+                                  std::span<const Eigen::Isometry3d> T_world_frame,
+                                  const std::vector<std::vector<std::size_t>>& shares) {
+  std::vector<std::byte> bytes;
+  ByteWriter out(bytes);
+  write_source(out, source);
+  write_options(out, options);
+  write_work(out, pairs, T_world_frame, shares);
+  return bytes;
+}
+
+BuildJob decode_job(std::span<const std::byte> bytes) {
+  ByteReader in(bytes, "the job from rank 0");
+  BuildJob job;
+  job.source = read_source(in);
+  job.options = read_global_registration_options(in);
+  read_work(in, &job.pairs, &job.T_world_frame, &job.shares);
   in.expect_end();
   return job;
+}
+
+std::vector<std::byte> encode_overlap_job(const MpiFrameSource& source,
+                                          const DenseGraphOptions& options,
+                                          std::span<const FramePair> pairs,
+                                          std::span<const Eigen::Isometry3d> T_world_frame,
+                                          const std::vector<std::vector<std::size_t>>& shares) {
+  std::vector<std::byte> bytes;
+  ByteWriter out(bytes);
+  write_source(out, source);
+  write_options(out, options);
+  write_work(out, pairs, T_world_frame, shares);
+  return bytes;
+}
+
+OverlapJob decode_overlap_job(std::span<const std::byte> bytes) {
+  ByteReader in(bytes, "the overlap job from rank 0");
+  OverlapJob job;
+  job.source = read_source(in);
+  job.options = read_dense_graph_options(in);
+  read_work(in, &job.pairs, &job.T_world_frame, &job.shares);
+  in.expect_end();
+  return job;
+}
+
+std::vector<std::byte> encode_overlaps(std::span<const FramePair> pairs, double measure_s,
+                                       std::size_t frames_read) {
+  std::vector<std::byte> bytes;
+  ByteWriter out(bytes);
+  out.put(std::uint8_t{1});
+  out.put(measure_s);
+  out.put(static_cast<std::uint64_t>(frames_read));
+  out.put(static_cast<std::uint64_t>(pairs.size()));
+  for (const FramePair& pair : pairs) out.put(pair.overlap);
+  return bytes;
+}
+
+WorkAnswer read_overlap_answer(std::span<const std::byte> bytes, const std::string& what,
+                               std::span<const std::size_t> expected,
+                               std::vector<FramePair>* pairs) {
+  ByteReader in(bytes, what);
+  in.get<std::uint8_t>();
+  WorkAnswer answer;
+  answer.seconds = in.get<double>();
+  answer.frames_read = static_cast<std::size_t>(in.get<std::uint64_t>());
+  if (in.get<std::uint64_t>() != expected.size()) in.garbled("pair count");
+  for (const std::size_t k : expected) {
+    const double overlap = in.get<double>();
+    if (!(overlap >= 0.0 && overlap <= 1.0))
+      in.garbled("overlap " + std::to_string(overlap) + " of pair " + std::to_string(k));
+    (*pairs)[k].overlap = overlap;
+  }
+  in.expect_end();
+  return answer;
 }
 
 std::vector<std::vector<std::size_t>> split_pairs(std::span<const FramePair> pairs,
@@ -123,13 +204,13 @@ std::string answer_failure(std::span<const std::byte> bytes, const std::string& 
   return message.empty() ? std::string("failed") : message;
 }
 
-FactorAnswer read_factor_answer(std::span<const std::byte> bytes, const std::string& what,
-                                std::span<const std::size_t> expected,
-                                std::vector<RegistrationFactor>* factors) {
+WorkAnswer read_factor_answer(std::span<const std::byte> bytes, const std::string& what,
+                              std::span<const std::size_t> expected,
+                              std::vector<RegistrationFactor>* factors) {
   ByteReader in(bytes, what);
   in.get<std::uint8_t>();
-  FactorAnswer answer;
-  answer.build_s = in.get<double>();
+  WorkAnswer answer;
+  answer.seconds = in.get<double>();
   answer.frames_read = static_cast<std::size_t>(in.get<std::uint64_t>());
   if (in.get<std::uint64_t>() != expected.size()) in.garbled("factor count");
   for (const std::size_t k : expected) {

@@ -1,7 +1,8 @@
 #pragma once
 
 // The messages of `carat map` under mpirun, as bytes (what travels; mpi_map.cpp moves them):
-// rank 0's build job each round, and each rank's answer (its factors, or its error).
+// rank 0's overlap job (the dense graph's candidates) and build job each round, and each rank's
+// answer (its overlaps or factors, or its error).
 
 #include <Eigen/Geometry>
 #include <cstddef>
@@ -31,6 +32,27 @@ struct BuildJob {
   std::vector<Eigen::Isometry3d> T_world_frame;
   std::vector<std::vector<std::size_t>> shares;  // per rank: the pairs it builds
 };
+
+/// What rank 0 sends to find the dense graph: how to read the frames, the overlap test's
+/// settings, the candidate pairs, the poses, and the pairs each rank measures.
+struct OverlapJob {
+  MpiFrameSource source;
+  DenseGraphOptions options;
+  std::vector<FramePair> pairs;
+  std::vector<Eigen::Isometry3d> T_world_frame;
+  std::vector<std::vector<std::size_t>> shares;  // per rank: the pairs it measures
+};
+
+/// The overlap job as bytes.
+std::vector<std::byte> encode_overlap_job(const MpiFrameSource& source,
+                                          const DenseGraphOptions& options,
+                                          std::span<const FramePair> pairs,
+                                          std::span<const Eigen::Isometry3d> T_world_frame,
+                                          const std::vector<std::vector<std::size_t>>& shares);
+
+/// The overlap job from its bytes; throws carat::Error ("the overlap job from rank 0: garbled:
+/// ...") for bytes encode_overlap_job() does not write.
+OverlapJob decode_overlap_job(std::span<const std::byte> bytes);
 
 /// A round's job as bytes.
 std::vector<std::byte> encode_job(const MpiFrameSource& source,
@@ -62,16 +84,28 @@ std::vector<std::byte> encode_failure(const std::string& message);
 /// The message of a failed answer, or empty for factors; `what` names the answer in errors.
 std::string answer_failure(std::span<const std::byte> bytes, const std::string& what);
 
-/// What an answer with factors said besides them.
-struct FactorAnswer {
-  double build_s = 0.0;         // the rank's build time
+/// What an answer with factors or overlaps said besides them.
+struct WorkAnswer {
+  double seconds = 0.0;         // the rank's wall time for its share
   std::size_t frames_read = 0;  // frames the rank has read so far
 };
 
 /// Reads an answer with factors: the factors of `expected` (pair indices) into (*factors)[k].
 /// Throws carat::Error naming `what` for bytes that are not that answer.
-FactorAnswer read_factor_answer(std::span<const std::byte> bytes, const std::string& what,
-                                std::span<const std::size_t> expected,
-                                std::vector<RegistrationFactor>* factors);
+WorkAnswer read_factor_answer(std::span<const std::byte> bytes, const std::string& what,
+                              std::span<const std::size_t> expected,
+                              std::vector<RegistrationFactor>* factors);
+
+/// A rank's answer to an overlap job: its time (s), the frames it has read, and the overlap of
+/// each pair of its share, in the share's order.
+std::vector<std::byte> encode_overlaps(std::span<const FramePair> pairs, double measure_s,
+                                       std::size_t frames_read);
+
+/// Reads an answer with overlaps: the overlaps of `expected` (pair indices) into
+/// (*pairs)[k].overlap. Throws carat::Error naming `what` for bytes that are not that answer or
+/// an overlap outside [0, 1].
+WorkAnswer read_overlap_answer(std::span<const std::byte> bytes, const std::string& what,
+                               std::span<const std::size_t> expected,
+                               std::vector<FramePair>* pairs);
 
 }  // namespace carat::cli

@@ -19,36 +19,64 @@
 
 namespace carat {
 
-std::vector<FramePair> build_dense_graph(
-    FrameStore& frames, std::span<const Eigen::Isometry3d> T_world_frame,
-    const DenseGraphOptions& options,
-    const std::function<void(std::size_t, std::size_t)>& progress) {
-  if (frames.size() != T_world_frame.size()) {
-    throw Error("build_dense_graph: " + std::to_string(frames.size()) + " frames but " +
-                std::to_string(T_world_frame.size()) + " poses");
-  }
-  if (frames.size() < 2)
-    throw Error("the dense graph needs at least 2 frames, got " + std::to_string(frames.size()));
+namespace {
+
+void check_graph_options(const DenseGraphOptions& options) {
   if (!(options.overlap_threshold >= 0.0 && options.overlap_threshold <= 1.0))
     throw Error("build_dense_graph: overlap_threshold must be in [0, 1]");
   if (!(options.max_distance > 0.0)) throw Error("build_dense_graph: max_distance must be > 0");
   if (options.overlap_stride < 1) throw Error("build_dense_graph: overlap_stride must be >= 1");
-  for (std::size_t i = 0; i < frames.size(); ++i) {
+}
+
+}  // namespace
+
+std::vector<FramePair> dense_graph_candidates(std::span<const Eigen::Isometry3d> T_world_frame,
+                                              const DenseGraphOptions& options) {
+  if (T_world_frame.size() < 2) {
+    throw Error("the dense graph needs at least 2 frames, got " +
+                std::to_string(T_world_frame.size()));
+  }
+  check_graph_options(options);
+  for (std::size_t i = 0; i < T_world_frame.size(); ++i) {
     if (!T_world_frame[i].matrix().allFinite())
       throw Error("build_dense_graph: pose " + std::to_string(i) + " is not finite");
   }
-  const int n = static_cast<int>(frames.size());
-  // Candidates: non-consecutive pairs whose sensors are close enough.
-  std::vector<FramePair> candidates;
+  const int n = static_cast<int>(T_world_frame.size());
+  std::vector<FramePair> out;
+  for (int i = 0; i + 1 < n; ++i) out.push_back({i, i + 1, 0.0});
+  // Non-consecutive pairs whose sensors are close enough.
   for (int i = 0; i < n; ++i) {
     for (int j = i + 2; j < n; ++j) {
       const double distance =
           (T_world_frame[i].translation() - T_world_frame[j].translation()).norm();
-      if (distance <= options.max_distance) candidates.push_back({i, j, 0.0});
+      if (distance <= options.max_distance) out.push_back({i, j, 0.0});
     }
   }
-  std::vector<FramePair> consecutive;
-  for (int i = 0; i + 1 < n; ++i) consecutive.push_back({i, i + 1, 0.0});
+  return out;
+}
+
+void measure_overlaps(FrameStore& frames, std::span<const Eigen::Isometry3d> T_world_frame,
+                      std::span<FramePair> pairs, const DenseGraphOptions& options,
+                      const std::function<void(std::size_t, std::size_t)>& progress) {
+  if (frames.size() != T_world_frame.size()) {
+    throw Error("build_dense_graph: " + std::to_string(frames.size()) + " frames but " +
+                std::to_string(T_world_frame.size()) + " poses");
+  }
+  check_graph_options(options);
+  const int n = static_cast<int>(frames.size());
+  std::vector<char> needed(frames.size(), 0);
+  for (const FramePair& pair : pairs) {
+    if (pair.target < 0 || pair.target >= n || pair.source < 0 || pair.source >= n) {
+      throw Error("build_dense_graph: pair (" + std::to_string(pair.target) + ", " +
+                  std::to_string(pair.source) + ") names a frame out of range (" +
+                  std::to_string(n) + " frames)");
+    }
+    needed[static_cast<std::size_t>(pair.target)] = 1;
+    needed[static_cast<std::size_t>(pair.source)] = 1;
+  }
+  std::vector<std::size_t> wanted;
+  for (std::size_t i = 0; i < needed.size(); ++i)
+    if (needed[i]) wanted.push_back(i);
 
   const int threads = std::clamp(options.num_threads, 1, tbb::info::default_concurrency());
   tbb::task_arena arena(threads);
@@ -57,10 +85,11 @@ std::vector<FramePair> build_dense_graph(
   std::vector<std::unique_ptr<VoxelOccupancy>> occupancy(frames.size());
   std::vector<PointCloud> sampled(frames.size());
   std::atomic<std::size_t> done{0};
-  const std::size_t total = candidates.size() + consecutive.size();
+  const std::size_t total = pairs.size();
   const auto stride = static_cast<std::size_t>(options.overlap_stride);
   arena.execute([&] {
-    internal::parallel_for_each_index(frames.size(), [&](std::size_t i) {
+    internal::parallel_for_each_index(wanted.size(), [&](std::size_t w) {
+      const std::size_t i = wanted[w];
       const std::shared_ptr<const Frame> frame = frames.get(i);
       occupancy[i] = std::make_unique<VoxelOccupancy>(frame->cloud(), options.voxel_size);
       const auto& points = frame->cloud().points;
@@ -68,29 +97,44 @@ std::vector<FramePair> build_dense_graph(
       for (std::size_t k = 0; k < points.size(); k += stride)
         sampled[i].points.push_back(points[k]);
     });
-    const auto measure = [&](std::vector<FramePair>& pairs) {
-      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, pairs.size(), 16), [&](const auto& r) {
-        for (std::size_t k = r.begin(); k != r.end(); ++k) {
-          FramePair& pair = pairs[k];
-          const auto i = static_cast<std::size_t>(pair.target);
-          const auto j = static_cast<std::size_t>(pair.source);
-          pair.overlap = overlap_fraction(*occupancy[i], sampled[j],
-                                          T_world_frame[i].inverse() * T_world_frame[j], 1);
-        }
-        const std::size_t now = done.fetch_add(r.size()) + r.size();
-        if (progress) progress(now, total);
-      });
-    };
-    measure(consecutive);
-    measure(candidates);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, pairs.size(), 16), [&](const auto& r) {
+      for (std::size_t k = r.begin(); k != r.end(); ++k) {
+        FramePair& pair = pairs[k];
+        const auto i = static_cast<std::size_t>(pair.target);
+        const auto j = static_cast<std::size_t>(pair.source);
+        pair.overlap = overlap_fraction(*occupancy[i], sampled[j],
+                                        T_world_frame[i].inverse() * T_world_frame[j], 1);
+      }
+      const std::size_t now = done.fetch_add(r.size()) + r.size();
+      if (progress) progress(now, total);
+    });
   });
-  std::vector<FramePair> graph = consecutive;
-  for (const FramePair& pair : candidates)
-    if (pair.overlap >= options.overlap_threshold) graph.push_back(pair);
+}
+
+std::vector<FramePair> select_dense_graph(std::span<const FramePair> measured,
+                                          const DenseGraphOptions& options) {
+  std::vector<FramePair> graph;
+  for (const FramePair& pair : measured) {
+    if (pair.source == pair.target + 1 || pair.overlap >= options.overlap_threshold)
+      graph.push_back(pair);
+  }
   std::sort(graph.begin(), graph.end(), [](const FramePair& a, const FramePair& b) {
     return a.target != b.target ? a.target < b.target : a.source < b.source;
   });
   return graph;
+}
+
+std::vector<FramePair> build_dense_graph(
+    FrameStore& frames, std::span<const Eigen::Isometry3d> T_world_frame,
+    const DenseGraphOptions& options,
+    const std::function<void(std::size_t, std::size_t)>& progress) {
+  if (frames.size() != T_world_frame.size()) {
+    throw Error("build_dense_graph: " + std::to_string(frames.size()) + " frames but " +
+                std::to_string(T_world_frame.size()) + " poses");
+  }
+  std::vector<FramePair> candidates = dense_graph_candidates(T_world_frame, options);
+  measure_overlaps(frames, T_world_frame, candidates, options, progress);
+  return select_dense_graph(candidates, options);
 }
 
 namespace {

@@ -147,8 +147,18 @@ MapGraph build_map_graph(FrameStore& frames, std::span<const Eigen::Isometry3d> 
     out.times.add("loops", time.elapsed_s());
   }
   const Stopwatch time;
-  out.pairs = build_dense_graph(frames, out.T_world_start, o.graph,
-                                stage_progress(progress, MappingStage::kDenseGraph));
+  if (o.measure_overlaps) {
+    if (frames.size() != out.T_world_start.size()) {
+      throw Error("build_dense_graph: " + std::to_string(frames.size()) + " frames but " +
+                  std::to_string(out.T_world_start.size()) + " poses");
+    }
+    std::vector<FramePair> candidates = dense_graph_candidates(out.T_world_start, o.graph);
+    o.measure_overlaps(candidates, out.T_world_start, o.graph);
+    out.pairs = select_dense_graph(candidates, o.graph);
+  } else {
+    out.pairs = build_dense_graph(frames, out.T_world_start, o.graph,
+                                  stage_progress(progress, MappingStage::kDenseGraph));
+  }
   out.times.add("dense_graph", time.elapsed_s());
   return out;
 }

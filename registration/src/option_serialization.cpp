@@ -16,6 +16,7 @@ static_assert(field_count<OpenScansOptions>() == 5, "option_serialization: write
 static_assert(field_count<SolverOptions>() == 25, "option_serialization: write the new field");
 static_assert(field_count<GlobalRegistrationOptions>() == 14,
               "option_serialization: write the new field");
+static_assert(field_count<DenseGraphOptions>() == 5, "option_serialization: write the new field");
 
 void put_bool(ByteWriter& out, bool value) { out.put(static_cast<std::uint8_t>(value ? 1 : 0)); }
 
@@ -111,6 +112,24 @@ ReadOptions read_read_options(ByteReader& in) {
   ReadOptions options;
   options.drop_non_finite = get_bool(in, "drop_non_finite");
   options.max_points = static_cast<std::size_t>(in.get<std::uint64_t>());
+  return options;
+}
+
+void write_options(ByteWriter& out, const DenseGraphOptions& options) {
+  out.put(options.overlap_threshold);
+  out.put(options.voxel_size);
+  out.put(options.max_distance);
+  out.put(options.overlap_stride);
+  out.put(options.num_threads);
+}
+
+DenseGraphOptions read_dense_graph_options(ByteReader& in) {
+  DenseGraphOptions options;
+  options.overlap_threshold = in.get<double>();
+  options.voxel_size = in.get<double>();
+  options.max_distance = in.get<double>();
+  options.overlap_stride = in.get<int>();
+  options.num_threads = in.get<int>();
   return options;
 }
 

@@ -42,6 +42,27 @@ std::vector<FramePair> build_dense_graph(
     const DenseGraphOptions& options = {},
     const std::function<void(std::size_t, std::size_t)>& progress = {});
 
+/// The pairs build_dense_graph() tests, in its order: every consecutive pair (i, i+1), then every
+/// pair i + 2 <= j whose sensors lie within options.max_distance (overlap 0, not yet measured).
+/// Throws carat::Error as build_dense_graph() does for the poses and options (no frames needed).
+std::vector<FramePair> dense_graph_candidates(std::span<const Eigen::Isometry3d> T_world_frame,
+                                              const DenseGraphOptions& options = {});
+
+/// Measures the overlap fraction of each of `pairs` under T_world_frame into its `overlap`, as
+/// build_dense_graph() does (so a share of the candidates measured anywhere gives the same
+/// numbers). Only the frames the pairs name are requested, each once.
+/// Throws carat::Error when frames and poses differ in count, a pair names a frame out of range,
+/// or an option is out of range; `progress` as build_dense_graph()'s (pairs measured, pairs).
+void measure_overlaps(FrameStore& frames, std::span<const Eigen::Isometry3d> T_world_frame,
+                      std::span<FramePair> pairs, const DenseGraphOptions& options = {},
+                      const std::function<void(std::size_t, std::size_t)>& progress = {});
+
+/// The graph from measured candidates (dense_graph_candidates() with measure_overlaps() applied):
+/// every consecutive pair and every other pair at or above options.overlap_threshold, sorted by
+/// (target, source).
+std::vector<FramePair> select_dense_graph(std::span<const FramePair> measured,
+                                          const DenseGraphOptions& options = {});
+
 /// Deprecated: the same from frames in memory.
 [[deprecated("wrap the frames in a carat::FrameStore")]] inline std::vector<FramePair>
 build_dense_graph(std::span<const std::shared_ptr<const Frame>> frames,

@@ -56,6 +56,11 @@ using MappingFactorBuilder = std::function<std::vector<RegistrationFactor>(
     std::span<const FramePair>, std::span<const Eigen::Isometry3d>,
     const GlobalRegistrationOptions&)>;
 
+/// Measures the overlap of each of the dense graph's candidate pairs at T_world_frame into its
+/// `overlap` as measure_overlaps() does (e.g. a share on each rank of an MPI job).
+using MappingOverlapMeasurer = std::function<void(
+    std::span<FramePair>, std::span<const Eigen::Isometry3d>, const DenseGraphOptions&)>;
+
 /// LM settings of the mapping solves: 100 iterations at most, else SolverOptions' defaults.
 SolverOptions mapping_solver_options();
 
@@ -76,6 +81,9 @@ struct MappingOptions {
   PoseGraphBaselineOptions pose_graph = default_pose_graph();
   /// GRE: when set, builds each round's factors instead of this process (MPI).
   MappingFactorBuilder build_factors;
+  /// When set, measures the dense graph's candidates instead of this process (MPI); the graph is
+  /// the one build_dense_graph() finds from the same measurements.
+  MappingOverlapMeasurer measure_overlaps;
 
   /// GlobalRegistrationOptions with mapping_solver_options().
   static GlobalRegistrationOptions default_registration();

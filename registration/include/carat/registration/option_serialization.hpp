@@ -6,6 +6,7 @@
 /// option_serialization.cpp until it is written there as well.
 
 #include "carat/base/byte_stream.hpp"
+#include "carat/registration/dense_graph.hpp"
 #include "carat/registration/frame.hpp"
 #include "carat/registration/global_registration.hpp"
 #include "carat/registration/io/kitti_io.hpp"
@@ -25,6 +26,9 @@ void write_options(ByteWriter& out, const SolverOptions& options);
 /// Appends every field of `options` (its solver options included) but the callbacks.
 void write_options(ByteWriter& out, const GlobalRegistrationOptions& options);
 
+/// Appends every field of `options`.
+void write_options(ByteWriter& out, const DenseGraphOptions& options);
+
 /// Reads what write_options() wrote for ReadOptions. Throws carat::Error (from `in`, naming its
 /// input) for truncated bytes or a value no writer produces.
 ReadOptions read_read_options(ByteReader& in);
@@ -38,5 +42,8 @@ SolverOptions read_solver_options(ByteReader& in);
 /// Reads what write_options() wrote for GlobalRegistrationOptions (no callbacks); throws as
 /// read_read_options().
 GlobalRegistrationOptions read_global_registration_options(ByteReader& in);
+
+/// Reads what write_options() wrote for DenseGraphOptions; throws as read_read_options().
+DenseGraphOptions read_dense_graph_options(ByteReader& in);
 
 }  // namespace carat
