@@ -50,7 +50,11 @@ print(a['ate_rmse'] == b['ate_rmse'] and a['iterations'] == b['iterations']
       and len(m['frames_read_per_rank']) == ranks
       and all(0 < n <= b['frames'] for n in m['frames_read_per_rank'])
       and len(m['pairs_measured_per_rank']) == ranks and len(m['overlap_s_per_rank']) == ranks
-      and all(n > 0 for n in m['pairs_measured_per_rank']))" "$a.json" "$b.json" "${b##*_}")"
+      and all(n > 0 for n in m['pairs_measured_per_rank'])
+      and len(m['peak_rss_bytes_per_rank']) == ranks and min(m['peak_rss_bytes_per_rank']) > 0
+      and m['peak_rss_bytes_per_rank'][0] >= b['peak_rss_bytes']
+      and sum(m['bytes_sent_per_rank'][1:]) == m['bytes_gathered']
+      and min(m['bytes_sent_per_rank']) > 0)" "$a.json" "$b.json" "${b##*_}")"
 done
 
 # A rank that cannot read a frame: each rank runs in its own folder, as if the shared

@@ -148,7 +148,7 @@ int MpiMapJob::serve(int threads) {
         for (const std::size_t k : job.shares[static_cast<std::size_t>(rank_)])
           share.push_back(job.pairs[k]);
         if (!share.empty()) measure_overlaps(*store, job.T_world_frame, share, job.options);
-        answer = encode_overlaps(share, time.elapsed_s(), store->stats().loads);
+        answer = encode_overlaps(share, time.elapsed_s(), store->stats().loads, peak_rss_bytes());
       } else {
         BuildJob job = decode_job(payload);
         job.options.num_threads = threads;
@@ -160,7 +160,8 @@ int MpiMapJob::serve(int threads) {
           factors = build_registration_factors(*store, job.pairs, indices, job.T_world_frame,
                                                job.options);
         }
-        answer = encode_factors(indices, factors, time.elapsed_s(), store->stats().loads);
+        answer = encode_factors(indices, factors, time.elapsed_s(), store->stats().loads,
+                                peak_rss_bytes());
       }
     } catch (const std::bad_alloc&) {
       answer = encode_failure("out of memory");
@@ -173,6 +174,16 @@ int MpiMapJob::serve(int threads) {
   (void)threads;
   return 1;
 #endif
+}
+
+void MpiMapJob::note_peak_rss(std::size_t rank, std::uint64_t bytes) {
+  peak_rss_bytes_per_rank_.resize(static_cast<std::size_t>(size_), 0);
+  peak_rss_bytes_per_rank_[rank] = std::max(peak_rss_bytes_per_rank_[rank], bytes);
+}
+
+void MpiMapJob::count_sent(std::size_t bytes) {
+  bytes_sent_per_rank_.resize(static_cast<std::size_t>(size_), 0);
+  bytes_sent_per_rank_[0] += bytes;
 }
 
 void MpiMapJob::check_shares(std::size_t shares) const {
@@ -212,6 +223,10 @@ std::vector<std::vector<std::byte>> MpiMapJob::collect_answers(const std::string
   const auto failed = [&](int r, const std::string& message) {
     return Error("rank " + std::to_string(r) + " of " + std::to_string(size_) + ": " + message);
   };
+  bytes_sent_per_rank_.resize(static_cast<std::size_t>(size_), 0);
+  for (int r = 1; r < size_; ++r)
+    bytes_sent_per_rank_[static_cast<std::size_t>(r)] +=
+        answers[static_cast<std::size_t>(r)].size();
   if (!own_failure.empty()) throw failed(0, own_failure);
   for (int r = 1; r < size_; ++r) {
     const std::vector<std::byte>& bytes = answers[static_cast<std::size_t>(r)];
@@ -230,6 +245,7 @@ void MpiMapJob::measure(std::span<FramePair> pairs,
   const std::vector<std::vector<std::size_t>> shares = split_pairs(pairs, T_world_frame, size_);
   std::vector<std::byte> payload =
       encode_overlap_job(source_, options, pairs, T_world_frame, shares);
+  count_sent(payload.size());
   broadcast(&command, &payload);
   std::string own_failure;
   const Stopwatch own_time;
@@ -257,6 +273,7 @@ void MpiMapJob::measure(std::span<FramePair> pairs,
         answers[rank], "the answer of rank " + std::to_string(r), shares[rank], &measured);
     overlap_s_per_rank_[rank] = answer.seconds;
     frames_read_per_rank_[rank] = answer.frames_read;
+    note_peak_rss(rank, answer.peak_rss_bytes);
     pairs_measured_per_rank_[rank] = shares[rank].size();
   }
   std::copy(measured.begin(), measured.end(), pairs.begin());
@@ -278,6 +295,7 @@ std::vector<RegistrationFactor> MpiMapJob::build(std::span<const FramePair> pair
     shares_ = split_pairs(pairs, T_world_frame, size_);
   shares_pairs_ = pairs.size();
   std::vector<std::byte> payload = encode_job(source_, options, pairs, T_world_frame, shares_);
+  count_sent(payload.size());
   broadcast(&command, &payload);
   // Rank 0's own share, while the others build theirs; its failure waits for their answers.
   std::string own_failure;
@@ -309,6 +327,7 @@ std::vector<RegistrationFactor> MpiMapJob::build(std::span<const FramePair> pair
         answers[rank], "the answer of rank " + std::to_string(r), shares_[rank], &out);
     build_s_per_rank_[rank] = answer.seconds;
     frames_read_per_rank_[rank] = answer.frames_read;
+    note_peak_rss(rank, answer.peak_rss_bytes);
     factors_per_rank_[rank] = shares_[rank].size();
   }
 #else
@@ -339,7 +358,14 @@ std::string MpiMapJob::summary_line() const {
 }
 
 nlohmann::json MpiMapJob::report() const {
+  std::vector<std::uint64_t> peak_rss = peak_rss_bytes_per_rank_;
+  peak_rss.resize(static_cast<std::size_t>(size_), 0);
+  peak_rss[0] = peak_rss_bytes();
+  std::vector<std::size_t> sent = bytes_sent_per_rank_;
+  sent.resize(static_cast<std::size_t>(size_), 0);
   return {{"ranks", size_},
+          {"peak_rss_bytes_per_rank", peak_rss},
+          {"bytes_sent_per_rank", sent},
           {"rounds", rounds_},
           {"bytes_gathered", bytes_gathered_},
           {"pairs_measured_per_rank", pairs_measured_per_rank_},

@@ -12,6 +12,7 @@
 
 #include <Eigen/Geometry>
 #include <cstddef>
+#include <cstdint>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <span>
@@ -68,7 +69,8 @@ class MpiMapJob {
   /// its share, as measure_overlaps()). Throws carat::Error "rank r of N: ..." as build().
   void measure(std::span<FramePair> pairs, std::span<const Eigen::Isometry3d> T_world_frame,
                const DenseGraphOptions& options);
-  /// Rank 0: ranks, rounds, bytes gathered, and per rank the pairs measured and their time, the
+  /// Rank 0: ranks, rounds, bytes gathered, and per rank its peak resident memory, the bytes it
+  /// sent (rank 0: the jobs; the others: their answers), the pairs measured and their time, the
   /// factors built and their build time, and the frames read, for the JSON report.
   nlohmann::json report() const;
   /// Rank 0: the same as one line of the text report.
@@ -78,6 +80,10 @@ class MpiMapJob {
   MpiMapJob(int rank, int size) : rank_(rank), size_(size) {}
   /// Throws unless a job has one share per rank.
   void check_shares(std::size_t shares) const;
+  /// Rank 0: counts `bytes` it sent (a job's payload).
+  void count_sent(std::size_t bytes);
+  /// Rank 0: keeps the largest peak resident memory a rank reported.
+  void note_peak_rss(std::size_t rank, std::uint64_t bytes);
   /// Rank 0: every other rank's answer (index r), after its own work failed with `own_failure`
   /// (empty: it did not); throws "rank r of N: ..." for the lowest rank that failed.
   std::vector<std::vector<std::byte>> collect_answers(const std::string& own_failure);
@@ -90,11 +96,13 @@ class MpiMapJob {
   std::size_t shares_pairs_ = 0;                  // the pair count they were made for
   int rounds_ = 0;
   std::size_t bytes_gathered_ = 0;
-  std::vector<std::size_t> factors_per_rank_;         // the last round's
-  std::vector<double> build_s_per_rank_;              // the last round's wall time of each share
-  std::vector<std::size_t> frames_read_per_rank_;     // frames each rank has read so far
-  std::vector<std::size_t> pairs_measured_per_rank_;  // the dense graph's candidates measured
-  std::vector<double> overlap_s_per_rank_;            // wall time of each share of them
+  std::vector<std::size_t> factors_per_rank_;           // the last round's
+  std::vector<double> build_s_per_rank_;                // the last round's wall time of each share
+  std::vector<std::size_t> frames_read_per_rank_;       // frames each rank has read so far
+  std::vector<std::size_t> pairs_measured_per_rank_;    // the dense graph's candidates measured
+  std::vector<double> overlap_s_per_rank_;              // wall time of each share of them
+  std::vector<std::uint64_t> peak_rss_bytes_per_rank_;  // as the ranks last reported it
+  std::vector<std::size_t> bytes_sent_per_rank_;        // rank 0: jobs; others: their answers
 };
 
 }  // namespace carat::cli

@@ -127,12 +127,13 @@ OverlapJob decode_overlap_job(std::span<const std::byte> bytes) {
 }
 
 std::vector<std::byte> encode_overlaps(std::span<const FramePair> pairs, double measure_s,
-                                       std::size_t frames_read) {
+                                       std::size_t frames_read, std::uint64_t peak_rss_bytes) {
   std::vector<std::byte> bytes;
   ByteWriter out(bytes);
   out.put(std::uint8_t{1});
   out.put(measure_s);
   out.put(static_cast<std::uint64_t>(frames_read));
+  out.put(peak_rss_bytes);
   out.put(static_cast<std::uint64_t>(pairs.size()));
   for (const FramePair& pair : pairs) out.put(pair.overlap);
   return bytes;
@@ -146,6 +147,7 @@ WorkAnswer read_overlap_answer(std::span<const std::byte> bytes, const std::stri
   WorkAnswer answer;
   answer.seconds = in.get<double>();
   answer.frames_read = static_cast<std::size_t>(in.get<std::uint64_t>());
+  answer.peak_rss_bytes = in.get<std::uint64_t>();
   if (in.get<std::uint64_t>() != expected.size()) in.garbled("pair count");
   for (const std::size_t k : expected) {
     const double overlap = in.get<double>();
@@ -173,12 +175,13 @@ std::vector<std::vector<std::size_t>> split_pairs(std::span<const FramePair> pai
 
 std::vector<std::byte> encode_factors(std::span<const std::size_t> indices,
                                       std::span<const RegistrationFactor> factors, double build_s,
-                                      std::size_t frames_read) {
+                                      std::size_t frames_read, std::uint64_t peak_rss_bytes) {
   std::vector<std::byte> bytes;
   ByteWriter out(bytes);
   out.put(std::uint8_t{1});
   out.put(build_s);
   out.put(static_cast<std::uint64_t>(frames_read));
+  out.put(peak_rss_bytes);
   out.put(static_cast<std::uint64_t>(indices.size()));
   for (std::size_t p = 0; p < indices.size(); ++p) {
     const std::vector<std::byte> factor = serialize_factor(factors[p]);
@@ -212,6 +215,7 @@ WorkAnswer read_factor_answer(std::span<const std::byte> bytes, const std::strin
   WorkAnswer answer;
   answer.seconds = in.get<double>();
   answer.frames_read = static_cast<std::size_t>(in.get<std::uint64_t>());
+  answer.peak_rss_bytes = in.get<std::uint64_t>();
   if (in.get<std::uint64_t>() != expected.size()) in.garbled("factor count");
   for (const std::size_t k : expected) {
     if (in.get<std::uint64_t>() != k) in.garbled("factor index");

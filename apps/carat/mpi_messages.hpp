@@ -6,6 +6,7 @@
 
 #include <Eigen/Geometry>
 #include <cstddef>
+#include <cstdint>
 #include <span>
 #include <string>
 #include <vector>
@@ -72,11 +73,11 @@ std::vector<std::vector<std::size_t>> split_pairs(std::span<const FramePair> pai
                                                   std::span<const Eigen::Isometry3d> T_world_frame,
                                                   int ranks);
 
-/// A rank's answer: its build time (s), the frames it has read, and its factors (index and
-/// bytes each).
+/// A rank's answer: its build time (s), the frames it has read, its peak resident memory
+/// (bytes), and its factors (index and bytes each).
 std::vector<std::byte> encode_factors(std::span<const std::size_t> indices,
                                       std::span<const RegistrationFactor> factors, double build_s,
-                                      std::size_t frames_read);
+                                      std::size_t frames_read, std::uint64_t peak_rss_bytes);
 
 /// A rank's answer when it failed: the message.
 std::vector<std::byte> encode_failure(const std::string& message);
@@ -86,8 +87,9 @@ std::string answer_failure(std::span<const std::byte> bytes, const std::string& 
 
 /// What an answer with factors or overlaps said besides them.
 struct WorkAnswer {
-  double seconds = 0.0;         // the rank's wall time for its share
-  std::size_t frames_read = 0;  // frames the rank has read so far
+  double seconds = 0.0;              // the rank's wall time for its share
+  std::size_t frames_read = 0;       // frames the rank has read so far
+  std::uint64_t peak_rss_bytes = 0;  // the rank's peak resident memory so far
 };
 
 /// Reads an answer with factors: the factors of `expected` (pair indices) into (*factors)[k].
@@ -96,10 +98,10 @@ WorkAnswer read_factor_answer(std::span<const std::byte> bytes, const std::strin
                               std::span<const std::size_t> expected,
                               std::vector<RegistrationFactor>* factors);
 
-/// A rank's answer to an overlap job: its time (s), the frames it has read, and the overlap of
-/// each pair of its share, in the share's order.
+/// A rank's answer to an overlap job: its time (s), the frames it has read, its peak resident
+/// memory (bytes), and the overlap of each pair of its share, in the share's order.
 std::vector<std::byte> encode_overlaps(std::span<const FramePair> pairs, double measure_s,
-                                       std::size_t frames_read);
+                                       std::size_t frames_read, std::uint64_t peak_rss_bytes);
 
 /// Reads an answer with overlaps: the overlaps of `expected` (pair indices) into
 /// (*pairs)[k].overlap. Throws carat::Error naming `what` for bytes that are not that answer or
