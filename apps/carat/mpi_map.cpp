@@ -212,7 +212,10 @@ void MpiMapJob::attach(MpiFrameSource source, std::shared_ptr<FrameStore> frames
              const GlobalRegistrationOptions& gre) { return build(pairs, T_world_frame, gre); };
   options->measure_overlaps =
       [this](std::span<FramePair> pairs, std::span<const Eigen::Isometry3d> T_world_frame,
-             const DenseGraphOptions& graph) { measure(pairs, T_world_frame, graph); };
+             const DenseGraphOptions& graph,
+             const std::function<void(std::size_t, std::size_t)>& progress) {
+        measure(pairs, T_world_frame, graph, progress);
+      };
 }
 
 std::vector<std::vector<std::byte>> MpiMapJob::collect_answers(const std::string& own_failure) {
@@ -239,7 +242,8 @@ std::vector<std::vector<std::byte>> MpiMapJob::collect_answers(const std::string
 
 void MpiMapJob::measure(std::span<FramePair> pairs,
                         std::span<const Eigen::Isometry3d> T_world_frame,
-                        const DenseGraphOptions& options) {
+                        const DenseGraphOptions& options,
+                        const std::function<void(std::size_t, std::size_t)>& progress) {
 #if CARAT_WITH_MPI
   std::uint64_t command = kOverlaps;
   const std::vector<std::vector<std::size_t>> shares = split_pairs(pairs, T_world_frame, size_);
@@ -252,7 +256,7 @@ void MpiMapJob::measure(std::span<FramePair> pairs,
   try {
     std::vector<FramePair> share;
     for (const std::size_t k : shares[0]) share.push_back(pairs[k]);
-    if (!share.empty()) measure_overlaps(*store_, T_world_frame, share, options);
+    if (!share.empty()) measure_overlaps(*store_, T_world_frame, share, options, progress);
     for (std::size_t q = 0; q < share.size(); ++q) pairs[shares[0][q]].overlap = share[q].overlap;
   } catch (const std::bad_alloc&) {
     own_failure = "out of memory";
@@ -281,6 +285,7 @@ void MpiMapJob::measure(std::span<FramePair> pairs,
   (void)pairs;
   (void)T_world_frame;
   (void)options;
+  (void)progress;
 #endif
 }
 

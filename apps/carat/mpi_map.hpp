@@ -13,6 +13,7 @@
 #include <Eigen/Geometry>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <span>
@@ -66,9 +67,11 @@ class MpiMapJob {
                                         std::span<const Eigen::Isometry3d> T_world_frame,
                                         const GlobalRegistrationOptions& options);
   /// Rank 0: the overlap of every candidate pair at T_world_frame, measured over the ranks (each
-  /// its share, as measure_overlaps()). Throws carat::Error "rank r of N: ..." as build().
+  /// its share, as measure_overlaps(); `progress`, if set, follows rank 0's share). Throws
+  /// carat::Error "rank r of N: ..." as build().
   void measure(std::span<FramePair> pairs, std::span<const Eigen::Isometry3d> T_world_frame,
-               const DenseGraphOptions& options);
+               const DenseGraphOptions& options,
+               const std::function<void(std::size_t, std::size_t)>& progress = {});
   /// Rank 0: ranks, rounds, bytes gathered, and per rank its peak resident memory, the bytes it
   /// sent (rank 0: the jobs; the others: their answers), the pairs measured and their time, the
   /// factors built and their build time, and the frames read, for the JSON report.

@@ -153,7 +153,8 @@ MapGraph build_map_graph(FrameStore& frames, std::span<const Eigen::Isometry3d> 
                   std::to_string(out.T_world_start.size()) + " poses");
     }
     std::vector<FramePair> candidates = dense_graph_candidates(out.T_world_start, o.graph);
-    o.measure_overlaps(candidates, out.T_world_start, o.graph);
+    o.measure_overlaps(candidates, out.T_world_start, o.graph,
+                       stage_progress(progress, MappingStage::kDenseGraph));
     out.pairs = select_dense_graph(candidates, o.graph);
   } else {
     out.pairs = build_dense_graph(frames, out.T_world_start, o.graph,

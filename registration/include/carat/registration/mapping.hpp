@@ -57,9 +57,11 @@ using MappingFactorBuilder = std::function<std::vector<RegistrationFactor>(
     const GlobalRegistrationOptions&)>;
 
 /// Measures the overlap of each of the dense graph's candidate pairs at T_world_frame into its
-/// `overlap` as measure_overlaps() does (e.g. a share on each rank of an MPI job).
+/// `overlap` as measure_overlaps() does (e.g. a share on each rank of an MPI job), reporting
+/// (done, total) of what it measures itself to the progress callback, which may be empty.
 using MappingOverlapMeasurer = std::function<void(
-    std::span<FramePair>, std::span<const Eigen::Isometry3d>, const DenseGraphOptions&)>;
+    std::span<FramePair>, std::span<const Eigen::Isometry3d>, const DenseGraphOptions&,
+    const std::function<void(std::size_t, std::size_t)>&)>;
 
 /// LM settings of the mapping solves: 100 iterations at most, else SolverOptions' defaults.
 SolverOptions mapping_solver_options();
