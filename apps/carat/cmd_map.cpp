@@ -145,9 +145,11 @@ void add_run_json(nlohmann::json* j, const MapArgs& args, const MappingResult& m
   (*j)["factors"] = map.graph.pairs.size();
   if (!store.resident()) {
     const FrameStoreStats stats = store.stats();
-    (*j)["frame_store"] = {{"max_bytes", stats.max_bytes}, {"requests", stats.requests},
-                           {"hits", stats.hits},           {"loads", stats.loads},
-                           {"evictions", stats.evictions}, {"peak_bytes", stats.peak_bytes}};
+    const nlohmann::json cap =
+        stats.max_bytes == SIZE_MAX ? nlohmann::json(nullptr) : nlohmann::json(stats.max_bytes);
+    (*j)["frame_store"] = {
+        {"max_bytes", cap},     {"requests", stats.requests},   {"hits", stats.hits},
+        {"loads", stats.loads}, {"evictions", stats.evictions}, {"peak_bytes", stats.peak_bytes}};
   }
   (*j)["peak_rss_bytes"] = peak_rss_bytes();
   (*j)["start"] = args.initial.empty() ? "reference" : "initial";
