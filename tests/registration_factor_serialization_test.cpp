@@ -375,6 +375,26 @@ TEST(OptionBytesTest, EveryFieldButTheCallbacksRoundTrips) {
   EXPECT_EQ(got_scans.max_bytes, 987654321u);
   EXPECT_EQ(got_scans.require_constrained, false);
   EXPECT_EQ(got_scans.num_threads, 3);
+  DenseGraphOptions graph;
+  graph.overlap_threshold = 0.35;
+  graph.voxel_size = 0.75;
+  graph.max_distance = 42.5;
+  graph.overlap_stride = 7;
+  graph.num_threads = 3;
+  std::vector<std::byte> graph_bytes;
+  ByteWriter graph_out(graph_bytes);
+  write_options(graph_out, graph);
+  ByteReader graph_in(graph_bytes, "graph options");
+  const DenseGraphOptions got_graph = read_dense_graph_options(graph_in);
+  graph_in.expect_end();
+  EXPECT_EQ(got_graph.overlap_threshold, 0.35);
+  EXPECT_EQ(got_graph.voxel_size, 0.75);
+  EXPECT_EQ(got_graph.max_distance, 42.5);
+  EXPECT_EQ(got_graph.overlap_stride, 7);
+  EXPECT_EQ(got_graph.num_threads, 3);
+  ByteReader short_in(std::span<const std::byte>(graph_bytes).first(graph_bytes.size() - 1),
+                      "graph options");
+  EXPECT_THROW(read_dense_graph_options(short_in), Error);
 }
 
 TEST(OptionBytesTest, TruncatedOrGarbledBytesAreRefused) {

@@ -138,12 +138,13 @@ int MpiMapJob::serve(int threads) {
     if (command != kBuild && command != kOverlaps) return 0;
     std::vector<std::byte> answer;
     try {
-      const Stopwatch time;
+      // Each share's time from where rank 0's own starts: after the job is read.
       if (command == kOverlaps) {
         OverlapJob job = decode_overlap_job(payload);
         job.options.num_threads = threads;
         if (!store) store = frames_from(job.source);
         check_shares(job.shares.size());
+        const Stopwatch time;
         std::vector<FramePair> share;
         for (const std::size_t k : job.shares[static_cast<std::size_t>(rank_)])
           share.push_back(job.pairs[k]);
@@ -154,6 +155,7 @@ int MpiMapJob::serve(int threads) {
         job.options.num_threads = threads;
         if (!store) store = frames_from(job.source);
         check_shares(job.shares.size());
+        const Stopwatch time;
         const std::vector<std::size_t>& indices = job.shares[static_cast<std::size_t>(rank_)];
         std::vector<RegistrationFactor> factors;
         if (!indices.empty()) {
@@ -358,8 +360,8 @@ std::string MpiMapJob::summary_line() const {
          joined(overlap_s_per_rank_, "%.2f") + " s, built " + joined(factors_per_rank_, "%zu") +
          " factors in " + joined(build_s_per_rank_, "%.2f") + " s from " +
          joined(frames_read_per_rank_, "%zu") + " frames; " +
-         format_bytes(static_cast<double>(bytes_gathered_)) + " gathered over " +
-         std::to_string(rounds_) + (rounds_ == 1 ? " round" : " rounds");
+         format_bytes(static_cast<double>(bytes_gathered_)) + " gathered (the overlaps and " +
+         std::to_string(rounds_) + (rounds_ == 1 ? " round" : " rounds") + " of factors)";
 }
 
 nlohmann::json MpiMapJob::report() const {
