@@ -78,6 +78,32 @@ void read_work(ByteReader& in, std::vector<FramePair>* pairs,
   }
 }
 
+/// A job: how to read the frames, the stage's settings, the pairs, the poses and the shares.
+template <class Options>
+std::vector<std::byte> encode_work_job(const MpiFrameSource& source, const Options& options,
+                                       std::span<const FramePair> pairs,
+                                       std::span<const Eigen::Isometry3d> T_world_frame,
+                                       const std::vector<std::vector<std::size_t>>& shares) {
+  std::vector<std::byte> bytes;
+  ByteWriter out(bytes);
+  write_source(out, source);
+  write_options(out, options);
+  write_work(out, pairs, T_world_frame, shares);
+  return bytes;
+}
+
+/// What encode_work_job() wrote, its settings read by `read_options`; `what` names it in errors.
+template <class Job, class ReadOptions>
+Job decode_work_job(std::span<const std::byte> bytes, const char* what, ReadOptions read_options) {
+  ByteReader in(bytes, what);
+  Job job;
+  job.source = read_source(in);
+  job.options = read_options(in);
+  read_work(in, &job.pairs, &job.T_world_frame, &job.shares);
+  in.expect_end();
+  return job;
+}
+
 }  // namespace
 
 std::vector<std::byte> encode_job(const MpiFrameSource& source,
@@ -85,22 +111,11 @@ std::vector<std::byte> encode_job(const MpiFrameSource& source,
                                   std::span<const FramePair> pairs,
                                   std::span<const Eigen::Isometry3d> T_world_frame,
                                   const std::vector<std::vector<std::size_t>>& shares) {
-  std::vector<std::byte> bytes;
-  ByteWriter out(bytes);
-  write_source(out, source);
-  write_options(out, options);
-  write_work(out, pairs, T_world_frame, shares);
-  return bytes;
+  return encode_work_job(source, options, pairs, T_world_frame, shares);
 }
 
 BuildJob decode_job(std::span<const std::byte> bytes) {
-  ByteReader in(bytes, "the job from rank 0");
-  BuildJob job;
-  job.source = read_source(in);
-  job.options = read_global_registration_options(in);
-  read_work(in, &job.pairs, &job.T_world_frame, &job.shares);
-  in.expect_end();
-  return job;
+  return decode_work_job<BuildJob>(bytes, "the job from rank 0", read_global_registration_options);
 }
 
 std::vector<std::byte> encode_overlap_job(const MpiFrameSource& source,
@@ -108,22 +123,12 @@ std::vector<std::byte> encode_overlap_job(const MpiFrameSource& source,
                                           std::span<const FramePair> pairs,
                                           std::span<const Eigen::Isometry3d> T_world_frame,
                                           const std::vector<std::vector<std::size_t>>& shares) {
-  std::vector<std::byte> bytes;
-  ByteWriter out(bytes);
-  write_source(out, source);
-  write_options(out, options);
-  write_work(out, pairs, T_world_frame, shares);
-  return bytes;
+  return encode_work_job(source, options, pairs, T_world_frame, shares);
 }
 
 OverlapJob decode_overlap_job(std::span<const std::byte> bytes) {
-  ByteReader in(bytes, "the overlap job from rank 0");
-  OverlapJob job;
-  job.source = read_source(in);
-  job.options = read_dense_graph_options(in);
-  read_work(in, &job.pairs, &job.T_world_frame, &job.shares);
-  in.expect_end();
-  return job;
+  return decode_work_job<OverlapJob>(bytes, "the overlap job from rank 0",
+                                     read_dense_graph_options);
 }
 
 std::vector<std::byte> encode_overlaps(std::span<const FramePair> pairs, double measure_s,
