@@ -78,6 +78,28 @@ void read_work(ByteReader& in, std::vector<FramePair>* pairs,
   }
 }
 
+/// An answer's start: success, the rank's time, frames read, peak memory and item count.
+void write_answer_header(ByteWriter& out, double seconds, std::size_t frames_read,
+                         std::uint64_t peak_rss_bytes, std::size_t items) {
+  out.put(std::uint8_t{1});
+  out.put(seconds);
+  out.put(static_cast<std::uint64_t>(frames_read));
+  out.put(peak_rss_bytes);
+  out.put(static_cast<std::uint64_t>(items));
+}
+
+/// Reads write_answer_header()'s fields; garbled unless the count is `items` (`name` says of
+/// what).
+WorkAnswer read_answer_header(ByteReader& in, std::size_t items, const char* name) {
+  in.get<std::uint8_t>();
+  WorkAnswer answer;
+  answer.seconds = in.get<double>();
+  answer.frames_read = static_cast<std::size_t>(in.get<std::uint64_t>());
+  answer.peak_rss_bytes = in.get<std::uint64_t>();
+  if (in.get<std::uint64_t>() != items) in.garbled(std::string(name) + " count");
+  return answer;
+}
+
 /// A job: how to read the frames, the stage's settings, the pairs, the poses and the shares.
 template <class Options>
 std::vector<std::byte> encode_work_job(const MpiFrameSource& source, const Options& options,
@@ -135,11 +157,7 @@ std::vector<std::byte> encode_overlaps(std::span<const FramePair> pairs, double 
                                        std::size_t frames_read, std::uint64_t peak_rss_bytes) {
   std::vector<std::byte> bytes;
   ByteWriter out(bytes);
-  out.put(std::uint8_t{1});
-  out.put(measure_s);
-  out.put(static_cast<std::uint64_t>(frames_read));
-  out.put(peak_rss_bytes);
-  out.put(static_cast<std::uint64_t>(pairs.size()));
+  write_answer_header(out, measure_s, frames_read, peak_rss_bytes, pairs.size());
   for (const FramePair& pair : pairs) out.put(pair.overlap);
   return bytes;
 }
@@ -148,12 +166,7 @@ WorkAnswer read_overlap_answer(std::span<const std::byte> bytes, const std::stri
                                std::span<const std::size_t> expected,
                                std::vector<FramePair>* pairs) {
   ByteReader in(bytes, what);
-  in.get<std::uint8_t>();
-  WorkAnswer answer;
-  answer.seconds = in.get<double>();
-  answer.frames_read = static_cast<std::size_t>(in.get<std::uint64_t>());
-  answer.peak_rss_bytes = in.get<std::uint64_t>();
-  if (in.get<std::uint64_t>() != expected.size()) in.garbled("pair count");
+  const WorkAnswer answer = read_answer_header(in, expected.size(), "pair");
   for (const std::size_t k : expected) {
     const double overlap = in.get<double>();
     if (!(overlap >= 0.0 && overlap <= 1.0))
@@ -183,11 +196,7 @@ std::vector<std::byte> encode_factors(std::span<const std::size_t> indices,
                                       std::size_t frames_read, std::uint64_t peak_rss_bytes) {
   std::vector<std::byte> bytes;
   ByteWriter out(bytes);
-  out.put(std::uint8_t{1});
-  out.put(build_s);
-  out.put(static_cast<std::uint64_t>(frames_read));
-  out.put(peak_rss_bytes);
-  out.put(static_cast<std::uint64_t>(indices.size()));
+  write_answer_header(out, build_s, frames_read, peak_rss_bytes, indices.size());
   for (std::size_t p = 0; p < indices.size(); ++p) {
     const std::vector<std::byte> factor = serialize_factor(factors[p]);
     out.put(static_cast<std::uint64_t>(indices[p]));
@@ -216,12 +225,7 @@ WorkAnswer read_factor_answer(std::span<const std::byte> bytes, const std::strin
                               std::span<const std::size_t> expected,
                               std::vector<RegistrationFactor>* factors) {
   ByteReader in(bytes, what);
-  in.get<std::uint8_t>();
-  WorkAnswer answer;
-  answer.seconds = in.get<double>();
-  answer.frames_read = static_cast<std::size_t>(in.get<std::uint64_t>());
-  answer.peak_rss_bytes = in.get<std::uint64_t>();
-  if (in.get<std::uint64_t>() != expected.size()) in.garbled("factor count");
+  const WorkAnswer answer = read_answer_header(in, expected.size(), "factor");
   for (const std::size_t k : expected) {
     if (in.get<std::uint64_t>() != k) in.garbled("factor index");
     const auto length = in.get<std::uint64_t>();
