@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # carat map under mpirun: 2 and 3 ranks give the poses of one process bit for bit (the --out
-# files and the JSON ATE), and a rank that fails (a frame it cannot read), rank 0 failing,
+# files and the JSON ATE), and a rank that sees other files than rank 0, a rank that fails (a
+# frame it cannot read), rank 0 failing,
 # and sampling the ranks cannot share end the whole run cleanly: one line naming
 # the rank and the frame, exit non-zero, no --out, no hang. Other subcommands run on rank 0 alone,
 # usage errors print once, and a signal to mpirun leaves no temporary. Skips (exit 77) when carat was built
@@ -58,17 +59,25 @@ print(a['ate_rmse'] == b['ate_rmse'] and a['iterations'] == b['iterations']
       and 'frame_store' not in a)" "$a.json" "$b.json" "${b##*_}")"
 done
 
-# A rank that cannot read a frame: each rank runs in its own folder, as if the shared
-# filesystem served rank 1 a truncated copy of frame 3 (each rank reads the frames of its share
-# of the dense graph's candidate pairs, frame 3 among them).
-mkdir -p good bad/seq
+# A rank that sees other files: each rank runs in its own folder, as if the shared filesystem
+# served rank 1 a truncated copy of frame 3 (rank 0 sends every file's size; a rank checks them
+# before reading any frame).
+mkdir -p good bad/seq nan/seq
 ln -s ../seq good/seq
 cp seq/* bad/seq/
 head -c 100 seq/000003.bin >bad/seq/000003.bin
-check rank_fails 1 "carat: error: rank 1 of 2: seq/000003.bin: 100 bytes is not a whole number" -- \
+check rank_other_files 1 "carat: error: rank 1 of 2: seq/000003.bin: 100 bytes on this rank but" -- \
   timeout 300 mpirun -q --oversubscribe -np 1 --wdir "$scratch/good" "$CARAT" "${args[@]}" --out out.txt : \
   -np 1 --wdir "$scratch/bad" "$CARAT" "${args[@]}" --out out.txt
-expect rank_fails_no_out "$([[ ! -e good/out.txt && ! -e bad/out.txt ]] && echo True)"
+expect rank_other_files_no_out "$([[ ! -e good/out.txt && ! -e bad/out.txt ]] && echo True)"
+# A rank that cannot read a frame of the right size (NaN coordinates), found in its share of the
+# dense graph's candidate pairs (frame 3 among them).
+cp seq/* nan/seq/
+python3 -c "import sys; open(sys.argv[1], 'r+b').write(b'\xff' * 64)" nan/seq/000003.bin
+check rank_fails 1 "carat: error: rank 1 of 2: seq/000003.bin: point 0 is not finite" -- \
+  timeout 300 mpirun -q --oversubscribe -np 1 --wdir "$scratch/good" "$CARAT" "${args[@]}" --out out.txt : \
+  -np 1 --wdir "$scratch/nan" "$CARAT" "${args[@]}" --out out.txt
+expect rank_fails_no_out "$([[ ! -e good/out.txt && ! -e nan/out.txt ]] && echo True)"
 # Rank 0 fails (in its share of the dense graph): the others are told to stop.
 check rank0_fails 1 "carat: error: rank 0 of 2: seq/000003.bin: 100 bytes is not a whole number" -- \
   timeout 300 mpirun -q --oversubscribe -np 1 --wdir "$scratch/bad" "$CARAT" "${args[@]}" --out out.txt : \

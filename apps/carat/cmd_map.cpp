@@ -220,7 +220,7 @@ int run_map(const CLI::App& command, const MapArgs& args) {
   const double preprocess_s = preprocess_time.elapsed_s();
   MappingOptions options = mapping_options(args, threads, run_loops);
   StageBars<MappingStage> bars(mapping_stage_label, !args.json);
-  if (mpi) mpi->attach({files, scans}, store, &options);
+  if (mpi) mpi->attach({files, scans, file_sizes(files)}, store, &options);
   MapGraph graph = build_map_graph(*store, t.T_world_initial, options, bars.callback());
   bars.finish();
   const bool full = options.method == MappingMethod::kRegistration &&

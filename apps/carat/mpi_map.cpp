@@ -29,8 +29,10 @@ namespace {
 #if CARAT_WITH_MPI
 
 /// Frames read and preprocessed on demand as rank 0 read them, under rank 0's cap (none: each
-/// kept once read), so that a rank reads only the frames of its share.
+/// kept once read), so that a rank reads only the frames of its share; first checks that every
+/// file has the size rank 0 saw (check_same_files()).
 std::shared_ptr<FrameStore> frames_from(const MpiFrameSource& source) {
+  check_same_files(source);
   OpenScansOptions scans = source.scans;
   scans.preprocess.num_threads = 1;
   if (scans.max_bytes == 0) scans.max_bytes = std::numeric_limits<std::size_t>::max();

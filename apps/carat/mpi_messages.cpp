@@ -2,9 +2,12 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <filesystem>
+#include <system_error>
 #include <utility>
 
 #include "carat/base/byte_stream.hpp"
+#include "carat/base/error.hpp"
 #include "carat/registration/factor_serialization.hpp"
 #include "carat/registration/option_serialization.hpp"
 
@@ -14,10 +17,12 @@ namespace {
 
 void write_source(ByteWriter& out, const MpiFrameSource& source) {
   out.put(static_cast<std::uint64_t>(source.files.size()));
-  for (const ScanFile& file : source.files) {
+  for (std::size_t k = 0; k < source.files.size(); ++k) {
+    const ScanFile& file = source.files[k];
     out.put_string(file.path.string());
     out.put_string(file.name);
     out.put(static_cast<std::uint8_t>(file.bin_format));
+    out.put(k < source.file_sizes.size() ? source.file_sizes[k] : kUnknownSize);
   }
   write_options(out, source.scans);
 }
@@ -32,6 +37,7 @@ MpiFrameSource read_source(ByteReader& in) {
     file.name = in.get_string();
     file.bin_format = static_cast<KittiFormat>(in.get<std::uint8_t>());
     source.files.push_back(std::move(file));
+    source.file_sizes.push_back(in.get<std::uint64_t>());
   }
   source.scans = read_open_scans_options(in);
   return source;
@@ -175,6 +181,36 @@ WorkAnswer read_overlap_answer(std::span<const std::byte> bytes, const std::stri
   }
   in.expect_end();
   return answer;
+}
+
+std::vector<std::uint64_t> file_sizes(const std::vector<ScanFile>& files) {
+  std::vector<std::uint64_t> out;
+  out.reserve(files.size());
+  for (const ScanFile& file : files) {
+    std::error_code error;
+    const std::uintmax_t size = std::filesystem::file_size(file.path, error);
+    out.push_back(error ? kUnknownSize : static_cast<std::uint64_t>(size));
+  }
+  return out;
+}
+
+void check_same_files(const MpiFrameSource& source) {
+  for (std::size_t k = 0; k < source.files.size() && k < source.file_sizes.size(); ++k) {
+    const std::uint64_t there = source.file_sizes[k];
+    if (there == kUnknownSize) continue;  // rank 0 reports its own unreadable file
+    std::error_code error;
+    const std::uintmax_t here = std::filesystem::file_size(source.files[k].path, error);
+    const std::string name = source.files[k].path.string();
+    if (error) {
+      throw Error(name + ": cannot be read on this rank (" + error.message() +
+                  "); every rank must read the same files (a shared filesystem)");
+    }
+    if (static_cast<std::uint64_t>(here) != there) {
+      throw Error(name + ": " + std::to_string(here) + " bytes on this rank but " +
+                  std::to_string(there) +
+                  " bytes on rank 0; every rank must read the same files (a shared filesystem)");
+    }
+  }
 }
 
 std::vector<std::vector<std::size_t>> split_pairs(std::span<const FramePair> pairs,

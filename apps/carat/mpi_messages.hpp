@@ -23,7 +23,20 @@ namespace carat::cli {
 struct MpiFrameSource {
   std::vector<ScanFile> files;  // the frames, in scan order
   OpenScansOptions scans;       // how they are read, checked and preprocessed
+  /// Each file's size in bytes as rank 0 sees it (kUnknownSize where it could not tell), so that
+  /// a rank that sees other files under the same paths fails instead of mapping other frames.
+  std::vector<std::uint64_t> file_sizes;
 };
+
+/// A file size rank 0 could not read.
+inline constexpr std::uint64_t kUnknownSize = ~std::uint64_t{0};
+
+/// The sizes of `files` for MpiFrameSource::file_sizes.
+std::vector<std::uint64_t> file_sizes(const std::vector<ScanFile>& files);
+
+/// Throws carat::Error naming the first file whose size here differs from rank 0's ("DIR/x.bin:
+/// 100 bytes on this rank but 1968 bytes on rank 0; every rank must read the same files").
+void check_same_files(const MpiFrameSource& source);
 
 /// What rank 0 sends every round: how to read the frames, how to build, what, and where.
 struct BuildJob {
