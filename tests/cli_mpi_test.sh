@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
-# carat map under mpirun: 2 and 3 ranks give the poses of one process bit for bit (the --out
-# files and the JSON ATE), and a rank that sees other files than rank 0, a rank that fails (a
-# frame it cannot read), rank 0 failing,
+# carat map under mpirun: 2, 3 and 4 ranks give the poses of one process bit for bit (the --out
+# files, the covariances and the JSON ATE), and a rank that sees other files than rank 0, a rank
+# that fails (a frame it cannot read; in the middle of the solve), or dies, rank 0 failing,
 # and sampling the ranks cannot share end the whole run cleanly: one line naming
 # the rank and the frame, exit non-zero, no --out, no hang. Other subcommands run on rank 0 alone,
 # usage errors print once, and a signal to mpirun leaves no temporary. Skips (exit 77) when carat was built
@@ -25,10 +25,13 @@ cd "$scratch" || exit 1
 args=(map --frames seq --poses seq/poses.txt --perturb-m 0.3 --perturb-deg 1 --threads 1 --json)
 
 # Exact (several correspondence rounds) on 1 and 2 ranks; lossless on 1 and 3 ranks.
-check map_exact_1 0 "" -- "$CARAT" "${args[@]}" --out exact_1.txt
+check map_exact_1 0 "" -- "$CARAT" "${args[@]}" --out exact_1.txt --covariance exact_1.cov
 cp out exact_1.json
-check map_exact_2 0 "" -- mpi 2 "${args[@]}" --out exact_2.txt
+check map_exact_2 0 "" -- mpi 2 "${args[@]}" --out exact_2.txt --covariance exact_2.cov
 cp out exact_2.json
+expect exact_2_same_covariances "$(cmp -s exact_1.cov exact_2.cov && echo True)"
+check map_exact_4 0 "" -- mpi 4 "${args[@]}" --out exact_4.txt
+expect exact_4_same_poses "$(cmp -s exact_1.txt exact_4.txt && echo True)"
 # Frames read on demand under a cap, on every rank: still the same poses.
 check map_exact_2_capped 0 "" -- mpi 2 "${args[@]}" --max-frame-memory 20 --out exact_2_capped.txt
 expect exact_2_capped_same_poses "$(cmp -s exact_1.txt exact_2_capped.txt && echo True)"
@@ -54,7 +57,12 @@ print(a['ate_rmse'] == b['ate_rmse'] and a['iterations'] == b['iterations']
       and all(n > 0 for n in m['pairs_measured_per_rank'])
       and len(m['peak_rss_bytes_per_rank']) == ranks and min(m['peak_rss_bytes_per_rank']) > 0
       and m['peak_rss_bytes_per_rank'][0] >= b['peak_rss_bytes']
-      and sum(m['bytes_sent_per_rank'][1:]) == m['bytes_gathered']
+      and sum(m['bytes_sent_per_rank'][1:]) > m['bytes_gathered']
+      and m['factors_held_per_rank'] == m['factors_per_rank'] and m['linearizations'] >= 2
+      and m['cost_evaluations'] >= 1
+      and m['bytes_per_linearization'] > 728 * sum(m['factors_per_rank'][1:])
+      and m['bytes_per_cost_evaluation'] > 8 * sum(m['factors_per_rank'][1:])
+      and m['pose_bytes_per_linearization'] == 56 * b['frames']
       and min(m['bytes_sent_per_rank']) > 0 and b['frame_store']['max_bytes'] is None
       and 'frame_store' not in a)" "$a.json" "$b.json" "${b##*_}")"
 done
@@ -78,6 +86,16 @@ check rank_fails 1 "carat: error: rank 1 of 2: seq/000003.bin: point 0 is not fi
   timeout 300 mpirun -q --oversubscribe -np 1 --wdir "$scratch/good" "$CARAT" "${args[@]}" --out out.txt : \
   -np 1 --wdir "$scratch/nan" "$CARAT" "${args[@]}" --out out.txt
 expect rank_fails_no_out "$([[ ! -e good/out.txt && ! -e nan/out.txt ]] && echo True)"
+# A rank fails in the middle of the solve (its 2nd linearization), or dies there: one line naming
+# the rank, exit non-zero, no --out, no hang.
+check rank_fails_solving 1 "carat: error: rank 1 of 2: failed as CARAT_MPI_TEST_FAULT asked, in linearization 2" -- \
+  timeout 300 mpirun -q --oversubscribe -np 1 "$CARAT" "${args[@]}" --out solving.txt : \
+  -np 1 env CARAT_MPI_TEST_FAULT=throw@2 "$CARAT" "${args[@]}" --out solving.txt
+expect rank_fails_solving_no_out "$([[ ! -e solving.txt ]] && echo True)"
+timeout 300 mpirun -q --oversubscribe -np 1 "$CARAT" "${args[@]}" --out dies.txt : \
+  -np 1 env CARAT_MPI_TEST_FAULT=abort@2 "$CARAT" "${args[@]}" --out dies.txt >dies.out 2>&1
+status=$?
+expect rank_dies_solving_ends_the_job "$([[ $status -ne 0 && $status -ne 124 && ! -e dies.txt ]] && echo True)"
 # Rank 0 fails (in its share of the dense graph): the others are told to stop.
 check rank0_fails 1 "carat: error: rank 0 of 2: seq/000003.bin: 100 bytes is not a whole number" -- \
   timeout 300 mpirun -q --oversubscribe -np 1 --wdir "$scratch/bad" "$CARAT" "${args[@]}" --out out.txt : \

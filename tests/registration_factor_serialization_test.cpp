@@ -21,6 +21,7 @@
 #include "carat/registration/factor_serialization.hpp"
 #include "carat/registration/frame_store.hpp"
 #include "carat/registration/global_registration.hpp"
+#include "carat/registration/held_factors.hpp"
 #include "carat/registration/option_serialization.hpp"
 #include "carat/residuals/block_serialization.hpp"
 #include "carat/residuals/relative_pose_block.hpp"
@@ -160,6 +161,125 @@ TEST_P(FactorBytesTest, SolveOverFactorsMovedThroughBytesIsTheSame) {
         << "pose " << i;
   }
   EXPECT_EQ(direct.factor_costs, through_bytes.factor_costs);
+}
+
+/// A round's factors held in `shares` stretches of the block order, each a RegistrationShare,
+/// as the ranks of an MPI job hold them.
+class SharesHeld final : public HeldRegistrationFactors {
+ public:
+  SharesHeld(FrameStore& store, std::span<const FramePair> pairs,
+             std::span<const Eigen::Isometry3d> T_world_start, std::span<const std::size_t> order,
+             const GlobalRegistrationOptions& options, std::size_t shares)
+      : pairs_(pairs.size()) {
+    for (std::size_t r = 0; r < shares; ++r) {
+      std::vector<std::size_t> indices(
+          order.begin() + static_cast<std::ptrdiff_t>(r * order.size() / shares),
+          order.begin() + static_cast<std::ptrdiff_t>((r + 1) * order.size() / shares));
+      shares_.push_back(std::make_unique<RegistrationShare>(
+          pairs, indices, build_registration_factors(store, pairs, indices, T_world_start, options),
+          T_world_start, options));
+      for (const std::size_t k : indices) {
+        variables_.push_back(VariableId{pairs[k].target});
+        variables_.push_back(VariableId{pairs[k].source});
+      }
+      indices_.push_back(std::move(indices));
+    }
+  }
+  std::size_t num_blocks() const override { return variables_.size() / 2; }
+  std::span<const VariableId> variables(std::size_t k) const override {
+    return std::span<const VariableId>(variables_).subspan(2 * k, 2);
+  }
+  void linearize(std::span<const double> values, const BlockRecordSink& sink) override {
+    std::size_t first = 0;
+    for (const auto& share : shares_) {
+      share->linearize(values, [&](std::size_t run, std::span<const double> records) {
+        sink(first + run, records);
+      });
+      first += share->size();
+    }
+  }
+  void costs(std::span<const double> values, const BlockRecordSink& sink) override {
+    std::size_t first = 0;
+    for (const auto& share : shares_) {
+      share->costs(values, [&](std::size_t run, std::span<const double> costs) {
+        sink(first + run, costs);
+      });
+      first += share->size();
+    }
+  }
+  RegistrationFactorStats stats() const override {
+    RegistrationFactorStats out;
+    for (const auto& share : shares_) {
+      out.num_factors += share->stats().num_factors;
+      out.num_correspondences += share->stats().num_correspondences;
+      out.num_rows += share->stats().num_rows;
+      out.correspondence_bytes += share->stats().correspondence_bytes;
+      out.residual_bytes += share->stats().residual_bytes;
+    }
+    return out;
+  }
+  std::vector<std::size_t> correspondence_bytes() const override {
+    return per_pair([](const RegistrationShare& s) { return s.correspondence_bytes(); });
+  }
+  std::vector<std::size_t> residual_bytes() const override {
+    return per_pair([](const RegistrationShare& s) { return s.residual_bytes(); });
+  }
+  std::vector<double> factor_costs(std::span<const double> values) override {
+    std::vector<double> out(pairs_);
+    for (std::size_t r = 0; r < shares_.size(); ++r) {
+      const std::vector<double> costs = shares_[r]->factor_costs(values);
+      for (std::size_t q = 0; q < costs.size(); ++q) out[indices_[r][q]] = costs[q];
+    }
+    return out;
+  }
+
+ private:
+  template <class Field>
+  std::vector<std::size_t> per_pair(Field field) const {
+    std::vector<std::size_t> out(pairs_);
+    for (std::size_t r = 0; r < shares_.size(); ++r) {
+      const std::span<const std::size_t> values = field(*shares_[r]);
+      for (std::size_t q = 0; q < values.size(); ++q) out[indices_[r][q]] = values[q];
+    }
+    return out;
+  }
+  std::size_t pairs_;
+  std::vector<std::unique_ptr<RegistrationShare>> shares_;
+  std::vector<std::vector<std::size_t>> indices_;
+  std::vector<VariableId> variables_;
+};
+
+TEST_P(FactorBytesTest, FactorsHeldInSharesSolveBitForBitAsInOneProblem) {
+  GlobalRegistrationOptions options = options_for(GetParam());
+  options.rounds = 2;
+  options.factor_cauchy_scale = 2.0;
+  options.covariance = true;
+  const Drive& d = drive();
+  FrameStore store(d.frames);
+  const GlobalRegistrationResult direct = optimize_registration(store, d.pairs, d.initial, options);
+  for (const std::size_t shares : {std::size_t{1}, std::size_t{3}}) {
+    SCOPED_TRACE(std::to_string(shares) + " shares");
+    const GlobalRegistrationResult held = optimize_held_registration(
+        [&](std::span<const Eigen::Isometry3d> T_world_start, std::span<const std::size_t> order) {
+          return std::make_shared<SharesHeld>(store, d.pairs, T_world_start, order, options,
+                                              shares);
+        },
+        d.pairs, d.initial, options);
+    ASSERT_EQ(direct.T_world_frame.size(), held.T_world_frame.size());
+    EXPECT_EQ(direct.rounds, held.rounds);
+    EXPECT_EQ(direct.summary.num_iterations, held.summary.num_iterations);
+    EXPECT_EQ(direct.summary.final_cost, held.summary.final_cost);
+    for (std::size_t i = 0; i < direct.T_world_frame.size(); ++i) {
+      EXPECT_TRUE(same_bits({direct.T_world_frame[i].matrix().data(), 16},
+                            {held.T_world_frame[i].matrix().data(), 16}))
+          << "pose " << i;
+    }
+    EXPECT_EQ(direct.factor_costs, held.factor_costs);
+    EXPECT_EQ(direct.factor_residual_bytes, held.factor_residual_bytes);
+    ASSERT_EQ(direct.covariance.size(), held.covariance.size());
+    for (std::size_t i = 0; i < direct.covariance.size(); ++i)
+      EXPECT_TRUE(same_bits({direct.covariance[i].data(), 36}, {held.covariance[i].data(), 36}));
+  }
 }
 
 INSTANTIATE_TEST_SUITE_P(Samplings, FactorBytesTest,

@@ -16,6 +16,8 @@
 #include "../solver/src/block_evaluator.hpp"
 #include "../solver/src/sparse_system.hpp"
 #include "carat/base/error.hpp"
+#include "carat/solver/block_source.hpp"
+#include "carat/solver/evaluate.hpp"
 #include "carat/solver/loss_function.hpp"
 #include "carat/solver/problem.hpp"
 #include "carat/solver/solver_options.hpp"
@@ -814,6 +816,151 @@ TEST(SummaryTest, ReportsStayTruthfulAtTheEdges) {
   EXPECT_GE(nan_step.num_unsuccessful_steps, 1) << nan_step.full_report();
   EXPECT_EQ(nan_step.iteration_table().find("nan"), std::string::npos) << nan_step.full_report();
   EXPECT_NEAR(log_problem.value(z)[0], 1.0, 1e-6);
+}
+
+/// Serves the blocks of its own problem (same variables as the solved one) through a
+/// BlockLinearizer, in runs of `run` blocks; `spoil` (if set) edits the records first.
+class LinearizerSource final : public BlockSource {
+ public:
+  LinearizerSource(Problem blocks, std::size_t run)
+      : blocks_(std::move(blocks)), linearizer_(blocks_, 2, 5), run_(run) {}
+  std::size_t num_blocks() const override { return blocks_.blocks().size(); }
+  std::span<const VariableId> variables(std::size_t k) const override {
+    return blocks_.blocks()[k].variables;
+  }
+  void linearize(std::span<const double> values, const BlockRecordSink& sink) override {
+    std::vector<double> records;
+    linearizer_.linearize(values, [&](std::size_t, std::span<const double> run) {
+      records.insert(records.end(), run.begin(), run.end());
+    });
+    if (spoil) spoil(&records);
+    std::size_t at = 0;
+    for (std::size_t k = 0; k < num_blocks(); k += run_) {
+      std::size_t size = 0;
+      for (std::size_t q = k; q < std::min(k + run_, num_blocks()); ++q)
+        size += linearization_record_size(blocks_.blocks()[q].block->tangent_dim());
+      sink(k + first_shift, std::span<const double>(records).subspan(at, size));
+      at += size;
+    }
+  }
+  void costs(std::span<const double> values, const BlockRecordSink& sink) override {
+    linearizer_.costs(values, sink);
+  }
+  std::function<void(std::vector<double>*)> spoil;  ///< edits the records before they are sent
+  std::size_t first_shift = 0;                      ///< added to each run's first index
+
+ private:
+  Problem blocks_;
+  BlockLinearizer linearizer_;
+  std::size_t run_;
+};
+
+/// The random linear problem with a Rosenbrock variable and Cauchy losses on every third block;
+/// `own` of its blocks stay in the returned problem, the others go to a LinearizerSource, which
+/// is returned too (when own < all).
+struct SplitProblem {
+  Problem problem;
+  std::shared_ptr<LinearizerSource> source;
+};
+
+SplitProblem split_problem(std::size_t own) {
+  RandomLinear lin = make_random_linear(120, 5);
+  const VariableId r = lin.problem.add_euclidean(Eigen::Vector2d(-1.2, 1.0));
+  lin.problem.add_residual_block(std::make_shared<RosenbrockBlock>(), {r});
+  SplitProblem out;
+  Problem rest;
+  for (Problem* p : {&out.problem, &rest}) {
+    for (int v = 0; v < lin.problem.num_variables(); ++v) {
+      const std::span<const double> value = lin.problem.value(VariableId{v});
+      p->add_euclidean(
+          Eigen::Map<const Eigen::VectorXd>(value.data(), static_cast<Eigen::Index>(value.size())));
+    }
+    p->set_constant(VariableId{1});
+  }
+  const auto loss = std::make_shared<CauchyLoss>(0.5);
+  const auto blocks = lin.problem.blocks();
+  for (std::size_t k = 0; k < blocks.size(); ++k) {
+    Problem& to = k < own ? out.problem : rest;
+    to.add_residual_block(blocks[k].block, blocks[k].variables, k % 3 == 0 ? loss : nullptr);
+  }
+  if (own < blocks.size()) {
+    out.source = std::make_shared<LinearizerSource>(std::move(rest), 7);
+    out.problem.set_block_source(out.source);
+  }
+  return out;
+}
+
+TEST(BlockSourceTest, SolvesBitForBitAsTheSameBlocksAddedAfterTheOwnOnes) {
+  SolverOptions options;
+  options.max_iterations = 40;
+  options.num_threads = 2;
+  SplitProblem whole = split_problem(std::numeric_limits<std::size_t>::max());
+  const double start_cost = evaluate_cost(whole.problem);
+  const ProblemEvaluation start = evaluate_problem(whole.problem);
+  const SolverSummary reference = solve(options, whole.problem);
+  ASSERT_TRUE(reference.is_solution_usable()) << reference.message;
+  ASSERT_GT(reference.iterations.size(), 3u);
+  for (const std::size_t own : {std::size_t{0}, std::size_t{150}}) {
+    SplitProblem split = split_problem(own);
+    EXPECT_NEAR(evaluate_cost(split.problem), start_cost, 1e-12 * start_cost);
+    const ProblemEvaluation a = evaluate_problem(split.problem);
+    EXPECT_NEAR(a.cost, start.cost, 1e-12 * start.cost);
+    EXPECT_NEAR((a.gradient - start.gradient).norm(), 0.0, 1e-12 * start.gradient.norm());
+    const SolverSummary summary = solve(options, split.problem);
+    EXPECT_EQ(summary.num_residual_blocks, reference.num_residual_blocks);
+    ASSERT_EQ(summary.iterations.size(), reference.iterations.size()) << own;
+    EXPECT_EQ(summary.final_cost, reference.final_cost) << own;
+    const auto values = split.problem.all_values();
+    const auto expected = whole.problem.all_values();
+    for (std::size_t i = 0; i < values.size(); ++i)
+      ASSERT_EQ(values[i], expected[i]) << "value " << i << ", " << own << " own blocks";
+  }
+}
+
+TEST(BlockSourceTest, AMisbehavingSourceFailsTheSolveNamingWhatWentWrong) {
+  SolverOptions options;
+  options.max_iterations = 5;
+  {  // A record that is not finite fails the solve naming the block, as an own block's would.
+    SplitProblem split = split_problem(150);
+    split.source->spoil = [](std::vector<double>* records) { (*records)[100] = NAN; };
+    const SolverSummary summary = solve(options, split.problem);
+    EXPECT_EQ(summary.termination, TerminationType::kFailure);
+    EXPECT_THAT(summary.message, testing::HasSubstr("is not finite"));
+    EXPECT_THAT(summary.message, testing::HasSubstr("of the block source"));
+  }
+  {  // Runs out of order.
+    SplitProblem split = split_problem(150);
+    split.source->first_shift = 1;
+    EXPECT_THAT([&] { solve(options, split.problem); },
+                ThrowsMessage<Error>(testing::HasSubstr(
+                    "block source: records of block 1 arrived where block 0 was expected")));
+  }
+  {  // Only the whole sparse system takes a source.
+    SplitProblem split = split_problem(150);
+    options.linear_solver = LinearSolver::kSchur;
+    const SolverSummary summary = solve(options, split.problem);
+    EXPECT_EQ(summary.termination, TerminationType::kFailure);
+    EXPECT_EQ(summary.message,
+              "linear solver schur: a problem with a block source is solved as the whole sparse "
+              "system (use cholesky or auto)");
+  }
+  {  // A block over a variable the problem does not have.
+    Problem problem;
+    problem.add_euclidean(Eigen::Vector2d::Zero());
+    Problem other;
+    const VariableId a = other.add_euclidean(Eigen::Vector2d::Zero());
+    const VariableId b = other.add_euclidean(Eigen::Vector2d::Zero());
+    other.add_residual_block(
+        std::make_shared<LinearBlock>(std::vector<Eigen::MatrixXd>{Eigen::MatrixXd::Identity(2, 2),
+                                                                   Eigen::MatrixXd::Identity(2, 2)},
+                                      Eigen::Vector2d::Ones()),
+        {a, b});
+    EXPECT_THAT(
+        [&] { problem.set_block_source(std::make_shared<LinearizerSource>(std::move(other), 1)); },
+        ThrowsMessage<Error>(testing::HasSubstr(
+            "Problem::set_block_source (source block 0): variable 1 is not in the "
+            "problem (1 variables)")));
+  }
 }
 
 }  // namespace

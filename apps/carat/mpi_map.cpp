@@ -5,6 +5,8 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
+#include <exception>
 #include <limits>
 #include <new>
 #include <string>
@@ -39,9 +41,51 @@ std::shared_ptr<FrameStore> frames_from(const MpiFrameSource& source) {
   return open_scans(source.files, scans);
 }
 
-enum Command : std::uint64_t { kStop = 0, kBuild = 1, kOverlaps = 2 };
+enum Command : std::uint64_t {
+  kStop = 0,
+  kBuild = 1,        // build and hold a round's factors
+  kOverlaps = 2,     // measure the dense graph's candidates
+  kLinearize = 3,    // stream the held factors' linearization records at the poses sent
+  kCosts = 4,        // stream their costs
+  kFactorCosts = 5,  // answer their costs per correspondence
+};
 constexpr int kAnswerTag = 7;
 constexpr std::size_t kChunk = std::size_t{1} << 30;  // MPI counts are int
+
+/// A failure the test suite asks a rank for (CARAT_MPI_TEST_FAULT="throw@K" or "abort@K": fail
+/// the K-th linearization with an error, or die there as a crash would); at 0: none.
+struct TestFault {
+  std::size_t at = 0;
+  bool abort = false;
+};
+
+TestFault test_fault() {
+  const char* text = std::getenv("CARAT_MPI_TEST_FAULT");
+  if (!text) return {};
+  const std::string spec = text;
+  TestFault fault;
+  const std::size_t sign = spec.find('@');
+  if (sign == std::string::npos) return {};
+  fault.abort = spec.substr(0, sign) == "abort";
+  fault.at = static_cast<std::size_t>(std::strtoull(spec.c_str() + sign + 1, nullptr, 10));
+  return fault;
+}
+
+/// The poses rank 0 sends with a linearization, cost evaluation or factor-cost request.
+std::vector<double> values_of(std::span<const std::byte> payload) {
+  if (payload.size() % sizeof(double) != 0)
+    throw Error("the poses from rank 0: garbled: " + std::to_string(payload.size()) + " bytes");
+  std::vector<double> values(payload.size() / sizeof(double));
+  std::memcpy(values.data(), payload.data(), payload.size());
+  return values;
+}
+
+/// The poses as the bytes of a broadcast.
+std::vector<std::byte> bytes_of(std::span<const double> values) {
+  std::vector<std::byte> bytes(values.size_bytes());
+  std::memcpy(bytes.data(), values.data(), values.size_bytes());
+  return bytes;
+}
 
 /// Waits for a request without spinning a core that the builders or the solver could use.
 void wait(MPI_Request* request) {
@@ -133,15 +177,48 @@ MpiMapJob::~MpiMapJob() {
 int MpiMapJob::serve(int threads) {
 #if CARAT_WITH_MPI
   std::shared_ptr<FrameStore> store;
+  std::unique_ptr<RegistrationShare> held;
+  const TestFault fault = test_fault();
+  std::size_t linearizations = 0;
   for (;;) {
     std::uint64_t command = kStop;
     std::vector<std::byte> payload;
     broadcast(&command, &payload);
-    if (command != kBuild && command != kOverlaps) return 0;
+    if (command == kLinearize || command == kCosts) {
+      // A stream of runs, then its end; a failure ends it early, with the message.
+      std::vector<std::byte> end = encode_done();
+      try {
+        if (!held) throw Error("holds no factors (no build job came first)");
+        if (command == kLinearize && ++linearizations == fault.at) {
+          if (fault.abort) std::abort();
+          throw Error("failed as CARAT_MPI_TEST_FAULT asked, in linearization " +
+                      std::to_string(linearizations));
+        }
+        const std::vector<double> values = values_of(payload);
+        const BlockRecordSink send = [](std::size_t first, std::span<const double> records) {
+          send_answer(encode_records(first, records));
+        };
+        if (command == kLinearize) {
+          held->linearize(values, send);
+        } else {
+          held->costs(values, send);
+        }
+      } catch (const std::bad_alloc&) {
+        end = encode_failure("out of memory");
+      } catch (const std::exception& e) {
+        end = encode_failure(e.what());
+      }
+      send_answer(end);
+      continue;
+    }
+    if (command != kBuild && command != kOverlaps && command != kFactorCosts) return 0;
     std::vector<std::byte> answer;
     try {
       // Each share's time from where rank 0's own starts: after the job is read.
-      if (command == kOverlaps) {
+      if (command == kFactorCosts) {
+        if (!held) throw Error("holds no factors (no build job came first)");
+        answer = encode_numbers(held->factor_costs(values_of(payload)), peak_rss_bytes());
+      } else if (command == kOverlaps) {
         OverlapJob job = decode_overlap_job(payload);
         job.options.num_threads = threads;
         if (!store) store = frames_from(job.source);
@@ -157,6 +234,7 @@ int MpiMapJob::serve(int threads) {
         job.options.num_threads = threads;
         if (!store) store = frames_from(job.source);
         check_shares(job.shares.size());
+        held.reset();  // the last round's factors go before this round's are built
         const Stopwatch time;
         const std::vector<std::size_t>& indices = job.shares[static_cast<std::size_t>(rank_)];
         std::vector<RegistrationFactor> factors;
@@ -164,8 +242,9 @@ int MpiMapJob::serve(int threads) {
           factors = build_registration_factors(*store, job.pairs, indices, job.T_world_frame,
                                                job.options);
         }
-        answer = encode_factors(indices, factors, time.elapsed_s(), store->stats().loads,
-                                peak_rss_bytes());
+        held = std::make_unique<RegistrationShare>(job.pairs, indices, std::move(factors),
+                                                   job.T_world_frame, job.options);
+        answer = encode_held(*held, time.elapsed_s(), store->stats().loads, peak_rss_bytes());
       }
     } catch (const std::bad_alloc&) {
       answer = encode_failure("out of memory");
@@ -211,9 +290,11 @@ void MpiMapJob::attach(MpiFrameSource source, std::shared_ptr<FrameStore> frames
                        MappingOptions* options) {
   source_ = std::move(source);
   store_ = std::move(frames);  // rank 0's own share
-  options->build_factors =
-      [this](std::span<const FramePair> pairs, std::span<const Eigen::Isometry3d> T_world_frame,
-             const GlobalRegistrationOptions& gre) { return build(pairs, T_world_frame, gre); };
+  options->hold_factors =
+      [this](std::span<const FramePair> pairs, std::span<const Eigen::Isometry3d> T_world_start,
+             std::span<const std::size_t> order, const GlobalRegistrationOptions& gre) {
+        return hold(pairs, T_world_start, order, gre);
+      };
   options->measure_overlaps =
       [this](std::span<FramePair> pairs, std::span<const Eigen::Isometry3d> T_world_frame,
              const DenseGraphOptions& graph,
@@ -250,7 +331,8 @@ void MpiMapJob::measure(std::span<FramePair> pairs,
                         const std::function<void(std::size_t, std::size_t)>& progress) {
 #if CARAT_WITH_MPI
   std::uint64_t command = kOverlaps;
-  const std::vector<std::vector<std::size_t>> shares = split_pairs(pairs, T_world_frame, size_);
+  const std::vector<std::vector<std::size_t>> shares =
+      split_order(locality_order(pairs, T_world_frame), size_);
   std::vector<std::byte> payload =
       encode_overlap_job(source_, options, pairs, T_world_frame, shares);
   count_sent(payload.size());
@@ -293,56 +375,230 @@ void MpiMapJob::measure(std::span<FramePair> pairs,
 #endif
 }
 
-std::vector<RegistrationFactor> MpiMapJob::build(std::span<const FramePair> pairs,
-                                                 std::span<const Eigen::Isometry3d> T_world_frame,
-                                                 const GlobalRegistrationOptions& options) {
-  std::vector<RegistrationFactor> out(pairs.size());
+/// Rank 0's view of a round's factors held over the ranks: the solve's block source.
+class MpiMapJob::Held final : public HeldRegistrationFactors {
+ public:
+  Held(MpiMapJob* job, std::vector<VariableId> variables, RegistrationFactorStats stats,
+       std::vector<std::size_t> correspondence_bytes, std::vector<std::size_t> residual_bytes)
+      : job_(job),
+        variables_(std::move(variables)),
+        stats_(stats),
+        correspondence_bytes_(std::move(correspondence_bytes)),
+        residual_bytes_(std::move(residual_bytes)) {}
+  std::size_t num_blocks() const override { return variables_.size() / 2; }
+  std::span<const VariableId> variables(std::size_t k) const override {
+    return std::span<const VariableId>(variables_).subspan(2 * k, 2);
+  }
+  void linearize(std::span<const double> values, const BlockRecordSink& sink) override {
+    job_->stream(kLinearize, values, sink);
+  }
+  void costs(std::span<const double> values, const BlockRecordSink& sink) override {
+    job_->stream(kCosts, values, sink);
+  }
+  std::size_t num_residual_rows() const override { return stats_.num_rows; }
+  RegistrationFactorStats stats() const override { return stats_; }
+  std::vector<std::size_t> correspondence_bytes() const override { return correspondence_bytes_; }
+  std::vector<std::size_t> residual_bytes() const override { return residual_bytes_; }
+  std::vector<double> factor_costs(std::span<const double> values) override {
+    return job_->factor_costs(values, correspondence_bytes_.size());
+  }
+
+ private:
+  MpiMapJob* job_;
+  std::vector<VariableId> variables_;  // two a block: target, source
+  RegistrationFactorStats stats_;
+  std::vector<std::size_t> correspondence_bytes_;  // per pair
+  std::vector<std::size_t> residual_bytes_;        // per pair
+};
+
+std::shared_ptr<HeldRegistrationFactors> MpiMapJob::hold(
+    std::span<const FramePair> pairs, std::span<const Eigen::Isometry3d> T_world_start,
+    std::span<const std::size_t> order, const GlobalRegistrationOptions& options) {
+  std::vector<std::size_t> correspondence_bytes(pairs.size()), residual_bytes(pairs.size());
+  RegistrationFactorStats stats;
+  std::vector<VariableId> variables;
 #if CARAT_WITH_MPI
+  const Stopwatch stage_time;
   std::uint64_t command = kBuild;
-  // The shares stay those of the first round, so that each rank keeps the frames it read.
-  if (shares_.empty() || shares_pairs_ != pairs.size())
-    shares_ = split_pairs(pairs, T_world_frame, size_);
-  shares_pairs_ = pairs.size();
-  std::vector<std::byte> payload = encode_job(source_, options, pairs, T_world_frame, shares_);
+  shares_ = split_order(order, size_);
+  std::vector<std::byte> payload = encode_job(source_, options, pairs, T_world_start, shares_);
   count_sent(payload.size());
+  own_.reset();  // the last round's factors go before this round's are built
   broadcast(&command, &payload);
   // Rank 0's own share, while the others build theirs; its failure waits for their answers.
   std::string own_failure;
   const std::vector<std::size_t>& own = shares_[0];
   const Stopwatch own_time;
   try {
-    if (!own.empty()) {
-      std::vector<RegistrationFactor> built =
-          build_registration_factors(*store_, pairs, own, T_world_frame, options);
-      for (std::size_t p = 0; p < own.size(); ++p) out[own[p]] = std::move(built[p]);
+    std::vector<RegistrationFactor> built;
+    if (!own.empty())
+      built = build_registration_factors(*store_, pairs, own, T_world_start, options);
+    own_ =
+        std::make_unique<RegistrationShare>(pairs, own, std::move(built), T_world_start, options);
+  } catch (const std::bad_alloc&) {
+    own_failure = "out of memory";
+  } catch (const std::exception& e) {
+    own_failure = e.what();
+  }
+  ++rounds_;
+  factors_per_rank_.assign(static_cast<std::size_t>(size_), 0);
+  factors_per_rank_[0] = own.size();
+  build_s_per_rank_.assign(static_cast<std::size_t>(size_), 0.0);
+  build_s_per_rank_[0] = own_time.elapsed_s();
+  frames_read_per_rank_.assign(static_cast<std::size_t>(size_), 0);
+  frames_read_per_rank_[0] = store_->resident() ? store_->size() : store_->stats().loads;
+  const std::vector<std::vector<std::byte>> answers = collect_answers(own_failure);
+  const auto add = [&](const RegistrationFactorStats& share, std::span<const std::size_t> indices,
+                       std::span<const std::size_t> full, std::span<const std::size_t> kept) {
+    stats.num_factors += share.num_factors;
+    stats.num_correspondences += share.num_correspondences;
+    stats.num_rows += share.num_rows;
+    stats.correspondence_bytes += share.correspondence_bytes;
+    stats.residual_bytes += share.residual_bytes;
+    stats.correspondence_s += share.correspondence_s;
+    stats.compression_s += share.compression_s;
+    stats.minimum_s += share.minimum_s;
+    for (std::size_t q = 0; q < indices.size(); ++q) {
+      correspondence_bytes[indices[q]] = full[q];
+      residual_bytes[indices[q]] = kept[q];
+      variables.push_back(VariableId{pairs[indices[q]].target});
+      variables.push_back(VariableId{pairs[indices[q]].source});
+    }
+  };
+  add(own_->stats(), own, own_->correspondence_bytes(), own_->residual_bytes());
+  for (int r = 1; r < size_; ++r) {
+    const auto rank = static_cast<std::size_t>(r);
+    HeldAnswer held;
+    const WorkAnswer answer = read_held_answer(
+        answers[rank], "the answer of rank " + std::to_string(r), shares_[rank].size(), &held);
+    build_s_per_rank_[rank] = answer.seconds;
+    frames_read_per_rank_[rank] = answer.frames_read;
+    note_peak_rss(rank, answer.peak_rss_bytes);
+    factors_per_rank_[rank] = shares_[rank].size();
+    add(held.stats, shares_[rank], held.correspondence_bytes, held.residual_bytes);
+  }
+  // The stage ran in parallel: its CPU times split its wall time, as in one process.
+  const double cpu = stats.correspondence_s + stats.compression_s + stats.minimum_s;
+  const double wall = stage_time.elapsed_s();
+  if (cpu > 0.0) {
+    stats.correspondence_s *= wall / cpu;
+    stats.compression_s *= wall / cpu;
+    stats.minimum_s *= wall / cpu;
+  }
+#else
+  (void)T_world_start;
+  (void)order;
+  (void)options;
+#endif
+  return std::make_shared<Held>(this, std::move(variables), stats, std::move(correspondence_bytes),
+                                std::move(residual_bytes));
+}
+
+void MpiMapJob::stream(std::uint64_t command, std::span<const double> values,
+                       const BlockRecordSink& sink) {
+#if CARAT_WITH_MPI
+  std::vector<std::byte> payload = bytes_of(values);
+  values_bytes_ = payload.size();
+  count_sent(payload.size());
+  broadcast(&command, &payload);
+  const bool linearizing = command == kLinearize;
+  ++(linearizing ? linearizations_ : cost_evaluations_);
+  std::size_t stream_bytes = 0;
+  // Every rank's stream is read to its end, whatever fails, so that the next command finds the
+  // ranks waiting for it; the first failure is thrown after.
+  std::exception_ptr sink_error;
+  std::size_t offset = 0;  // the first block of the rank being read
+  const auto pass = [&](std::size_t first, std::span<const double> records) {
+    if (sink_error) return;
+    try {
+      sink(offset + first, records);
+    } catch (...) {
+      sink_error = std::current_exception();
+    }
+  };
+  std::string own_failure;
+  try {
+    if (!own_) throw Error("holds no factors (no build job came first)");
+    if (command == kLinearize) {
+      own_->linearize(values, pass);
+    } else {
+      own_->costs(values, pass);
     }
   } catch (const std::bad_alloc&) {
     own_failure = "out of memory";
   } catch (const std::exception& e) {
     own_failure = e.what();
   }
-  const double own_s = own_time.elapsed_s();
-  ++rounds_;
-  factors_per_rank_.assign(static_cast<std::size_t>(size_), 0);
-  factors_per_rank_[0] = own.size();
-  build_s_per_rank_.assign(static_cast<std::size_t>(size_), 0.0);
-  build_s_per_rank_[0] = own_s;
-  frames_read_per_rank_.assign(static_cast<std::size_t>(size_), 0);
-  frames_read_per_rank_[0] = store_->resident() ? store_->size() : store_->stats().loads;
-  const std::vector<std::vector<std::byte>> answers = collect_answers(own_failure);
+  const auto failed = [&](int r, const std::string& message) {
+    return Error("rank " + std::to_string(r) + " of " + std::to_string(size_) + ": " + message);
+  };
+  std::vector<std::string> failures(static_cast<std::size_t>(size_));
+  failures[0] = own_failure;
+  bytes_sent_per_rank_.resize(static_cast<std::size_t>(size_), 0);
+  std::vector<double> records;
   for (int r = 1; r < size_; ++r) {
     const auto rank = static_cast<std::size_t>(r);
-    const WorkAnswer answer = read_factor_answer(
-        answers[rank], "the answer of rank " + std::to_string(r), shares_[rank], &out);
-    build_s_per_rank_[rank] = answer.seconds;
-    frames_read_per_rank_[rank] = answer.frames_read;
+    offset += shares_[rank - 1].size();
+    const std::string what = "the records of rank " + std::to_string(r);
+    for (;;) {
+      const std::vector<std::byte> bytes = receive_answer(r);
+      stream_bytes += bytes.size();
+      bytes_sent_per_rank_[rank] += bytes.size();
+      std::size_t first = 0;
+      try {
+        if (!read_records(bytes, what, &first, &records)) {
+          failures[rank] = answer_failure(bytes, what);
+          break;
+        }
+      } catch (const std::exception& e) {
+        // Garbled bytes: what follows cannot be trusted to end the stream, so stop here.
+        throw failed(r, e.what());
+      }
+      if (failures[rank].empty()) pass(first, records);
+    }
+  }
+  (linearizing ? linearization_bytes_ : cost_bytes_) = stream_bytes;
+  for (int r = 0; r < size_; ++r) {
+    if (!failures[static_cast<std::size_t>(r)].empty())
+      throw failed(r, failures[static_cast<std::size_t>(r)]);
+  }
+  if (sink_error) std::rethrow_exception(sink_error);
+#else
+  (void)command;
+  (void)values;
+  (void)sink;
+#endif
+}
+
+std::vector<double> MpiMapJob::factor_costs(std::span<const double> values, std::size_t pairs) {
+  std::vector<double> out(pairs, 0.0);
+#if CARAT_WITH_MPI
+  std::uint64_t command = kFactorCosts;
+  std::vector<std::byte> payload = bytes_of(values);
+  count_sent(payload.size());
+  broadcast(&command, &payload);
+  std::string own_failure;
+  std::vector<double> own;
+  try {
+    if (!own_) throw Error("holds no factors (no build job came first)");
+    own = own_->factor_costs(values);
+  } catch (const std::bad_alloc&) {
+    own_failure = "out of memory";
+  } catch (const std::exception& e) {
+    own_failure = e.what();
+  }
+  const std::vector<std::vector<std::byte>> answers = collect_answers(own_failure);
+  for (std::size_t q = 0; q < own.size(); ++q) out[shares_[0][q]] = own[q];
+  for (int r = 1; r < size_; ++r) {
+    const auto rank = static_cast<std::size_t>(r);
+    std::vector<double> costs;
+    const WorkAnswer answer = read_numbers(answers[rank], "the answer of rank " + std::to_string(r),
+                                           shares_[rank].size(), &costs);
     note_peak_rss(rank, answer.peak_rss_bytes);
-    factors_per_rank_[rank] = shares_[rank].size();
+    for (std::size_t q = 0; q < costs.size(); ++q) out[shares_[rank][q]] = costs[q];
   }
 #else
-  (void)pairs;
-  (void)T_world_frame;
-  (void)options;
+  (void)values;
 #endif
   return out;
 }
@@ -359,11 +615,13 @@ std::string MpiMapJob::summary_line() const {
   };
   return "  mpi: " + std::to_string(size_) + " ranks measured " +
          joined(pairs_measured_per_rank_, "%zu") + " candidate pairs in " +
-         joined(overlap_s_per_rank_, "%.2f") + " s, built " + joined(factors_per_rank_, "%zu") +
-         " factors in " + joined(build_s_per_rank_, "%.2f") + " s from " +
-         joined(frames_read_per_rank_, "%zu") + " frames; " +
-         format_bytes(static_cast<double>(bytes_gathered_)) + " gathered (the overlaps and " +
-         std::to_string(rounds_) + (rounds_ == 1 ? " round" : " rounds") + " of factors)";
+         joined(overlap_s_per_rank_, "%.2f") + " s, built and hold " +
+         joined(factors_per_rank_, "%zu") + " factors (" + joined(build_s_per_rank_, "%.2f") +
+         " s) from " + joined(frames_read_per_rank_, "%zu") + " frames; " +
+         std::to_string(linearizations_) + " linearizations (" +
+         format_bytes(static_cast<double>(linearization_bytes_)) + " of records each) and " +
+         std::to_string(cost_evaluations_) + " cost evaluations over " + std::to_string(rounds_) +
+         (rounds_ == 1 ? " round" : " rounds");
 }
 
 nlohmann::json MpiMapJob::report() const {
@@ -380,6 +638,12 @@ nlohmann::json MpiMapJob::report() const {
           {"pairs_measured_per_rank", pairs_measured_per_rank_},
           {"overlap_s_per_rank", overlap_s_per_rank_},
           {"factors_per_rank", factors_per_rank_},
+          {"factors_held_per_rank", factors_per_rank_},
+          {"linearizations", linearizations_},
+          {"bytes_per_linearization", linearization_bytes_},
+          {"cost_evaluations", cost_evaluations_},
+          {"bytes_per_cost_evaluation", cost_bytes_},
+          {"pose_bytes_per_linearization", values_bytes_},
           {"build_s_per_rank", build_s_per_rank_},
           {"frames_read_per_rank", frames_read_per_rank_}};
 }

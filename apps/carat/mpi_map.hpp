@@ -4,11 +4,13 @@
 // processes. Every rank runs the same command. Rank 0 lists the dense graph's candidate pairs and
 // sends them with the start poses to the other ranks; each rank measures the overlaps of its
 // share (a stretch of the pairs in locality order, one part of the map), and rank 0 keeps the
-// pairs that overlap enough. Each round, the ranks likewise build and compress their share of
-// the factors and send them back as bytes. Every rank reads only the frames its shares need
-// (from the same --frames folder: a shared filesystem). Rank 0 measures and builds its own
-// shares, assembles, solves and writes the result, so the output is the one a single process
-// writes, bit for bit.
+// pairs that overlap enough. Each round, every rank builds and compresses one stretch of the
+// factors in block order (block_order()) and keeps them; every linearization and cost
+// evaluation of the solve, rank 0 sends the poses and each rank streams back its factors'
+// records (block_source.hpp), which rank 0 adds to the reduced system in block order. Every rank
+// reads only the frames its shares need (from the same --frames folder: a shared filesystem).
+// Rank 0 holds the poses, the reduced system and its own share, solves and writes the result:
+// the output is the one a single process writes, bit for bit.
 
 #include <Eigen/Geometry>
 #include <cstddef>
@@ -24,10 +26,12 @@
 #include "carat/registration/frame.hpp"
 #include "carat/registration/frame_store.hpp"
 #include "carat/registration/global_registration.hpp"
+#include "carat/registration/held_factors.hpp"
 #include "carat/registration/io/kitti_io.hpp"
 #include "carat/registration/io/scan_folder.hpp"
 #include "carat/registration/mapping.hpp"
 #include "carat/registration/scan_opening.hpp"
+#include "carat/solver/block_source.hpp"
 #include "mpi_messages.hpp"
 
 namespace carat::cli {
@@ -56,25 +60,28 @@ class MpiMapJob {
   /// a failure is sent to rank 0 (which reports it) instead of factors. Returns the exit status.
   int serve(int threads);
 
-  /// Rank 0: makes the dense graph of `options` measure its overlaps, and its GRE build its
-  /// factors, over the ranks: rank 0 from `frames`, the others from `source`. The job and
+  /// Rank 0: makes the dense graph of `options` measure its overlaps, and its GRE build and hold
+  /// its factors, over the ranks: rank 0 from `frames`, the others from `source`. The job and
   /// `frames` must outlive the options' use.
   void attach(MpiFrameSource source, std::shared_ptr<FrameStore> frames, MappingOptions* options);
-  /// Rank 0: one round's factors of every pair, parallel to the pairs, built over the ranks at
-  /// T_world_frame. Throws carat::Error "rank r of N: ..." with the message of the lowest rank
-  /// that failed, after every rank has answered.
-  std::vector<RegistrationFactor> build(std::span<const FramePair> pairs,
-                                        std::span<const Eigen::Isometry3d> T_world_frame,
-                                        const GlobalRegistrationOptions& options);
+  /// Rank 0: one round's factors of every pair, built at T_world_start and held over the ranks
+  /// (rank r the r-th stretch of `order`), as the solve's block source. Throws carat::Error
+  /// "rank r of N: ..." with the message of the lowest rank that failed, after every rank has
+  /// answered.
+  std::shared_ptr<HeldRegistrationFactors> hold(std::span<const FramePair> pairs,
+                                                std::span<const Eigen::Isometry3d> T_world_start,
+                                                std::span<const std::size_t> order,
+                                                const GlobalRegistrationOptions& options);
   /// Rank 0: the overlap of every candidate pair at T_world_frame, measured over the ranks (each
   /// its share, as measure_overlaps(); `progress`, if set, follows rank 0's share). Throws
-  /// carat::Error "rank r of N: ..." as build().
+  /// carat::Error "rank r of N: ..." as hold().
   void measure(std::span<FramePair> pairs, std::span<const Eigen::Isometry3d> T_world_frame,
                const DenseGraphOptions& options,
                const std::function<void(std::size_t, std::size_t)>& progress = {});
-  /// Rank 0: ranks, rounds, bytes gathered, and per rank its peak resident memory, the bytes it
-  /// sent (rank 0: the jobs; the others: their answers), the pairs measured and their time, the
-  /// factors built and their build time, and the frames read, for the JSON report.
+  /// Rank 0: ranks, rounds, linearizations, bytes gathered, and per rank its peak resident
+  /// memory, the bytes it sent (rank 0: the jobs and poses; the others: their answers and
+  /// records), the pairs measured and their time, the factors built, held and their build time,
+  /// and the frames read, for the JSON report.
   nlohmann::json report() const;
   /// Rank 0: the same as one line of the text report.
   std::string summary_line() const;
@@ -87,6 +94,14 @@ class MpiMapJob {
   void count_sent(std::size_t bytes);
   /// Rank 0: keeps the largest peak resident memory a rank reported.
   void note_peak_rss(std::size_t rank, std::uint64_t bytes);
+  /// Rank 0: sends `command` with `values` (the poses), passes its own share's records and then
+  /// each rank's to `sink` as they arrive (blocks numbered in block order), and throws "rank r
+  /// of N: ..." for the lowest rank that failed once every rank's stream has ended.
+  void stream(std::uint64_t command, std::span<const double> values, const BlockRecordSink& sink);
+  /// Rank 0: each factor's cost per correspondence at `values`, parallel to the pairs.
+  std::vector<double> factor_costs(std::span<const double> values, std::size_t pairs);
+  class Held;
+
   /// Rank 0: every other rank's answer (index r), after its own work failed with `own_failure`
   /// (empty: it did not); throws "rank r of N: ..." for the lowest rank that failed.
   std::vector<std::vector<std::byte>> collect_answers(const std::string& own_failure);
@@ -95,11 +110,16 @@ class MpiMapJob {
   int size_ = 1;
   MpiFrameSource source_;
   std::shared_ptr<FrameStore> store_;             // rank 0's frames
-  std::vector<std::vector<std::size_t>> shares_;  // per rank: the pairs it builds
-  std::size_t shares_pairs_ = 0;                  // the pair count they were made for
+  std::vector<std::vector<std::size_t>> shares_;  // per rank: the pairs it holds, in block order
+  std::unique_ptr<RegistrationShare> own_;        // rank 0's held factors
   int rounds_ = 0;
+  std::size_t linearizations_ = 0;       // of the solves (and covariances)
+  std::size_t cost_evaluations_ = 0;     // of the solves' trial points
+  std::size_t linearization_bytes_ = 0;  // what the other ranks sent rank 0 in the last one
+  std::size_t cost_bytes_ = 0;           // the same of the last cost evaluation
+  std::size_t values_bytes_ = 0;         // the poses rank 0 sends with each of them
   std::size_t bytes_gathered_ = 0;
-  std::vector<std::size_t> factors_per_rank_;           // the last round's
+  std::vector<std::size_t> factors_per_rank_;           // the last round's, built and held
   std::vector<double> build_s_per_rank_;                // the last round's wall time of each share
   std::vector<std::size_t> frames_read_per_rank_;       // frames each rank has read so far
   std::vector<std::size_t> pairs_measured_per_rank_;    // the dense graph's candidates measured

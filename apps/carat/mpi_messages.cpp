@@ -8,12 +8,15 @@
 
 #include "carat/base/byte_stream.hpp"
 #include "carat/base/error.hpp"
-#include "carat/registration/factor_serialization.hpp"
+#include "carat/base/field_count.hpp"
 #include "carat/registration/option_serialization.hpp"
 
 namespace carat::cli {
 
 namespace {
+
+/// The first byte of every answer.
+enum AnswerKind : std::uint8_t { kFailed = 0, kWorkDone = 1, kRecords = 2, kStreamDone = 3 };
 
 void write_source(ByteWriter& out, const MpiFrameSource& source) {
   out.put(static_cast<std::uint64_t>(source.files.size()));
@@ -87,7 +90,7 @@ void read_work(ByteReader& in, std::vector<FramePair>* pairs,
 /// An answer's start: success, the rank's time, frames read, peak memory and item count.
 void write_answer_header(ByteWriter& out, double seconds, std::size_t frames_read,
                          std::uint64_t peak_rss_bytes, std::size_t items) {
-  out.put(std::uint8_t{1});
+  out.put(std::uint8_t{kWorkDone});
   out.put(seconds);
   out.put(static_cast<std::uint64_t>(frames_read));
   out.put(peak_rss_bytes);
@@ -97,7 +100,7 @@ void write_answer_header(ByteWriter& out, double seconds, std::size_t frames_rea
 /// Reads write_answer_header()'s fields; garbled unless the count is `items` (`name` says of
 /// what).
 WorkAnswer read_answer_header(ByteReader& in, std::size_t items, const char* name) {
-  in.get<std::uint8_t>();
+  if (in.get<std::uint8_t>() != kWorkDone) in.garbled("answer kind");
   WorkAnswer answer;
   answer.seconds = in.get<double>();
   answer.frames_read = static_cast<std::size_t>(in.get<std::uint64_t>());
@@ -213,63 +216,116 @@ void check_same_files(const MpiFrameSource& source) {
   }
 }
 
-std::vector<std::vector<std::size_t>> split_pairs(std::span<const FramePair> pairs,
-                                                  std::span<const Eigen::Isometry3d> T_world_frame,
-                                                  int ranks) {
-  const std::vector<std::size_t> order = locality_order(pairs, T_world_frame);
+std::vector<std::vector<std::size_t>> split_order(std::span<const std::size_t> order, int ranks) {
   std::vector<std::vector<std::size_t>> shares(static_cast<std::size_t>(ranks));
   const std::size_t n = order.size(), r = shares.size();
   for (std::size_t q = 0; q < r; ++q) {
     shares[q].assign(order.begin() + static_cast<std::ptrdiff_t>(q * n / r),
                      order.begin() + static_cast<std::ptrdiff_t>((q + 1) * n / r));
-    std::sort(shares[q].begin(), shares[q].end());
   }
   return shares;
 }
 
-std::vector<std::byte> encode_factors(std::span<const std::size_t> indices,
-                                      std::span<const RegistrationFactor> factors, double build_s,
-                                      std::size_t frames_read, std::uint64_t peak_rss_bytes) {
+std::vector<std::byte> encode_held(const RegistrationShare& share, double build_s,
+                                   std::size_t frames_read, std::uint64_t peak_rss_bytes) {
   std::vector<std::byte> bytes;
   ByteWriter out(bytes);
-  write_answer_header(out, build_s, frames_read, peak_rss_bytes, indices.size());
-  for (std::size_t p = 0; p < indices.size(); ++p) {
-    const std::vector<std::byte> factor = serialize_factor(factors[p]);
-    out.put(static_cast<std::uint64_t>(indices[p]));
-    out.put(static_cast<std::uint64_t>(factor.size()));
-    out.put_array(std::span<const std::byte>(factor));
-  }
+  write_answer_header(out, build_s, frames_read, peak_rss_bytes, share.size());
+  const RegistrationFactorStats& stats = share.stats();
+  static_assert(field_count<RegistrationFactorStats>() == 8, "encode_held: send the new field");
+  for (const std::size_t count : {stats.num_factors, stats.num_correspondences, stats.num_rows,
+                                  stats.correspondence_bytes, stats.residual_bytes})
+    out.put(static_cast<std::uint64_t>(count));
+  out.put(stats.correspondence_s);
+  out.put(stats.compression_s);
+  out.put(stats.minimum_s);
+  for (const std::size_t b : share.correspondence_bytes()) out.put(static_cast<std::uint64_t>(b));
+  for (const std::size_t b : share.residual_bytes()) out.put(static_cast<std::uint64_t>(b));
   return bytes;
+}
+
+WorkAnswer read_held_answer(std::span<const std::byte> bytes, const std::string& what,
+                            std::size_t count, HeldAnswer* held) {
+  ByteReader in(bytes, what);
+  const WorkAnswer answer = read_answer_header(in, count, "factor");
+  const auto get = [&in] { return static_cast<std::size_t>(in.get<std::uint64_t>()); };
+  RegistrationFactorStats& stats = held->stats;
+  stats.num_factors = get();
+  stats.num_correspondences = get();
+  stats.num_rows = get();
+  stats.correspondence_bytes = get();
+  stats.residual_bytes = get();
+  stats.correspondence_s = in.get<double>();
+  stats.compression_s = in.get<double>();
+  stats.minimum_s = in.get<double>();
+  if (stats.num_factors != count) in.garbled("factor count of the stats");
+  if (count > in.remaining() / (2 * sizeof(std::uint64_t))) in.garbled("factor count");
+  held->correspondence_bytes.resize(count);
+  held->residual_bytes.resize(count);
+  for (std::size_t& b : held->correspondence_bytes) b = get();
+  for (std::size_t& b : held->residual_bytes) b = get();
+  in.expect_end();
+  return answer;
+}
+
+std::vector<std::byte> encode_records(std::size_t first, std::span<const double> records) {
+  std::vector<std::byte> bytes;
+  bytes.reserve(1 + 2 * sizeof(std::uint64_t) + records.size_bytes());
+  ByteWriter out(bytes);
+  out.put(std::uint8_t{kRecords});
+  out.put(static_cast<std::uint64_t>(first));
+  out.put(static_cast<std::uint64_t>(records.size()));
+  out.put_array(records);
+  return bytes;
+}
+
+std::vector<std::byte> encode_done() { return {std::byte{kStreamDone}}; }
+
+bool read_records(std::span<const std::byte> bytes, const std::string& what, std::size_t* first,
+                  std::vector<double>* records) {
+  ByteReader in(bytes, what);
+  const auto kind = in.get<std::uint8_t>();
+  if (kind == kFailed || kind == kStreamDone) return false;
+  if (kind != kRecords) in.garbled("message kind " + std::to_string(kind));
+  *first = static_cast<std::size_t>(in.get<std::uint64_t>());
+  const auto count = in.get<std::uint64_t>();
+  if (count > in.remaining() / sizeof(double)) in.garbled("record count");
+  *records = in.get_array<double>(static_cast<std::size_t>(count));
+  in.expect_end();
+  return true;
+}
+
+std::vector<std::byte> encode_numbers(std::span<const double> numbers,
+                                      std::uint64_t peak_rss_bytes) {
+  std::vector<std::byte> bytes;
+  ByteWriter out(bytes);
+  write_answer_header(out, 0.0, 0, peak_rss_bytes, numbers.size());
+  out.put_array(numbers);
+  return bytes;
+}
+
+WorkAnswer read_numbers(std::span<const std::byte> bytes, const std::string& what,
+                        std::size_t count, std::vector<double>* numbers) {
+  ByteReader in(bytes, what);
+  const WorkAnswer answer = read_answer_header(in, count, "number");
+  *numbers = in.get_array<double>(count);
+  in.expect_end();
+  return answer;
 }
 
 std::vector<std::byte> encode_failure(const std::string& message) {
   std::vector<std::byte> bytes;
   ByteWriter out(bytes);
-  out.put(std::uint8_t{0});
+  out.put(std::uint8_t{kFailed});
   out.put_string(message);
   return bytes;
 }
 
 std::string answer_failure(std::span<const std::byte> bytes, const std::string& what) {
   ByteReader in(bytes, what);
-  if (in.get<std::uint8_t>() != 0) return {};
+  if (in.get<std::uint8_t>() != kFailed) return {};
   std::string message = in.get_string();
   return message.empty() ? std::string("failed") : message;
-}
-
-WorkAnswer read_factor_answer(std::span<const std::byte> bytes, const std::string& what,
-                              std::span<const std::size_t> expected,
-                              std::vector<RegistrationFactor>* factors) {
-  ByteReader in(bytes, what);
-  const WorkAnswer answer = read_answer_header(in, expected.size(), "factor");
-  for (const std::size_t k : expected) {
-    if (in.get<std::uint64_t>() != k) in.garbled("factor index");
-    const auto length = in.get<std::uint64_t>();
-    (*factors)[k] = deserialize_factor(in.get_bytes(static_cast<std::size_t>(length)),
-                                       what + ", factor " + std::to_string(k));
-  }
-  in.expect_end();
-  return answer;
 }
 
 }  // namespace carat::cli

@@ -2,7 +2,8 @@
 
 // The messages of `carat map` under mpirun, as bytes (what travels; mpi_map.cpp moves them):
 // rank 0's overlap job (the dense graph's candidates) and build job each round, and each rank's
-// answer (its overlaps or factors, or its error).
+// answer (its overlaps or what it holds, or its error); then, every linearization and cost
+// evaluation of the solve, each rank's records as a stream of runs.
 
 #include <Eigen/Geometry>
 #include <cstddef>
@@ -13,6 +14,7 @@
 
 #include "carat/registration/dense_graph.hpp"
 #include "carat/registration/global_registration.hpp"
+#include "carat/registration/held_factors.hpp"
 #include "carat/registration/io/scan_folder.hpp"
 #include "carat/registration/scan_opening.hpp"
 
@@ -79,37 +81,64 @@ std::vector<std::byte> encode_job(const MpiFrameSource& source,
 /// encode_job() does not write.
 BuildJob decode_job(std::span<const std::byte> bytes);
 
-/// The pairs split over `ranks` ranks: contiguous stretches of locality_order() at the first
-/// round's poses, as equal in count as can be, so that each rank reads only the frames of one
-/// part of the map (and a few loop partners). Each share is in increasing index order.
-std::vector<std::vector<std::size_t>> split_pairs(std::span<const FramePair> pairs,
-                                                  std::span<const Eigen::Isometry3d> T_world_frame,
-                                                  int ranks);
-
-/// A rank's answer: its build time (s), the frames it has read, its peak resident memory
-/// (bytes), and its factors (index and bytes each).
-std::vector<std::byte> encode_factors(std::span<const std::size_t> indices,
-                                      std::span<const RegistrationFactor> factors, double build_s,
-                                      std::size_t frames_read, std::uint64_t peak_rss_bytes);
+/// The blocks split over `ranks` ranks: contiguous stretches of `order` (block_order() at the
+/// first round's poses), as equal in count as can be, so that each rank reads only the frames
+/// of one part of the map (and a few loop partners), and rank r's blocks follow rank r - 1's.
+std::vector<std::vector<std::size_t>> split_order(std::span<const std::size_t> order, int ranks);
 
 /// A rank's answer when it failed: the message.
 std::vector<std::byte> encode_failure(const std::string& message);
 
-/// The message of a failed answer, or empty for factors; `what` names the answer in errors.
+/// The message of a failed answer, or empty for any other; `what` names the answer in errors.
 std::string answer_failure(std::span<const std::byte> bytes, const std::string& what);
 
-/// What an answer with factors or overlaps said besides them.
+/// What an answer with work done said besides it.
 struct WorkAnswer {
   double seconds = 0.0;              // the rank's wall time for its share
   std::size_t frames_read = 0;       // frames the rank has read so far
   std::uint64_t peak_rss_bytes = 0;  // the rank's peak resident memory so far
 };
 
-/// Reads an answer with factors: the factors of `expected` (pair indices) into (*factors)[k].
-/// Throws carat::Error naming `what` for bytes that are not that answer.
-WorkAnswer read_factor_answer(std::span<const std::byte> bytes, const std::string& what,
-                              std::span<const std::size_t> expected,
-                              std::vector<RegistrationFactor>* factors);
+/// A rank's answer to a build job: its build time (s), the frames it has read, its peak resident
+/// memory (bytes), and of the factors it now holds their stats and per factor the bytes of its
+/// full block and of its kept block.
+std::vector<std::byte> encode_held(const RegistrationShare& share, double build_s,
+                                   std::size_t frames_read, std::uint64_t peak_rss_bytes);
+
+/// What an answer to a build job says of the held factors.
+struct HeldAnswer {
+  RegistrationFactorStats stats;                  // summed over the rank's factors (CPU times)
+  std::vector<std::size_t> correspondence_bytes;  // per factor of the share
+  std::vector<std::size_t> residual_bytes;        // per factor of the share
+};
+
+/// Reads an answer to a build job for a share of `count` factors into *held. Throws carat::Error
+/// naming `what` for bytes that are not that answer.
+WorkAnswer read_held_answer(std::span<const std::byte> bytes, const std::string& what,
+                            std::size_t count, HeldAnswer* held);
+
+/// One run of a rank's records (linearizations or costs) for its blocks from `first` on (in its
+/// share), as one message of a stream that encode_done() or encode_failure() ends.
+std::vector<std::byte> encode_records(std::size_t first, std::span<const double> records);
+
+/// The end of a stream of records that went well.
+std::vector<std::byte> encode_done();
+
+/// Reads a message of a stream of records: true with the run's first block and its records, or
+/// false for the stream's end (then answer_failure() says whether it failed). Throws
+/// carat::Error naming `what` for other bytes.
+bool read_records(std::span<const std::byte> bytes, const std::string& what, std::size_t* first,
+                  std::vector<double>* records);
+
+/// A rank's answer with one number per factor of its share (their costs per correspondence) and
+/// its peak resident memory (bytes).
+std::vector<std::byte> encode_numbers(std::span<const double> numbers,
+                                      std::uint64_t peak_rss_bytes);
+
+/// Reads encode_numbers()'s answer of `count` numbers into *numbers. Throws carat::Error naming
+/// `what` for other bytes.
+WorkAnswer read_numbers(std::span<const std::byte> bytes, const std::string& what,
+                        std::size_t count, std::vector<double>* numbers);
 
 /// A rank's answer to an overlap job: its time (s), the frames it has read, its peak resident
 /// memory (bytes), and the overlap of each pair of its share, in the share's order.

@@ -35,6 +35,7 @@
 #include <carat/registration/frame.hpp>
 #include <carat/registration/frame_store.hpp>
 #include <carat/registration/global_registration.hpp>
+#include <carat/registration/held_factors.hpp>
 #include <carat/registration/io/kitti_io.hpp>
 #include <carat/registration/io/point_cloud_io.hpp>
 #include <carat/registration/io/scan_folder.hpp>
@@ -82,6 +83,7 @@
 #include <carat/sim/world_options.hpp>
 #include <carat/solver/autodiff_block.hpp>
 #include <carat/solver/block_checker.hpp>
+#include <carat/solver/block_source.hpp>
 #include <carat/solver/covariance.hpp>
 #include <carat/solver/evaluate.hpp>
 #include <carat/solver/grouped_rows_block.hpp>

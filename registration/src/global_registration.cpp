@@ -20,12 +20,15 @@
 #include "carat/coreset/compress.hpp"
 #include "carat/coreset/row_coreset.hpp"
 #include "carat/registration/correspondences.hpp"
+#include "carat/registration/held_factors.hpp"
 #include "carat/residuals/gicp_block.hpp"
 #include "carat/residuals/lossless_block.hpp"
 #include "carat/solver/se3.hpp"
 #include "carat/solver/solve.hpp"
+#include "factor_losses.hpp"
 #include "parallel.hpp"
 #include "pose_covariances.hpp"
+#include "registration_rounds.hpp"
 
 namespace carat {
 namespace {
@@ -100,6 +103,22 @@ double block_minimum(const ResidualBlock& block, ParameterPointers values) {
     if (converged) break;
   }
   return best;
+}
+
+/// Throws unless `order` lists every index below n once.
+void check_order(std::span<const std::size_t> order, std::size_t n) {
+  if (order.size() != n) {
+    throw Error("global registration: a block order of " + std::to_string(order.size()) +
+                " indices for " + std::to_string(n) + " pairs");
+  }
+  std::vector<char> seen(n, 0);
+  for (const std::size_t k : order) {
+    if (k >= n || seen[k]) {
+      throw Error("global registration: the block order lists pair " + std::to_string(k) +
+                  (k >= n ? " of " + std::to_string(n) : std::string(" twice")));
+    }
+    seen[k] = 1;
+  }
 }
 
 /// Adds one round's solve and build statistics to the running result.
@@ -326,7 +345,8 @@ RegistrationProblem assemble_registration_problem(std::span<const FramePair> pai
                                                   std::vector<RegistrationFactor> factors,
                                                   std::span<const Eigen::Isometry3d> T_world_frame,
                                                   const GlobalRegistrationOptions& options,
-                                                  double build_s) {
+                                                  double build_s,
+                                                  std::span<const std::size_t> order) {
   check_options(options);
   check_inputs(T_world_frame.size(), pairs, T_world_frame);
   check_connected(T_world_frame.size(), pairs);
@@ -334,25 +354,19 @@ RegistrationProblem assemble_registration_problem(std::span<const FramePair> pai
     throw Error("global registration: " + std::to_string(factors.size()) + " factors for " +
                 std::to_string(pairs.size()) + " pairs");
   }
+  if (!order.empty()) check_order(order, pairs.size());
   RegistrationProblem out;
-  out.pairs.assign(pairs.begin(), pairs.end());
   for (const Eigen::Isometry3d& T : T_world_frame)
     out.frame_variables.push_back(out.problem.add_se3(T));
   out.problem.set_constant(out.frame_variables.front());
-  std::shared_ptr<const LossFunction> loss;
-  if (options.factor_cauchy_scale > 0.0)
-    loss = std::make_shared<CauchyLoss>(options.factor_cauchy_scale);
-  std::shared_ptr<const LossFunction> excess_inner;
-  if (options.factor_excess_cauchy_scale > 0.0)
-    excess_inner = std::make_shared<CauchyLoss>(options.factor_excess_cauchy_scale);
-  for (std::size_t k = 0; k < pairs.size(); ++k) {
+  const internal::FactorLosses losses(options);
+  for (std::size_t q = 0; q < pairs.size(); ++q) {
+    const std::size_t k = order.empty() ? q : order[q];
     const FramePair& pair = pairs[k];
+    out.pairs.push_back(pair);
     RegistrationFactor& factor = factors[k];
     if (!factor.block) throw Error("global registration: " + pair_name(pair) + " has no block");
-    std::shared_ptr<const LossFunction> factor_loss = loss;
-    if (options.factor_excess_cauchy_scale > 0.0) {
-      factor_loss = std::make_shared<ExcessLoss>(factor.minimum, excess_inner);
-    }
+    std::shared_ptr<const LossFunction> factor_loss = losses.of(factor);
     RegistrationFactorStats& s = out.stats;
     s.num_factors += 1;
     s.num_correspondences += factor.correspondences;
@@ -424,19 +438,57 @@ GlobalRegistrationResult optimize_registration(const RegistrationFactorBuilder& 
                                                std::span<const FramePair> pairs,
                                                std::span<const Eigen::Isometry3d> T_world_frame,
                                                const GlobalRegistrationOptions& options) {
+  const auto make = [&](std::span<const Eigen::Isometry3d> T_world_start,
+                        std::span<const std::size_t> order) {
+    const Stopwatch stage_time;
+    std::vector<RegistrationFactor> factors = build(T_world_start);
+    RegistrationProblem built = assemble_registration_problem(
+        pairs, std::move(factors), T_world_start, options, stage_time.elapsed_s(), order);
+    internal::RegistrationRound round;
+    round.stats = built.stats;
+    round.correspondence_bytes.resize(pairs.size());
+    round.residual_bytes.resize(pairs.size());
+    for (std::size_t q = 0; q < order.size(); ++q) {
+      round.correspondence_bytes[order[q]] = built.factor_correspondence_bytes[q];
+      round.residual_bytes[order[q]] = built.factor_residual_bytes[q];
+    }
+    round.problem = std::move(built.problem);
+    round.frame_variables = std::move(built.frame_variables);
+    round.factor_costs = [order = std::vector<std::size_t>(order.begin(), order.end()),
+                          correspondences =
+                              std::move(built.factor_correspondences)](const Problem& problem) {
+      std::vector<double> costs(order.size());
+      const auto blocks = problem.blocks();
+      for (std::size_t q = 0; q < blocks.size(); ++q) {
+        const double* values[2] = {problem.value(blocks[q].variables[0]).data(),
+                                   problem.value(blocks[q].variables[1]).data()};
+        costs[order[q]] =
+            blocks[q].block->squared_norm(values) / static_cast<double>(correspondences[q]);
+      }
+      return costs;
+    };
+    return round;
+  };
+  return internal::optimize_rounds(make, pairs, T_world_frame, options);
+}
+
+namespace internal {
+
+GlobalRegistrationResult optimize_rounds(const RegistrationRoundMaker& make,
+                                         std::span<const FramePair> pairs,
+                                         std::span<const Eigen::Isometry3d> T_world_frame,
+                                         const GlobalRegistrationOptions& options) {
   if (options.rounds < 1)
     throw Error("global registration: rounds must be >= 1, got " + std::to_string(options.rounds));
   check_inputs(T_world_frame.size(), pairs, T_world_frame);
   check_connected(T_world_frame.size(), pairs);
+  const std::vector<std::size_t> order = block_order(pairs, T_world_frame);
   GlobalRegistrationResult out;
   out.T_world_frame.assign(T_world_frame.begin(), T_world_frame.end());
   SolverOptions solver = options.solver;
   solver.num_threads = options.num_threads;
   for (int round = 0; round < options.rounds; ++round) {
-    const Stopwatch stage_time;
-    std::vector<RegistrationFactor> factors = build(out.T_world_frame);
-    RegistrationProblem built = assemble_registration_problem(
-        pairs, std::move(factors), out.T_world_frame, options, stage_time.elapsed_s());
+    RegistrationRound built = make(out.T_world_frame, order);
     if (options.iteration_callback) {
       solver.update_state_every_iteration = true;
       solver.iteration_callback =
@@ -463,16 +515,9 @@ GlobalRegistrationResult optimize_registration(const RegistrationFactorBuilder& 
       out.T_world_frame[i] = T;
     }
     out.rounds = round + 1;
-    out.factor_correspondence_bytes = built.factor_correspondence_bytes;
-    out.factor_residual_bytes = built.factor_residual_bytes;
-    out.factor_costs.clear();
-    const auto blocks = built.problem.blocks();
-    for (std::size_t k = 0; k < blocks.size(); ++k) {
-      const double* values[2] = {built.problem.value(blocks[k].variables[0]).data(),
-                                 built.problem.value(blocks[k].variables[1]).data()};
-      out.factor_costs.push_back(blocks[k].block->squared_norm(values) /
-                                 static_cast<double>(built.factor_correspondences[k]));
-    }
+    out.factor_correspondence_bytes = std::move(built.correspondence_bytes);
+    out.factor_residual_bytes = std::move(built.residual_bytes);
+    out.factor_costs = built.factor_costs(built.problem);
     const bool last = summary.termination == TerminationType::kUserAbort ||
                       round + 1 == options.rounds ||
                       (max_translation < options.round_translation_tolerance &&
@@ -486,5 +531,7 @@ GlobalRegistrationResult optimize_registration(const RegistrationFactorBuilder& 
   }
   return out;
 }
+
+}  // namespace internal
 
 }  // namespace carat

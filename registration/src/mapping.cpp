@@ -38,7 +38,13 @@ void optimize_registration_stage(FrameStore& frames, const MappingOptions& optio
   const std::vector<Eigen::Isometry3d>& start = out->graph.T_world_start;
   const GlobalRegistrationOptions& gre = options.registration;
   const GlobalRegistrationResult result =
-      options.build_factors
+      options.hold_factors ? optimize_held_registration(
+                                 [&](std::span<const Eigen::Isometry3d> T_world_start,
+                                     std::span<const std::size_t> order) {
+                                   return options.hold_factors(pairs, T_world_start, order, gre);
+                                 },
+                                 pairs, start, gre)
+      : options.build_factors
           ? optimize_registration(
                 [&](std::span<const Eigen::Isometry3d> T_world_frame) {
                   return options.build_factors(pairs, T_world_frame, gre);

@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "carat/base/error.hpp"
 #include "huge_pages.hpp"
 
 namespace carat::internal {
@@ -78,6 +79,7 @@ BlockEvaluator::BlockEvaluator(const Problem& problem) : problem_(problem) {
 }
 
 void BlockEvaluator::bind(int which, const double* values) {
+  values_[which] = values;
   auto& ptrs = pointers_[which];
   ptrs.resize(param_offsets_.size());
   for (std::size_t k = 0; k < param_offsets_.size(); ++k) ptrs[k] = values + param_offsets_[k];
@@ -220,6 +222,27 @@ bool BlockEvaluator::linearize(int which, BlockLinearizations* out, std::string*
 }
 
 double BlockEvaluator::cost(int which) const {
+  double total = 0.0;
+  for (double c : own_costs(which)) total += c;
+  if (const auto& source = problem_.block_source()) {
+    std::size_t next = 0;
+    source->costs(values(which), [&](std::size_t first, std::span<const double> costs) {
+      if (first != next) {
+        throw Error("block source: the cost of block " + std::to_string(first) +
+                    " arrived where block " + std::to_string(next) + " was expected");
+      }
+      for (const double c : costs) total += c;
+      next += costs.size();
+    });
+    if (next != source->num_blocks()) {
+      throw Error("block source: gave " + std::to_string(next) + " costs for its " +
+                  std::to_string(source->num_blocks()) + " blocks");
+    }
+  }
+  return total;
+}
+
+const std::vector<double>& BlockEvaluator::own_costs(int which) const {
   const auto blocks = problem_.blocks();
   const auto& ptrs = pointers_[which];
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, blocks.size(), 16),
@@ -238,9 +261,7 @@ double BlockEvaluator::cost(int which) const {
                         }
                       }
                     });
-  double total = 0.0;
-  for (double c : block_cost_) total += c;
-  return total;
+  return block_cost_;
 }
 
 }  // namespace carat::internal

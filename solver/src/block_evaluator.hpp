@@ -6,6 +6,7 @@
 #include <Eigen/Core>
 #include <atomic>
 #include <cstddef>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -32,6 +33,14 @@ class BlockEvaluator {
   /// Points buffer `which` (0 or 1) at `values` (a copy of the problem's all_values()).
   void bind(int which, const double* values);
 
+  /// The values buffer `which` points at (all_values() layout).
+  std::span<const double> values(int which) const {
+    return {values_[which], problem_.all_values().size()};
+  }
+
+  /// The problem evaluated.
+  const Problem& problem() const { return problem_; }
+
   /// Linearizes every block at buffer `which` into `out` (H, b lifted to the full tangent
   /// space, robust loss applied). Returns false and names the block in *error if a value is
   /// not finite.
@@ -51,8 +60,12 @@ class BlockEvaluator {
   /// "residual block i ('name'): <which row is not finite, or what it threw>" at `which`.
   std::string describe_bad_block(std::size_t i, int which) const;
 
-  /// Cost 1/2 sum rho at buffer `which` (per-block parallel, summed in block order).
+  /// Cost 1/2 sum rho at buffer `which` (per-block parallel, summed in block order; a block
+  /// source's costs after the own blocks').
   double cost(int which) const;
+
+  /// The own blocks' costs 1/2 rho at buffer `which` (per-block parallel), in block order.
+  const std::vector<double>& own_costs(int which) const;
 
   /// Allocates the per-block storage of `out` for this problem.
   void allocate(BlockLinearizations* out) const;
@@ -66,6 +79,7 @@ class BlockEvaluator {
   std::vector<std::size_t> param_begin_;    // per block, into param_offsets_
   std::vector<std::size_t> param_offsets_;  // value offsets of each block's variables
   std::vector<const double*> pointers_[2];  // resolved pointers per buffer
+  const double* values_[2] = {nullptr, nullptr};
   mutable std::vector<double> block_cost_;
 };
 

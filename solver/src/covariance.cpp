@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "block_evaluator.hpp"
+#include "block_variables.hpp"
 #include "carat/base/error.hpp"
 #include "carat/base/stopwatch.hpp"
 #include "free_directions.hpp"
@@ -46,9 +47,9 @@ std::string list_variables(const std::vector<int>& ids) {
 /// Throws unless every free variable is touched by a residual block.
 void check_touched(const Problem& problem) {
   std::vector<char> touched(at(problem.num_variables()), 0);
-  for (const auto& entry : problem.blocks()) {
-    for (VariableId v : entry.variables) touched[at(v.index)] = 1;
-  }
+  internal::for_each_block_variables(problem, [&](std::span<const VariableId> variables) {
+    for (VariableId v : variables) touched[at(v.index)] = 1;
+  });
   std::vector<int> untouched;
   for (int v = 0; v < problem.num_variables(); ++v) {
     if (!touched[at(v)] && !problem.is_constant(VariableId{v})) untouched.push_back(v);

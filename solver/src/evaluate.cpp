@@ -6,7 +6,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <string>
 #include <vector>
+
+#include "carat/base/error.hpp"
 
 namespace carat {
 namespace {
@@ -70,6 +73,38 @@ ProblemEvaluation evaluate_problem(const Problem& problem, int num_threads) {
       local += t;
     }
   }
+  if (const auto& source = problem.block_source()) {
+    // Its records, after the own blocks: the cost, and b added to the free variables.
+    std::size_t next = 0;
+    source->linearize(
+        problem.all_values(), [&](std::size_t first, std::span<const double> records) {
+          if (first != next) {
+            throw Error("block source: records of block " + std::to_string(first) +
+                        " arrived where block " + std::to_string(next) + " was expected");
+          }
+          for (std::size_t at = 0; at < records.size(); ++next) {
+            if (next >= source->num_blocks())
+              throw Error("block source: records beyond its blocks");
+            int D = 0;
+            for (VariableId v : source->variables(next)) D += problem.manifold(v).tangent_size();
+            const std::size_t record = linearization_record_size(D);
+            if (at + record > records.size())
+              throw Error("block source: a run of records ends inside a block's");
+            const double* b = records.data() + at + record - 1 - static_cast<std::size_t>(D);
+            out.cost += records[at + record - 1];
+            int local = 0;
+            for (VariableId v : source->variables(next)) {
+              const int t = problem.manifold(v).tangent_size();
+              const int o = offset[static_cast<std::size_t>(v.index)];
+              if (o >= 0)
+                out.gradient.segment(o, t) += Eigen::Map<const Eigen::VectorXd>(b + local, t);
+              local += t;
+            }
+            at += record;
+          }
+        });
+    if (next != source->num_blocks()) throw Error("block source: records of too few blocks");
+  }
   out.gradient_max_norm = size > 0 ? out.gradient.cwiseAbs().maxCoeff() : 0.0;
   out.finite = std::isfinite(out.cost) && out.gradient.allFinite();
   return out;
@@ -88,6 +123,18 @@ double evaluate_cost(const Problem& problem, int num_threads) {
   });
   double total = 0.0;
   for (double c : cost) total += c;  // fixed order: thread-count independent
+  if (const auto& source = problem.block_source()) {
+    std::size_t next = 0;
+    source->costs(problem.all_values(), [&](std::size_t first, std::span<const double> costs) {
+      if (first != next) {
+        throw Error("block source: the cost of block " + std::to_string(first) +
+                    " arrived where block " + std::to_string(next) + " was expected");
+      }
+      for (const double c : costs) total += c;
+      next += costs.size();
+    });
+    if (next != source->num_blocks()) throw Error("block source: costs of too few blocks");
+  }
   return total;
 }
 

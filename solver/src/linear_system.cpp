@@ -80,8 +80,22 @@ LinearizeReport LinearSystem::linearize(const BlockEvaluator& evaluator, int whi
   assemble(storage_, gradient);
   report.time.assembly_s = t0.elapsed_s();
   for (const double c : storage_.cost) report.cost += c;
+  if (const auto& source = evaluator.problem().block_source()) {
+    t0.restart();
+    const bool added = add_source_blocks(*source, evaluator.values(which),
+                                         evaluator.problem().blocks().size(), gradient, &report);
+    report.time.linearize_s += t0.elapsed_s();
+    if (!added) return report;
+  }
   report.ok = true;
   return report;
+}
+
+bool LinearSystem::add_source_blocks(BlockSource&, std::span<const double>, std::size_t,
+                                     Eigen::VectorXd*, LinearizeReport*) {
+  throw Error(
+      "linear solver: a problem with a block source needs sparse Cholesky of the whole "
+      "system (linear_solver cholesky or auto)");
 }
 
 namespace {
@@ -109,7 +123,12 @@ std::unique_ptr<LinearSystem> make_linear_system(const Problem& problem,
     throw Error("linear solver: " + what + " needs about " + format_bytes(bytes) +
                 " (matrix and factor); " + limit + other);
   };
-  if (options.linear_solver == LinearSolver::kCholesky) {
+  if (options.linear_solver == LinearSolver::kCholesky || problem.block_source()) {
+    if (options.linear_solver == LinearSolver::kSchur) {
+      throw Error(
+          "linear solver schur: a problem with a block source is solved as the whole "
+          "sparse system (use cholesky or auto)");
+    }
     const double bytes = whole_bytes();
     if (bytes > cap) refuse("sparse Cholesky of the whole system", bytes, "");
     return std::make_unique<SparseSystem>(problem, options.ordering);

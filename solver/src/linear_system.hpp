@@ -7,6 +7,7 @@
 #include <Eigen/Core>
 #include <cstddef>
 #include <memory>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -45,6 +46,13 @@ class LinearSystem {
   virtual LinearizeReport linearize(const BlockEvaluator& evaluator, int which,
                                     Eigen::VectorXd* gradient);
 
+  /// Adds the problem's block source at `values` to the assembled system and the gradient after
+  /// the own blocks (their global indices start at first_index) and its costs to report->cost;
+  /// false with report->error naming a block whose record is not finite. Only the whole sparse
+  /// system takes a source: the default throws carat::Error.
+  virtual bool add_source_blocks(BlockSource& source, std::span<const double> values,
+                                 std::size_t first_index, Eigen::VectorXd* gradient,
+                                 LinearizeReport* report);
   /// Undamped diagonal of H.
   virtual Eigen::VectorXd diagonal() const = 0;
 

@@ -138,6 +138,35 @@ ResidualBlockId Problem::add_residual_block(std::shared_ptr<const ResidualBlock>
   return ResidualBlockId{static_cast<std::int32_t>(blocks_.size() - 1)};
 }
 
+void Problem::set_block_source(std::shared_ptr<BlockSource> source) {
+  if (source) {
+    for (std::size_t k = 0; k < source->num_blocks(); ++k) {
+      const std::span<const VariableId> variables = source->variables(k);
+      const auto where = [k] {
+        return "Problem::set_block_source (source block " + std::to_string(k) + "): ";
+      };
+      if (variables.empty()) throw Error(where() + "the block has no variables");
+      for (std::size_t i = 0; i < variables.size(); ++i) {
+        if (variables[i].index < 0 || variables[i].index >= num_variables()) {
+          throw Error(where() + "variable " + std::to_string(variables[i].index) +
+                      " is not in the problem (" + std::to_string(num_variables()) + " variables)");
+        }
+        for (std::size_t j = 0; j < i; ++j) {
+          if (variables[j] == variables[i]) {
+            throw Error(where() + "variable " + std::to_string(variables[i].index) +
+                        " is listed twice");
+          }
+        }
+      }
+    }
+  }
+  source_ = std::move(source);
+}
+
+std::size_t Problem::num_all_blocks() const {
+  return blocks_.size() + (source_ ? source_->num_blocks() : 0);
+}
+
 std::size_t Problem::num_residual_rows() const {
   std::size_t n = 0;
   for (const auto& entry : blocks_) n += static_cast<std::size_t>(entry.block->num_rows());

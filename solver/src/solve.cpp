@@ -297,8 +297,10 @@ bool Solver::initialize() {
   summary_.method =
       options_.method == Method::kLevenbergMarquardt ? "levenberg_marquardt" : "gauss_newton";
   summary_.num_variables = problem_.num_variables();
-  summary_.num_residual_blocks = problem_.num_residual_blocks();
+  summary_.num_residual_blocks = static_cast<int>(problem_.num_all_blocks());
   summary_.num_residual_rows = problem_.num_residual_rows();
+  if (problem_.block_source())
+    summary_.num_residual_rows += problem_.block_source()->num_residual_rows();
   summary_.residual_memory_bytes = problem_.residual_memory_bytes();
   for (int v = 0; v < problem_.num_variables(); ++v) {
     if (!problem_.is_constant(VariableId{v})) ++summary_.num_free_variables;

@@ -4,10 +4,14 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstring>
+#include <limits>
 #include <numeric>
+#include <span>
 #include <tuple>
 
+#include "block_variables.hpp"
 #include "carat/base/error.hpp"
 #include "huge_pages.hpp"
 
@@ -30,20 +34,26 @@ SparseSystem::SparseSystem(const Problem& problem, Ordering ordering)
     free_in_id_order.push_back(v);
   }
   const std::size_t nb = free_in_id_order.size();
-  const auto blocks = problem.blocks();
+  // Own blocks are gathered from their linearizations; a block source's are added as they
+  // arrive (add_source_blocks()), after them, but take part in the pattern like own blocks.
+  const std::size_t num_own = problem.blocks().size();
 
   // Free variables of each block, as ranks.
   std::vector<std::size_t> block_free_begin{0};
   std::vector<std::pair<int, int>> block_free;  // (rank, local tangent offset)
-  for (const auto& entry : blocks) {
+  for_each_block_variables(problem, [&](std::span<const VariableId> variables) {
     int local = 0;
-    for (VariableId v : entry.variables) {
+    for (VariableId v : variables) {
       const int rank = id_rank[static_cast<std::size_t>(v.index)];
       if (rank >= 0) block_free.emplace_back(rank, local);
       local += var_dim_[static_cast<std::size_t>(v.index)];
     }
     block_free_begin.push_back(block_free.size());
-  }
+  });
+  const std::size_t num_blocks = block_free_begin.size() - 1;
+  if (num_blocks > static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max()))
+    throw Error("sparse system: " + std::to_string(num_blocks) + " residual blocks (at most " +
+                std::to_string(std::numeric_limits<std::int32_t>::max()) + ")");
 
   cholmod_common& common = cholmod_->common();
 
@@ -52,7 +62,7 @@ SparseSystem::SparseSystem(const Problem& problem, Ordering ordering)
   std::iota(position.begin(), position.end(), 0);
   if (nb > 1) {
     std::vector<std::vector<SuiteSparse_long>> adjacency(nb);
-    for (std::size_t bi = 0; bi < blocks.size(); ++bi) {
+    for (std::size_t bi = 0; bi < num_blocks; ++bi) {
       for (std::size_t a = block_free_begin[bi]; a < block_free_begin[bi + 1]; ++a) {
         for (std::size_t b = block_free_begin[bi]; b < block_free_begin[bi + 1]; ++b) {
           if (a != b)
@@ -102,8 +112,10 @@ SparseSystem::SparseSystem(const Problem& problem, Ordering ordering)
   free_vars_.assign(nb, -1);
   for (std::size_t r = 0; r < nb; ++r)
     free_vars_[static_cast<std::size_t>(position[r])] = free_in_id_order[r];
+  var_position_.assign(static_cast<std::size_t>(num_vars), -1);
   for (std::size_t k = 0; k < nb; ++k) {
     var_offset_[static_cast<std::size_t>(free_vars_[k])] = n_;
+    var_position_[static_cast<std::size_t>(free_vars_[k])] = static_cast<int>(k);
     n_ += var_dim_[static_cast<std::size_t>(free_vars_[k])];
   }
 
@@ -117,11 +129,13 @@ SparseSystem::SparseSystem(const Problem& problem, Ordering ordering)
   };
   std::vector<Raw> raw;
   std::vector<std::tuple<int, std::int32_t, std::int16_t>> grad_raw;  // (position, block, local)
-  for (std::size_t bi = 0; bi < blocks.size(); ++bi) {
+  for (std::size_t bi = 0; bi < num_blocks; ++bi) {
     for (std::size_t a = block_free_begin[bi]; a < block_free_begin[bi + 1]; ++a) {
       const int pa = position[static_cast<std::size_t>(block_free[a].first)];
-      grad_raw.emplace_back(pa, static_cast<std::int32_t>(bi),
-                            static_cast<std::int16_t>(block_free[a].second));
+      if (bi < num_own) {
+        grad_raw.emplace_back(pa, static_cast<std::int32_t>(bi),
+                              static_cast<std::int16_t>(block_free[a].second));
+      }
       for (std::size_t b = block_free_begin[bi]; b < block_free_begin[bi + 1]; ++b) {
         const int pb = position[static_cast<std::size_t>(block_free[b].first)];
         if (pa < pb) continue;  // keep row >= column
@@ -141,7 +155,7 @@ SparseSystem::SparseSystem(const Problem& problem, Ordering ordering)
     std::size_t j = i;
     PairEntry pair{raw[i].row, 0, contributions_.size(), 0};
     for (; j < raw.size() && raw[j].col == raw[i].col && raw[j].row == raw[i].row; ++j) {
-      if (raw[j].block >= 0)
+      if (raw[j].block >= 0 && static_cast<std::size_t>(raw[j].block) < num_own)
         contributions_.push_back({raw[j].block, raw[j].row_local, raw[j].col_local});
     }
     pair.contrib_end = contributions_.size();
@@ -293,6 +307,124 @@ void SparseSystem::assemble(const BlockLinearizations& blocks, Eigen::VectorXd* 
           }
         }
       });
+}
+
+void SparseSystem::add_source_block(std::span<const VariableId> variables, const double* record,
+                                    double* gradient) {
+  // The block's free variables: (elimination position, variable, offset inside the block's D).
+  struct Free {
+    int position;
+    int variable;
+    std::size_t local;
+  };
+  Free free[kMaxSourceVariables];
+  std::size_t count = 0;
+  std::size_t D = 0;
+  for (const VariableId v : variables) {
+    const auto index = static_cast<std::size_t>(v.index);
+    if (var_position_[index] >= 0) free[count++] = {var_position_[index], v.index, D};
+    D += static_cast<std::size_t>(var_dim_[index]);
+  }
+  const double* H = record;
+  const double* b = record + D * (D + 1) / 2;
+  // The same additions, in the same order per destination, as assemble() makes for an own block
+  // that comes after every own block.
+  for (std::size_t a = 0; a < count; ++a) {
+    for (std::size_t q = 0; q < count; ++q) {
+      if (free[a].position < free[q].position) continue;  // row >= column
+      const auto J = static_cast<std::size_t>(free[q].position);
+      const int dJ = var_dim_[static_cast<std::size_t>(free[q].variable)];
+      const int dI = var_dim_[static_cast<std::size_t>(free[a].variable)];
+      const int col0 = var_offset_[static_cast<std::size_t>(free[q].variable)];
+      const std::size_t row_local = free[a].local;
+      const std::size_t col_local = free[q].local;
+      std::int64_t row_in_column = 0;
+      if (a != q) {
+        const auto first = pairs_.begin() + static_cast<std::ptrdiff_t>(column_pair_begin_[J]);
+        const auto last = pairs_.begin() + static_cast<std::ptrdiff_t>(column_pair_begin_[J + 1]);
+        const auto found =
+            std::lower_bound(first, last, free[a].position,
+                             [](const PairEntry& entry, int row) { return entry.row_var < row; });
+        row_in_column = found->row_in_column;
+      }
+      for (int c = 0; c < dJ; ++c) {
+        double* column = values_.data() + colptr_[static_cast<std::size_t>(col0 + c)];
+        const auto cc = static_cast<std::size_t>(c);
+        if (a == q) {
+          const double* src_col = H + packed_column(D, col_local + cc);
+          for (int r = 0; r < dJ - c; ++r) column[r] += src_col[r];
+        } else if (row_local > col_local) {
+          double* dst = column + (dJ - c) + row_in_column;
+          const double* src_col =
+              H + packed_column(D, col_local + cc) + (row_local - col_local - cc);
+          for (int r = 0; r < dI; ++r) dst[r] += src_col[r];
+        } else {
+          double* dst = column + (dJ - c) + row_in_column;
+          for (int r = 0; r < dI; ++r) {
+            const auto rr = static_cast<std::size_t>(r);
+            dst[r] += H[packed_column(D, row_local + rr) + (col_local + cc - row_local - rr)];
+          }
+        }
+      }
+    }
+    double* g = gradient + var_offset_[static_cast<std::size_t>(free[a].variable)];
+    const double* src = b + free[a].local;
+    const int d = var_dim_[static_cast<std::size_t>(free[a].variable)];
+    for (int r = 0; r < d; ++r) g[r] += src[r];
+  }
+}
+
+bool SparseSystem::add_source_blocks(BlockSource& source, std::span<const double> values,
+                                     std::size_t first_index, Eigen::VectorXd* gradient,
+                                     LinearizeReport* report) {
+  const std::size_t num_blocks = source.num_blocks();
+  std::size_t next = 0;
+  std::size_t bad = num_blocks;  // the first block whose record is not finite
+  source.linearize(values, [&](std::size_t first, std::span<const double> records) {
+    if (first != next) {
+      throw Error("block source: records of block " + std::to_string(first) +
+                  " arrived where block " + std::to_string(next) + " was expected");
+    }
+    std::size_t at = 0;
+    while (at < records.size()) {
+      if (next >= num_blocks) {
+        throw Error("block source: records beyond its " + std::to_string(num_blocks) + " blocks");
+      }
+      const std::span<const VariableId> variables = source.variables(next);
+      if (variables.size() > kMaxSourceVariables) {
+        throw Error("block source: block " + std::to_string(next) + " has " +
+                    std::to_string(variables.size()) + " variables (at most " +
+                    std::to_string(kMaxSourceVariables) + ")");
+      }
+      int D = 0;
+      for (const VariableId v : variables) D += var_dim_[static_cast<std::size_t>(v.index)];
+      const std::size_t size = linearization_record_size(D);
+      if (at + size > records.size()) {
+        throw Error("block source: a run of records ends inside block " + std::to_string(next) +
+                    "'s");
+      }
+      const double* record = records.data() + at;
+      bool finite = true;
+      for (std::size_t k = 0; k < size && finite; ++k) finite = std::isfinite(record[k]);
+      if (!finite && bad == num_blocks) bad = next;
+      if (bad == num_blocks) {
+        add_source_block(variables, record, gradient->data());
+        report->cost += record[size - 1];
+      }
+      at += size;
+      ++next;
+    }
+  });
+  if (next != num_blocks) {
+    throw Error("block source: linearized " + std::to_string(next) + " of its " +
+                std::to_string(num_blocks) + " blocks");
+  }
+  if (bad < num_blocks) {
+    report->error = "residual block " + std::to_string(first_index + bad) + " (block " +
+                    std::to_string(bad) + " of the block source): its H, b or cost is not finite";
+    return false;
+  }
+  return true;
 }
 
 Eigen::VectorXd SparseSystem::diagonal() const {

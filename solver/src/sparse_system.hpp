@@ -11,6 +11,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <memory>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -37,6 +38,14 @@ class SparseSystem final : public LinearSystem {
   /// Gathers blocks' H and b into the undamped matrix values and the gradient (parallel over
   /// columns; each destination sums its sources in a fixed order).
   void assemble(const BlockLinearizations& blocks, Eigen::VectorXd* gradient) override;
+
+  /// Adds the linearizations of `source`'s blocks at `values` to the assembled system and the
+  /// gradient, after the own blocks' (the same sums as for own blocks after them), and their
+  /// costs to report->cost; false with report->error naming the first block (global index
+  /// first_index + k) whose record is not finite.
+  bool add_source_blocks(BlockSource& source, std::span<const double> values,
+                         std::size_t first_index, Eigen::VectorXd* gradient,
+                         LinearizeReport* report) override;
 
   /// Undamped diagonal of H.
   Eigen::VectorXd diagonal() const override;
@@ -78,7 +87,13 @@ class SparseSystem final : public LinearSystem {
     std::int16_t row_local;  // offset of the row variable inside the block's D
     std::int16_t col_local;  // offset of the column variable inside the block's D
   };
+  /// Adds one source block's linearization record (see block_source.hpp).
+  void add_source_block(std::span<const VariableId> variables, const double* record,
+                        double* gradient);
+  static constexpr std::size_t kMaxSourceVariables = 64;
+
   std::vector<int> free_vars_;                  // free variable at each elimination position
+  std::vector<int> var_position_;               // elimination position per variable, -1: constant
   std::vector<std::size_t> column_pair_begin_;  // per elimination position
   std::vector<PairEntry> pairs_;
   std::vector<Contribution> contributions_;

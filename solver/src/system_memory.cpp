@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <utility>
 
+#include "block_variables.hpp"
 #include "fill_estimate.hpp"
 
 namespace carat::internal {
@@ -47,16 +48,16 @@ double whole_system_bytes(const Problem& problem, double cap) {
   BlockGraph graph;
   const std::vector<int> node = number_nodes(problem, nullptr, &graph.dims);
   graph.neighbours.resize(graph.dims.size());
-  for (const auto& entry : problem.blocks()) {
-    for (const VariableId a : entry.variables) {
+  for_each_block_variables(problem, [&](std::span<const VariableId> variables) {
+    for (const VariableId a : variables) {
       const int i = node[static_cast<std::size_t>(a.index)];
       if (i < 0) continue;
-      for (const VariableId b : entry.variables) {
+      for (const VariableId b : variables) {
         const int j = node[static_cast<std::size_t>(b.index)];
         if (j >= 0 && j != i) graph.neighbours[static_cast<std::size_t>(i)].push_back(j);
       }
     }
-  }
+  });
   tidy(&graph);
   return factorization_bytes(estimate_fill(graph, cap / 8.0));
 }

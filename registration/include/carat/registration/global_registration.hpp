@@ -123,14 +123,17 @@ std::vector<RegistrationFactor> build_registration_factors(
     const std::function<void(std::size_t, std::size_t)>& progress = {});
 
 /// The problem from built factors (parallel to `pairs`), at T_world_frame, the first pose held
-/// constant. Stats' times are the factors' CPU times scaled so that they add up to `build_s`
-/// (the build stage's wall time; 0 keeps the CPU times). Throws carat::Error for mismatched
-/// counts, a missing block or a non-finite pose.
+/// constant; blocks (and the result's per-block lists) in `order` (indices into the pairs, each
+/// once; empty: the pairs' order). Stats' times are the factors' CPU times scaled so that they
+/// add up to `build_s` (the build stage's wall time; 0 keeps the CPU times). Throws
+/// carat::Error for mismatched counts, an order that is not a permutation, a missing block or
+/// a non-finite pose.
 RegistrationProblem assemble_registration_problem(std::span<const FramePair> pairs,
                                                   std::vector<RegistrationFactor> factors,
                                                   std::span<const Eigen::Isometry3d> T_world_frame,
                                                   const GlobalRegistrationOptions& options,
-                                                  double build_s = 0.0);
+                                                  double build_s = 0.0,
+                                                  std::span<const std::size_t> order = {});
 
 /// Builds the problem at T_world_frame (the first frame's pose held constant). Factors are
 /// built and compressed in parallel (see build_registration_factors()); results do not depend
@@ -165,8 +168,10 @@ struct GlobalRegistrationResult {
 /// final_cost the last round's (each round has its own correspondences, so the two are costs of
 /// different objectives); the stats' times add up, their counts are the last round's and their
 /// byte counts the largest of any round; factor_costs and the per-factor bytes are the last
-/// round's. A store that reads frames on demand reads them again each round. Throws
-/// carat::Error as build_registration_problem() does, or when a solve fails.
+/// round's (all per-factor lists parallel to the pairs). The problem's blocks are in
+/// block_order() of the start poses (held_factors.hpp). A store that reads frames on demand
+/// reads them again each round. Throws carat::Error as build_registration_problem() does, or
+/// when a solve fails.
 GlobalRegistrationResult optimize_registration(
     FrameStore& frames, std::span<const FramePair> pairs,
     std::span<const Eigen::Isometry3d> T_world_frame, const GlobalRegistrationOptions& options,

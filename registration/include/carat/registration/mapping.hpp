@@ -20,6 +20,7 @@
 #include "carat/registration/dense_graph.hpp"
 #include "carat/registration/frame_store.hpp"
 #include "carat/registration/global_registration.hpp"
+#include "carat/registration/held_factors.hpp"
 #include "carat/registration/loop_closure.hpp"
 #include "carat/registration/pair_registration.hpp"
 #include "carat/registration/pose_graph_baseline.hpp"
@@ -56,6 +57,12 @@ using MappingFactorBuilder = std::function<std::vector<RegistrationFactor>(
     std::span<const FramePair>, std::span<const Eigen::Isometry3d>,
     const GlobalRegistrationOptions&)>;
 
+/// Builds one round's GRE factors of `pairs` at T_world_start where they will stay (e.g. on the
+/// ranks of an MPI job), blocks in `order`; see optimize_held_registration().
+using MappingFactorHolder = std::function<std::shared_ptr<HeldRegistrationFactors>(
+    std::span<const FramePair> pairs, std::span<const Eigen::Isometry3d> T_world_start,
+    std::span<const std::size_t> order, const GlobalRegistrationOptions&)>;
+
 /// Measures the overlap of each of the dense graph's candidate pairs at T_world_frame into its
 /// `overlap` as measure_overlaps() does (e.g. a share on each rank of an MPI job), reporting
 /// (done, total) of what it measures itself to the progress callback, which may be empty.
@@ -83,6 +90,9 @@ struct MappingOptions {
   PoseGraphBaselineOptions pose_graph = default_pose_graph();
   /// GRE: when set, builds each round's factors instead of this process (MPI).
   MappingFactorBuilder build_factors;
+  /// GRE: when set, builds each round's factors where they stay, and the solve linearizes them
+  /// there (MPI); it takes precedence over build_factors.
+  MappingFactorHolder hold_factors;
   /// When set, measures the dense graph's candidates instead of this process (MPI); the graph is
   /// the one build_dense_graph() finds from the same measurements.
   MappingOverlapMeasurer measure_overlaps;

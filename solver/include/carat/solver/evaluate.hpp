@@ -19,12 +19,14 @@ struct ProblemEvaluation {
 };
 
 /// Evaluates every block once (its accumulate(), in parallel with `num_threads`; the result does
-/// not depend on the thread count). Constant variables contribute no gradient entries.
+/// not depend on the thread count), then a block source's blocks (their linearization records).
+/// Constant variables contribute no gradient entries.
 ProblemEvaluation evaluate_problem(const Problem& problem, int num_threads = 1);
 
 /// The cost 1/2 sum_blocks rho(|r|^2) alone: residuals only (each block's squared_norm(), in
 /// parallel with `num_threads`, summed in block order), several times cheaper than
-/// evaluate_problem() for blocks whose Jacobians cost more than their residuals.
+/// evaluate_problem() for blocks whose Jacobians cost more than their residuals; a block
+/// source's costs are added after the own blocks'.
 double evaluate_cost(const Problem& problem, int num_threads = 1);
 
 }  // namespace carat

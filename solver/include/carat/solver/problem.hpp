@@ -10,6 +10,7 @@
 #include <span>
 #include <vector>
 
+#include "carat/solver/block_source.hpp"
 #include "carat/solver/loss_function.hpp"
 #include "carat/solver/manifold.hpp"
 #include "carat/solver/residual_block.hpp"
@@ -92,8 +93,17 @@ class Problem {
 
   /// Number of variables.
   int num_variables() const { return static_cast<int>(manifolds_.size()); }
-  /// Number of residual blocks.
+  /// Number of residual blocks (the problem's own; a block source's come after them).
   int num_residual_blocks() const { return static_cast<int>(blocks_.size()); }
+
+  /// Sets the blocks held outside the problem (block_source.hpp), which solve() adds after the
+  /// problem's own blocks; null removes them. Throws carat::Error naming the block when a
+  /// block's variables are empty, unknown or listed twice.
+  void set_block_source(std::shared_ptr<BlockSource> source);
+  /// The block source, or null.
+  const std::shared_ptr<BlockSource>& block_source() const { return source_; }
+  /// Own blocks plus the block source's.
+  std::size_t num_all_blocks() const;
   /// Total number of scalar residual rows over all blocks.
   std::size_t num_residual_rows() const;
 
@@ -150,6 +160,7 @@ class Problem {
   std::vector<double> values_;
   std::vector<double> lower_, upper_;  // per stored value; empty until a bound is set
   std::vector<BlockEntry> blocks_;
+  std::shared_ptr<BlockSource> source_;
 };
 
 }  // namespace carat
