@@ -14,6 +14,7 @@
 #include <utility>
 
 #include "carat/base/error.hpp"
+#include "carat/base/field_count.hpp"
 #include "carat/base/stopwatch.hpp"
 #include "carat/registration/dense_graph.hpp"
 #include "carat/registration/frame_store.hpp"
@@ -450,6 +451,7 @@ std::shared_ptr<HeldRegistrationFactors> MpiMapJob::hold(
   const std::vector<std::vector<std::byte>> answers = collect_answers(own_failure);
   const auto add = [&](const RegistrationFactorStats& share, std::span<const std::size_t> indices,
                        std::span<const std::size_t> full, std::span<const std::size_t> kept) {
+    static_assert(field_count<RegistrationFactorStats>() == 8, "MpiMapJob::hold: add the field");
     stats.num_factors += share.num_factors;
     stats.num_correspondences += share.num_correspondences;
     stats.num_rows += share.num_rows;

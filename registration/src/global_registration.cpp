@@ -26,6 +26,7 @@
 #include "carat/solver/se3.hpp"
 #include "carat/solver/solve.hpp"
 #include "factor_losses.hpp"
+#include "factor_stats.hpp"
 #include "parallel.hpp"
 #include "pose_covariances.hpp"
 #include "registration_rounds.hpp"
@@ -367,15 +368,7 @@ RegistrationProblem assemble_registration_problem(std::span<const FramePair> pai
     RegistrationFactor& factor = factors[k];
     if (!factor.block) throw Error("global registration: " + pair_name(pair) + " has no block");
     std::shared_ptr<const LossFunction> factor_loss = losses.of(factor);
-    RegistrationFactorStats& s = out.stats;
-    s.num_factors += 1;
-    s.num_correspondences += factor.correspondences;
-    s.num_rows += static_cast<std::size_t>(factor.block->num_rows());
-    s.correspondence_bytes += factor.correspondence_bytes;
-    s.residual_bytes += factor.block->memory_bytes();
-    s.correspondence_s += factor.correspondence_s;
-    s.compression_s += factor.compression_s;
-    s.minimum_s += factor.minimum_s;
+    internal::count_factor(factor, &out.stats);
     out.factor_correspondences.push_back(factor.correspondences);
     out.factor_correspondence_bytes.push_back(factor.correspondence_bytes);
     out.factor_residual_bytes.push_back(factor.block->memory_bytes());

@@ -6,6 +6,7 @@
 #include "carat/base/error.hpp"
 #include "carat/base/stopwatch.hpp"
 #include "factor_losses.hpp"
+#include "factor_stats.hpp"
 #include "registration_rounds.hpp"
 
 namespace carat {
@@ -53,15 +54,7 @@ RegistrationShare::RegistrationShare(std::span<const FramePair> pairs,
                     " of " + std::to_string(T_world_frame.size()));
       }
     }
-    RegistrationFactorStats& stats = s.stats;
-    stats.num_factors += 1;
-    stats.num_correspondences += factor.correspondences;
-    stats.num_rows += static_cast<std::size_t>(factor.block->num_rows());
-    stats.correspondence_bytes += factor.correspondence_bytes;
-    stats.residual_bytes += factor.block->memory_bytes();
-    stats.correspondence_s += factor.correspondence_s;
-    stats.compression_s += factor.compression_s;
-    stats.minimum_s += factor.minimum_s;
+    internal::count_factor(factor, &s.stats);
     s.correspondences.push_back(factor.correspondences);
     s.correspondence_bytes.push_back(factor.correspondence_bytes);
     s.residual_bytes.push_back(factor.block->memory_bytes());
