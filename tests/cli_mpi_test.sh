@@ -32,6 +32,16 @@ cp out exact_2.json
 expect exact_2_same_covariances "$(cmp -s exact_1.cov exact_2.cov && echo True)"
 check map_exact_4 0 "" -- mpi 4 "${args[@]}" --out exact_4.txt
 expect exact_4_same_poses "$(cmp -s exact_1.txt exact_4.txt && echo True)"
+# Rank 0 only solving: the two other ranks hold every factor; the same poses.
+check map_exact_3_solver_only 0 "" -- mpi 3 "${args[@]}" --mpi-solver-only --out exact_3s.txt
+expect exact_3_solver_only_same_poses "$(cmp -s exact_1.txt exact_3s.txt && echo True)"
+expect exact_3_solver_only_holds_none "$(python3 -c "
+import json, sys
+m = json.load(open(sys.argv[1]))['mpi']
+h = m['factors_held_per_rank']
+print(h[0] == 0 and min(h[1:]) > 0 and m['build_s_per_rank'][0] < min(m['build_s_per_rank'][1:]))" out)"
+check solver_only_outside_mpirun 2 "--mpi-solver-only does not apply outside mpirun" -- \
+  "$CARAT" "${args[@]}" --mpi-solver-only
 # Frames read on demand under a cap, on every rank: still the same poses.
 check map_exact_2_capped 0 "" -- mpi 2 "${args[@]}" --max-frame-memory 20 --out exact_2_capped.txt
 expect exact_2_capped_same_poses "$(cmp -s exact_1.txt exact_2_capped.txt && echo True)"

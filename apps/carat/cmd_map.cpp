@@ -55,6 +55,7 @@ struct MapArgs : MapTrajectoryArgs {
   int threads = 0;
   bool drop_non_finite = false;
   double max_frame_memory_mb = 0.0;  // 0: every frame in memory
+  bool mpi_solver_only = false;      // under mpirun: rank 0 holds no factor
   bool json = false;
 };
 
@@ -71,6 +72,7 @@ bool check_arguments(const CLI::App& command, const MapArgs& args, bool mpi) {
                 sampling == ResidualSampling::kExact || sampling == ResidualSampling::kRandom,
                 "to --sampling " + args.sampling);
   if (mpi) check_mpi_applicable(args.method, sampling);
+  refuse_unused(command, "--mpi-solver-only", mpi, "outside mpirun (2 or more ranks)");
   const bool has_initial = !args.initial.empty();
   if (args.poses.empty() && !has_initial) {
     throw UsageError(
@@ -220,7 +222,7 @@ int run_map(const CLI::App& command, const MapArgs& args) {
   const double preprocess_s = preprocess_time.elapsed_s();
   MappingOptions options = mapping_options(args, threads, run_loops);
   StageBars<MappingStage> bars(mapping_stage_label, !args.json);
-  if (mpi) mpi->attach({files, scans, file_sizes(files)}, store, &options);
+  if (mpi) mpi->attach({files, scans, file_sizes(files)}, store, &options, args.mpi_solver_only);
   MapGraph graph = build_map_graph(*store, t.T_world_initial, options, bars.callback());
   bars.finish();
   const bool full = options.method == MappingMethod::kRegistration &&
@@ -393,6 +395,9 @@ void register_map(CLI::App& app, CommandRegistry& registry) {
                   "frame once and keep all)")
       ->check(zero_or_real_in(1.0, 1e9))
       ->capture_default_str();
+  cmd->add_flag("--mpi-solver-only", args->mpi_solver_only,
+                "under mpirun: rank 0 builds and holds no factor, the other ranks share them all "
+                "(the same result)");
   cmd->add_flag("--json", args->json, "print one JSON object instead of the report");
   registry.add(cmd, [args, cmd] { return run_map(*cmd, *args); });
 }

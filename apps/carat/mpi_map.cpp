@@ -288,8 +288,9 @@ void check_mpi_applicable(const std::string& method, ResidualSampling sampling) 
 }
 
 void MpiMapJob::attach(MpiFrameSource source, std::shared_ptr<FrameStore> frames,
-                       MappingOptions* options) {
+                       MappingOptions* options, bool solver_only) {
   source_ = std::move(source);
+  solver_only_ = solver_only;
   store_ = std::move(frames);  // rank 0's own share
   options->hold_factors =
       [this](std::span<const FramePair> pairs, std::span<const Eigen::Isometry3d> T_world_start,
@@ -421,7 +422,8 @@ std::shared_ptr<HeldRegistrationFactors> MpiMapJob::hold(
 #if CARAT_WITH_MPI
   const Stopwatch stage_time;
   std::uint64_t command = kBuild;
-  shares_ = split_order(order, size_);
+  shares_ = split_order(order, solver_only_ ? size_ - 1 : size_);
+  if (solver_only_) shares_.insert(shares_.begin(), std::vector<std::size_t>{});
   std::vector<std::byte> payload = encode_job(source_, options, pairs, T_world_start, shares_);
   count_sent(payload.size());
   own_.reset();  // the last round's factors go before this round's are built

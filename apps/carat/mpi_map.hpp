@@ -61,11 +61,14 @@ class MpiMapJob {
   int serve(int threads);
 
   /// Rank 0: makes the dense graph of `options` measure its overlaps, and its GRE build and hold
-  /// its factors, over the ranks: rank 0 from `frames`, the others from `source`. The job and
+  /// its factors, over the ranks: rank 0 from `frames`, the others from `source`; with
+  /// `solver_only`, rank 0 builds and holds no factor (the other ranks share them). The job and
   /// `frames` must outlive the options' use.
-  void attach(MpiFrameSource source, std::shared_ptr<FrameStore> frames, MappingOptions* options);
+  void attach(MpiFrameSource source, std::shared_ptr<FrameStore> frames, MappingOptions* options,
+              bool solver_only = false);
   /// Rank 0: one round's factors of every pair, built at T_world_start and held over the ranks
-  /// (rank r the r-th stretch of `order`), as the solve's block source. Throws carat::Error
+  /// (rank r the r-th stretch of `order`; with solver_only, rank 0 none and rank r the r-th of
+  /// N - 1), as the solve's block source. Throws carat::Error
   /// "rank r of N: ..." with the message of the lowest rank that failed, after every rank has
   /// answered.
   std::shared_ptr<HeldRegistrationFactors> hold(std::span<const FramePair> pairs,
@@ -112,6 +115,7 @@ class MpiMapJob {
   std::shared_ptr<FrameStore> store_;             // rank 0's frames
   std::vector<std::vector<std::size_t>> shares_;  // per rank: the pairs it holds, in block order
   std::unique_ptr<RegistrationShare> own_;        // rank 0's held factors
+  bool solver_only_ = false;                      // rank 0 holds none
   int rounds_ = 0;
   std::size_t linearizations_ = 0;       // of the solves (and covariances)
   std::size_t cost_evaluations_ = 0;     // of the solves' trial points
