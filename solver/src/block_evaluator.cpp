@@ -14,6 +14,7 @@
 
 #include "carat/base/error.hpp"
 #include "huge_pages.hpp"
+#include "source_runs.hpp"
 
 namespace carat::internal {
 namespace {
@@ -224,21 +225,8 @@ bool BlockEvaluator::linearize(int which, BlockLinearizations* out, std::string*
 double BlockEvaluator::cost(int which) const {
   double total = 0.0;
   for (double c : own_costs(which)) total += c;
-  if (const auto& source = problem_.block_source()) {
-    std::size_t next = 0;
-    source->costs(values(which), [&](std::size_t first, std::span<const double> costs) {
-      if (first != next) {
-        throw Error("block source: the cost of block " + std::to_string(first) +
-                    " arrived where block " + std::to_string(next) + " was expected");
-      }
-      for (const double c : costs) total += c;
-      next += costs.size();
-    });
-    if (next != source->num_blocks()) {
-      throw Error("block source: gave " + std::to_string(next) + " costs for its " +
-                  std::to_string(source->num_blocks()) + " blocks");
-    }
-  }
+  if (const auto& source = problem_.block_source())
+    total = add_source_costs(*source, values(which), total);
   return total;
 }
 

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "carat/base/error.hpp"
+#include "source_runs.hpp"
 
 namespace carat {
 namespace {
@@ -78,10 +79,7 @@ ProblemEvaluation evaluate_problem(const Problem& problem, int num_threads) {
     std::size_t next = 0;
     source->linearize(
         problem.all_values(), [&](std::size_t first, std::span<const double> records) {
-          if (first != next) {
-            throw Error("block source: records of block " + std::to_string(first) +
-                        " arrived where block " + std::to_string(next) + " was expected");
-          }
+          internal::check_run_start(first, next, "records");
           for (std::size_t at = 0; at < records.size(); ++next) {
             if (next >= source->num_blocks())
               throw Error("block source: records beyond its blocks");
@@ -103,7 +101,7 @@ ProblemEvaluation evaluate_problem(const Problem& problem, int num_threads) {
             at += record;
           }
         });
-    if (next != source->num_blocks()) throw Error("block source: records of too few blocks");
+    internal::check_runs_complete(next, source->num_blocks(), "records");
   }
   out.gradient_max_norm = size > 0 ? out.gradient.cwiseAbs().maxCoeff() : 0.0;
   out.finite = std::isfinite(out.cost) && out.gradient.allFinite();
@@ -123,18 +121,8 @@ double evaluate_cost(const Problem& problem, int num_threads) {
   });
   double total = 0.0;
   for (double c : cost) total += c;  // fixed order: thread-count independent
-  if (const auto& source = problem.block_source()) {
-    std::size_t next = 0;
-    source->costs(problem.all_values(), [&](std::size_t first, std::span<const double> costs) {
-      if (first != next) {
-        throw Error("block source: the cost of block " + std::to_string(first) +
-                    " arrived where block " + std::to_string(next) + " was expected");
-      }
-      for (const double c : costs) total += c;
-      next += costs.size();
-    });
-    if (next != source->num_blocks()) throw Error("block source: costs of too few blocks");
-  }
+  if (const auto& source = problem.block_source())
+    total = internal::add_source_costs(*source, problem.all_values(), total);
   return total;
 }
 

@@ -14,6 +14,7 @@
 #include "block_variables.hpp"
 #include "carat/base/error.hpp"
 #include "huge_pages.hpp"
+#include "source_runs.hpp"
 
 namespace carat::internal {
 
@@ -381,10 +382,7 @@ bool SparseSystem::add_source_blocks(BlockSource& source, std::span<const double
   std::size_t next = 0;
   std::size_t bad = num_blocks;  // the first block whose record is not finite
   source.linearize(values, [&](std::size_t first, std::span<const double> records) {
-    if (first != next) {
-      throw Error("block source: records of block " + std::to_string(first) +
-                  " arrived where block " + std::to_string(next) + " was expected");
-    }
+    check_run_start(first, next, "records");
     std::size_t at = 0;
     while (at < records.size()) {
       if (next >= num_blocks) {
@@ -415,10 +413,7 @@ bool SparseSystem::add_source_blocks(BlockSource& source, std::span<const double
       ++next;
     }
   });
-  if (next != num_blocks) {
-    throw Error("block source: linearized " + std::to_string(next) + " of its " +
-                std::to_string(num_blocks) + " blocks");
-  }
+  check_runs_complete(next, num_blocks, "records");
   if (bad < num_blocks) {
     report->error = "residual block " + std::to_string(first_index + bad) + " (block " +
                     std::to_string(bad) + " of the block source): its H, b or cost is not finite";
