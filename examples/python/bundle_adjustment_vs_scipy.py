@@ -83,7 +83,8 @@ def carat_solve(scene, residuals):
         problem.add_bal_observations(camera_ids[ci], point_ids[pi], observed)
     else:
         def reprojection(camera, point, rows, jacobians=True):
-            seen = observed[rows[::2] // 2]
+            # `rows` is 0, 1, ..., 2n - 1 when every observation is asked (each pass of a solve).
+            seen = observed if len(rows) == 2 * len(observed) else observed[rows[::2] // 2]
             if not jacobians or residuals == "numpy-differences":
                 return project(camera, point, jacobians=False) - seen
             image, J_camera, J_point = project(camera, point)

@@ -151,6 +151,7 @@ py::array_t<int> PythonProblem::add_rows(const py::object& function, const py::h
     // A tuple of up to two variables is one 64-bit key; longer ones are strings of their bytes.
     std::unordered_map<std::uint64_t, int> by_pair;
     std::unordered_map<std::string, int> by_bytes;
+    if (num_slots <= 2) by_pair.reserve(static_cast<std::size_t>(scanned));
     std::string key(num_slots * sizeof(int), '\0');
     const auto same_as_previous = [&](int g) {
       for (std::size_t j = 0; j < num_slots; ++j) {

@@ -56,6 +56,7 @@ NumpyRows::NumpyRows(py::object function, std::string name, int group_rows, int 
       group_loss_(std::move(group_loss)),
       errors_(std::move(errors)),
       pass_jacobians_flag_(pass_jacobians_flag) {
+  spare_.resize(slots_.size());
   for (const RowsSlot& slot : slots_) {
     dims_.push_back(slot.tangent);
     if (!slot.indexed) continue;
@@ -78,6 +79,7 @@ NumpyRows::NumpyRows(py::object function, std::string name, int group_rows, int 
 
 NumpyRows::~NumpyRows() {
   cache_.evaluation.reset();
+  for (py::object& spare : spare_) drop(spare);
   drop(all_rows_);
   drop(function_);
 }
@@ -121,7 +123,21 @@ py::object NumpyRows::slot_values(int slot, std::span<const int> groups, const S
   // whole-array numpy code reads it.
   const auto count = static_cast<py::ssize_t>(groups.size());
   shape.insert(shape.begin(), count);
-  py::array_t<double, py::array::f_style> out(shape);
+  using ValuesArray = py::array_t<double, py::array::f_style>;
+  // The previous call's array of this slot, when nothing else holds it any more (the user's
+  // function kept neither it nor a view of it) and it has this shape: refilled instead of a new
+  // one, whose fresh pages would each cost a page fault.
+  py::object& spare = spare_[static_cast<std::size_t>(slot)];
+  bool reuse = direction < 0 && spare && spare.ref_count() == 1;
+  if (reuse) {
+    const auto held = py::reinterpret_borrow<ValuesArray>(spare);
+    reuse = held.ndim() == static_cast<py::ssize_t>(shape.size()) && held.writeable();
+    for (std::size_t d = 0; reuse && d < shape.size(); ++d) {
+      reuse = held.shape(static_cast<py::ssize_t>(d)) == shape[d];
+    }
+  }
+  ValuesArray out = reuse ? py::reinterpret_borrow<ValuesArray>(spare) : ValuesArray(shape);
+  if (direction < 0) spare = out;
   double* data = out.mutable_data();
   if (s.kind == VariableKind::kEuclidean && direction < 0) {  // the stored numbers themselves
     const auto n = static_cast<std::size_t>(count);
@@ -403,6 +419,57 @@ const double* NumpyRows::common_base(std::span<const int> block_variables,
   return reinterpret_cast<const double*>(base);
 }
 
+bool NumpyRows::cache_holds(std::span<const int> block_variables, ParameterPointers params,
+                            std::span<const int> groups, bool jacobians) const {
+  if (!cache_.evaluation || (jacobians && !cache_.jacobians)) return false;
+  for (std::size_t j = 0; j < block_variables.size(); ++j) {
+    const auto v = static_cast<std::size_t>(block_variables[j]);
+    // The same bits (as memcmp; a few numbers, inline: this runs once per block per pass).
+    const double* held = cache_.values.data() + variable_start_[v];
+    for (int e = 0; e < variables_[v].ambient; ++e) {
+      std::uint64_t a = 0;
+      std::uint64_t b = 0;
+      std::memcpy(&a, params[j] + e, sizeof(a));
+      std::memcpy(&b, held + e, sizeof(b));
+      if (a != b) return false;
+    }
+  }
+  for (int g : groups) {
+    if (cache_.group_position[static_cast<std::size_t>(g)] < 0) return false;
+  }
+  return true;
+}
+
+void NumpyRows::refresh_cache(std::span<const int> groups, const double* base,
+                              bool jacobians) const {
+  std::vector<int> wanted;
+  {
+    std::lock_guard<std::mutex> users(users_mutex_);
+    std::size_t next = 0;
+    for (int g = 0; g < groups_; ++g) {
+      const bool asked = next < groups.size() && groups[next] == g;
+      if (asked) ++next;
+      if (asked || users_[static_cast<std::size_t>(g)] > 0) wanted.push_back(g);
+    }
+  }
+  Cache fresh;
+  fresh.evaluation = evaluate_groups(wanted, Source{{}, base}, jacobians);
+  fresh.jacobians = jacobians;
+  fresh.values.resize(variable_start_.empty()
+                          ? 0
+                          : variable_start_.back() +
+                                static_cast<std::size_t>(variables_.back().ambient));
+  for (std::size_t v = 0; v < variables_.size(); ++v) {
+    std::copy_n(base + variables_[v].offset, variables_[v].ambient,
+                fresh.values.data() + variable_start_[v]);
+  }
+  fresh.group_position.assign(static_cast<std::size_t>(groups_), -1);
+  for (std::size_t w = 0; w < wanted.size(); ++w) {
+    fresh.group_position[static_cast<std::size_t>(wanted[w])] = static_cast<std::int64_t>(w);
+  }
+  std::swap(cache_, fresh);
+}
+
 std::shared_ptr<const RowsEvaluation> NumpyRows::lookup(std::span<const int> block_variables,
                                                         ParameterPointers params,
                                                         std::span<const int> groups, bool jacobians,
@@ -410,55 +477,14 @@ std::shared_ptr<const RowsEvaluation> NumpyRows::lookup(std::span<const int> blo
   positions->resize(groups.size());
   {
     std::lock_guard<std::mutex> lock(cache_mutex_);
-    const auto held = [&] {
-      if (!cache_.evaluation || (jacobians && !cache_.jacobians)) return false;
-      for (std::size_t j = 0; j < block_variables.size(); ++j) {
-        const auto v = static_cast<std::size_t>(block_variables[j]);
-        if (std::memcmp(params[j], cache_.values.data() + variable_start_[v],
-                        static_cast<std::size_t>(variables_[v].ambient) * sizeof(double)) != 0) {
-          return false;
-        }
-      }
-      for (int g : groups) {
-        if (cache_.group_position[static_cast<std::size_t>(g)] < 0) return false;
-      }
-      return true;
-    };
-    const bool hit = held();
+    const bool hit = cache_holds(block_variables, params, groups, jacobians);
     const double* base = hit ? nullptr : common_base(block_variables, params);
-    if (base != nullptr) {
-      std::vector<int> wanted;
-      {
-        std::lock_guard<std::mutex> users(users_mutex_);
-        std::size_t next = 0;
-        for (int g = 0; g < groups_; ++g) {
-          const bool asked = next < groups.size() && groups[next] == g;
-          if (asked) ++next;
-          if (asked || users_[static_cast<std::size_t>(g)] > 0) wanted.push_back(g);
-        }
-      }
-      Cache fresh;
-      fresh.evaluation = evaluate_groups(wanted, Source{{}, base}, jacobians);
-      fresh.jacobians = jacobians;
-      fresh.values.resize(variable_start_.empty()
-                              ? 0
-                              : variable_start_.back() +
-                                    static_cast<std::size_t>(variables_.back().ambient));
-      for (std::size_t v = 0; v < variables_.size(); ++v) {
-        std::copy_n(base + variables_[v].offset, variables_[v].ambient,
-                    fresh.values.data() + variable_start_[v]);
-      }
-      fresh.group_position.assign(static_cast<std::size_t>(groups_), -1);
-      for (std::size_t w = 0; w < wanted.size(); ++w) {
-        fresh.group_position[static_cast<std::size_t>(wanted[w])] =
-            static_cast<std::int64_t>(w) * group_rows_;
-      }
-      std::swap(cache_, fresh);
-    }
+    if (base != nullptr) refresh_cache(groups, base, jacobians);
     if (hit || base != nullptr) {
       for (std::size_t q = 0; q < groups.size(); ++q) {
         (*positions)[q] =
-            static_cast<std::size_t>(cache_.group_position[static_cast<std::size_t>(groups[q])]);
+            static_cast<std::size_t>(cache_.group_position[static_cast<std::size_t>(groups[q])]) *
+            static_cast<std::size_t>(group_rows_);
       }
       return cache_.evaluation;
     }
@@ -467,6 +493,25 @@ std::shared_ptr<const RowsEvaluation> NumpyRows::lookup(std::span<const int> blo
   for (std::size_t q = 0; q < groups.size(); ++q) {
     (*positions)[q] = q * static_cast<std::size_t>(group_rows_);
   }
+  return evaluate_groups(groups, Source{params, nullptr}, jacobians);
+}
+
+std::shared_ptr<const RowsEvaluation> NumpyRows::lookup_group(std::span<const int> block_variables,
+                                                              ParameterPointers params, int group,
+                                                              bool jacobians,
+                                                              std::size_t* position) const {
+  const std::span<const int> groups(&group, 1);
+  {
+    std::lock_guard<std::mutex> lock(cache_mutex_);
+    const bool hit = cache_holds(block_variables, params, groups, jacobians);
+    const double* base = hit ? nullptr : common_base(block_variables, params);
+    if (base != nullptr) refresh_cache(groups, base, jacobians);
+    if (hit || base != nullptr) {
+      *position = static_cast<std::size_t>(cache_.group_position[static_cast<std::size_t>(group)]);
+      return cache_.evaluation;
+    }
+  }
+  *position = 0;
   return evaluate_groups(groups, Source{params, nullptr}, jacobians);
 }
 

@@ -93,6 +93,13 @@ struct StridedRows {
   }
   /// The number at row i, column c.
   double at(std::size_t i, int c = 0) const { return in_row(row(i), c); }
+  /// Where row c of the w-th group of k rows starts (no division: for the per-row loops of small
+  /// blocks).
+  const char* group_row(std::size_t w, std::size_t c, std::size_t k) const {
+    return group_rows == 1 ? data + static_cast<std::ptrdiff_t>(w * k + c) * group
+                           : data + static_cast<std::ptrdiff_t>(w) * group +
+                                 static_cast<std::ptrdiff_t>(c) * component;
+  }
 };
 
 /// Residuals (and Jacobians) of some whole groups of rows, as the Python function returned them
@@ -118,6 +125,10 @@ class RowsEvaluation {
   const StridedRows& jacobian_view(int j) const { return jacobians_[static_cast<std::size_t>(j)]; }
   /// The view of the residuals.
   const StridedRows& residual_view() const { return residuals_; }
+  /// sqrt(rho'(s_g)) of the w-th group held (1 without a group loss).
+  double group_weight(std::size_t w) const { return weights_.empty() ? 1.0 : weights_[w]; }
+  /// rho(s_g) of the w-th group held (with a group loss).
+  double group_rho(std::size_t w) const { return rho_[w]; }
   /// sqrt(rho'(s_g)) of the group of row i (1 without a group loss).
   double weight(std::size_t i) const {
     return weights_.empty() ? 1.0 : weights_[i / static_cast<std::size_t>(group_rows_)];
@@ -189,6 +200,12 @@ class NumpyRows {
                                                std::span<const int> groups, bool jacobians,
                                                std::vector<std::size_t>* positions) const;
 
+  /// lookup() for a block of one group: the evaluation holding group `group` at `params`, and in
+  /// *position which group of it that is (its rows start at *position * group_rows()).
+  std::shared_ptr<const RowsEvaluation> lookup_group(std::span<const int> block_variables,
+                                                     ParameterPointers params, int group,
+                                                     bool jacobians, std::size_t* position) const;
+
   /// Marks `groups` as used by one more block (lookup() evaluates the groups some block uses).
   void acquire(std::span<const int> groups) const;
   /// Undoes acquire().
@@ -217,6 +234,12 @@ class NumpyRows {
   [[noreturn]] void fail(const std::string& message) const;
   void apply_loss(RowsEvaluation* evaluation) const;
   const double* common_base(std::span<const int> block_variables, ParameterPointers params) const;
+  /// Whether the cache holds `groups` at the block's values (cache_mutex_ held).
+  bool cache_holds(std::span<const int> block_variables, ParameterPointers params,
+                   std::span<const int> groups, bool jacobians) const;
+  /// Evaluates every active group at `base` (the problem's layout) into the cache (cache_mutex_
+  /// held).
+  void refresh_cache(std::span<const int> groups, const double* base, bool jacobians) const;
 
   py::object function_;
   std::string name_;
@@ -231,12 +254,13 @@ class NumpyRows {
   bool single_block_ = true;
   std::vector<int> all_groups_;
   mutable py::object all_rows_;  // 0 .. G k - 1 as a read-only int64 array, made on first use
+  mutable std::vector<py::object> spare_;  // per slot: the last values array passed (GIL held)
 
   // lookup()'s last evaluation, the values it was made at and where each group lies in it.
   struct Cache {
     std::shared_ptr<const RowsEvaluation> evaluation;
     std::vector<double> values;                // each variable at variable_start_[v]
-    std::vector<std::int64_t> group_position;  // first row of each group, -1: not held
+    std::vector<std::int64_t> group_position;  // each group's index in it, -1: not held
     bool jacobians = false;
   };
   mutable std::mutex cache_mutex_;

@@ -61,6 +61,8 @@ class NumpyRowsBlock final : public ResidualBlock {
   bool weighted() const { return with_loss_ && rows_->group_loss() != nullptr; }
   /// The batch rows of `rows` (range-checked) into *out.
   void map_rows(std::span<const int> rows, std::vector<int>* out) const;
+  /// Whether `rows` are rows of a block of one group (one_group_), each within it.
+  bool within_group(std::span<const int> rows) const;
 
   std::shared_ptr<const NumpyRows> rows_;
   std::vector<int> variables_;
@@ -68,6 +70,7 @@ class NumpyRowsBlock final : public ResidualBlock {
   std::vector<int> batch_rows_;  // block row -> batch row; empty: groups_' rows in order (or
                                  // every row of the batch when groups_ is empty too)
   bool with_loss_ = true;
+  bool one_group_ = false;  // one whole group of a batch of several blocks (an observation)
 };
 
 }  // namespace carat::python

@@ -199,6 +199,34 @@ def se2_log_residual(T_ij, information):
 
     return residual
 
+def test_per_edge_rows_pass_the_block_checker_and_never_refill_an_array_the_function_kept():
+    # One block per edge (a group of six rows each): check_blocks runs the row-contract checker
+    # on them (subsets of a group's rows, extracts, a group loss), and every argument array the
+    # function keeps must still hold the values it was called with after the solve.
+    start, measured = pose_chain()
+    T_ij = np.array([m[2] for m in measured])
+    edge_residual = relative_pose_residual(T_ij)
+    kept = []
+
+    def residual(T_i, T_j, rows):
+        kept.append((T_i, T_i.copy(), T_j, T_j.copy()))
+        return edge_residual(T_i, T_j, rows)
+
+    cpp, _, cpp_ids, _ = pose_graph_problems("huber", "group")
+    p = carat.Problem()
+    ids = [p.add_se3(T) for T in start]
+    p.set_constant(ids[0])
+    p.add_rows(residual, [np.array([ids[m[0]] for m in measured]),
+                          np.array([ids[m[1]] for m in measured])],
+               rows=6 * len(measured), group=6, loss="huber", loss_scale=0.5, name="edges")
+    s, s_cpp = carat.solve(p, check_blocks=True, **TIGHT), carat.solve(cpp, **TIGHT)
+    assert s.termination == "CONVERGENCE" and len(kept) > 3
+    assert s.final_cost == pytest.approx(s_cpp.final_cost, rel=1e-10)
+    np.testing.assert_allclose(p.value(ids), cpp.value(cpp_ids), rtol=0, atol=1e-10)
+    for T_i, at_call_i, T_j, at_call_j in kept:
+        assert np.array_equal(T_i, at_call_i) and np.array_equal(T_j, at_call_j)
+
+
 
 def test_se2_rows_match_carats_relative_pose_se2_blocks():
     rng = np.random.default_rng(8)
