@@ -127,8 +127,6 @@ class RowsEvaluation {
   const StridedRows& residual_view() const { return residuals_; }
   /// sqrt(rho'(s_g)) of the w-th group held (1 without a group loss).
   double group_weight(std::size_t w) const { return weights_.empty() ? 1.0 : weights_[w]; }
-  /// rho(s_g) of the w-th group held (with a group loss).
-  double group_rho(std::size_t w) const { return rho_[w]; }
   /// sqrt(rho'(s_g)) of the group of row i (1 without a group loss).
   double weight(std::size_t i) const {
     return weights_.empty() ? 1.0 : weights_[i / static_cast<std::size_t>(group_rows_)];
