@@ -96,6 +96,27 @@ __attribute__((always_inline)) inline void subtract_product(double* __restrict S
   }
 }
 
+/// Y = W L^-T for W (DC x 3) and the lower-triangular L^-1 (3 x 3), all column-major: the six
+/// products the triangle leaves (L^-T's upper zeros skipped), each column of W in turn.
+template <int DC>
+__attribute__((always_inline)) inline void lower_product_3(const double* __restrict W,
+                                                           const double* __restrict L_inverse,
+                                                           double* __restrict Y) {
+  const double l00 = L_inverse[0], l10 = L_inverse[1], l20 = L_inverse[2];
+  const double l11 = L_inverse[4], l21 = L_inverse[5], l22 = L_inverse[8];
+  const double* w0 = W;
+  const double* w1 = W + DC;
+  const double* w2 = W + 2 * DC;
+  double* y0 = Y;
+  double* y1 = Y + DC;
+  double* y2 = Y + 2 * DC;
+  for (int r = 0; r < DC; ++r) {
+    y0[r] = w0[r] * l00;
+    y1[r] = w0[r] * l10 + w1[r] * l11;
+    y2[r] = w0[r] * l20 + w1[r] * l21 + w2[r] * l22;
+  }
+}
+
 /// For every point a camera of the group sees, in point order, and each such camera j:
 /// S_ij -= Y_ip Y_jp^T for every camera i >= j that sees the point too (the point's edges from
 /// j's own one on, by camera). A point's edges are read once per group, not once per camera.
@@ -112,9 +133,13 @@ __attribute__((always_inline)) inline void reduce_group_body(const GroupInput& i
     std::size_t y_offset = 0;
     for (std::size_t f = first; f < end; ++f) {
       const int dc = in.cam_dim[in.edge_cam[f]];
-      MapMatrix<DC, DP>(in.y + y_offset, dc, dp).noalias() =
-          ConstMapMatrix<DC, DP>(in.w + in.edge_y_offset[f], dc, dp)
-              .lazyProduct(L_inverse.transpose());
+      if constexpr (DC != Eigen::Dynamic && DP == 3) {
+        lower_product_3<DC>(in.w + in.edge_y_offset[f], L_inverse.data(), in.y + y_offset);
+      } else {
+        MapMatrix<DC, DP>(in.y + y_offset, dc, dp).noalias() =
+            ConstMapMatrix<DC, DP>(in.w + in.edge_y_offset[f], dc, dp)
+                .lazyProduct(L_inverse.transpose());
+      }
       y_offset += static_cast<std::size_t>(dc) * static_cast<std::size_t>(dp);
     }
     std::size_t ye = 0;  // offset of edge e's Y
