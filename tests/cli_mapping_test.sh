@@ -80,6 +80,10 @@ cp -r "$scratch/seq" "$scratch/midway_seq"
 head -c 1001 "$scratch/seq/000002.bin" >"$scratch/midway_seq/000014.bin"
 check map_streamed_bad_frame 1 "midway_seq/000014.bin: 1001 bytes is not a whole number of 16-byte records" -- "$CARAT" map --frames "$scratch/midway_seq" --poses "$scratch/seq/poses.txt" --max-frame-memory 6 --out "$scratch/never.txt"
 check map_streamed_nan_cap 2 "--max-frame-memory" -- "$CARAT" map --frames "$scratch/seq" --poses "$scratch/seq/poses.txt" --max-frame-memory nan
+# A linear system over --max-system-memory ends the run with its estimate and no output.
+check map_system_over_cap 1 "carat: error: global registration: the solve failed: linear solver: sparse Cholesky of the whole system needs about" -- "$CARAT" map --frames "$scratch/seq" --poses "$scratch/seq/poses.txt" --max-system-memory 0.001 --out "$scratch/never.txt"
+expect map_system_over_cap_no_out "$([[ ! -e "$scratch/never.txt" ]] && echo True)"
+check map_system_cap_negative 2 "--max-system-memory: must be 0 (80 % of the memory available) or a finite number in [0.001, 1e+09], got '-1'" -- "$CARAT" map --frames "$scratch/seq" --poses "$scratch/seq/poses.txt" --max-system-memory -1
 # Bad input: clear one-line errors, exit 1, no output file left behind.
 mkdir -p "$scratch/empty_frames"
 check map_empty_folder 1 "empty_frames: no frames" -- "$CARAT" map --frames "$scratch/empty_frames" --poses "$scratch/seq/poses.txt" --out "$scratch/never.txt"

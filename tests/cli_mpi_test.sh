@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # carat map under mpirun: 2, 3 and 4 ranks give the poses of one process bit for bit (the --out
 # files, the covariances and the JSON ATE), and a rank that sees other files than rank 0, a rank
-# that fails (a frame it cannot read; in the middle of the solve), or dies, rank 0 failing,
+# that fails (a frame it cannot read; in the middle of the solve), or dies, rank 0 failing (a
+# frame; its linear system over --max-system-memory),
 # and sampling the ranks cannot share end the whole run cleanly: one line naming
 # the rank and the frame, exit non-zero, no --out, no hang. Other subcommands run on rank 0 alone,
 # usage errors print once, and a signal to mpirun leaves no temporary. Skips (exit 77) when carat was built
@@ -111,6 +112,10 @@ check rank0_fails 1 "carat: error: rank 0 of 2: seq/000003.bin: 100 bytes is not
   timeout 300 mpirun -q --oversubscribe -np 1 --wdir "$scratch/bad" "$CARAT" "${args[@]}" --out out.txt : \
   -np 1 --wdir "$scratch/good" "$CARAT" "${args[@]}" --out out.txt
 expect rank0_fails_no_out "$([[ ! -e good/out.txt && ! -e bad/out.txt ]] && echo True)"
+# Rank 0's reduced system over --max-system-memory: one message naming rank 0 and the estimate.
+check rank0_system_over_cap 1 "carat: error: rank 0 of 2: global registration: the solve failed: linear solver: sparse Cholesky of the whole system needs about" -- \
+  mpi 2 "${args[@]}" --max-system-memory 0.001 --out capped.txt
+expect rank0_system_over_cap_no_out "$([[ ! -e capped.txt ]] && echo True)"
 # What the ranks cannot share.
 check mpi_full 2 "--sampling full runs in one process; under mpirun use --sampling exact or lossless" -- \
   mpi 2 "${args[@]}" --sampling full

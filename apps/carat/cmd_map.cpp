@@ -54,8 +54,9 @@ struct MapArgs : MapTrajectoryArgs {
   CovarianceRequest covariance;
   int threads = 0;
   bool drop_non_finite = false;
-  double max_frame_memory_mb = 0.0;  // 0: every frame in memory
-  bool mpi_solver_only = false;      // under mpirun: rank 0 holds no factor
+  double max_frame_memory_mb = 0.0;   // 0: every frame in memory
+  double max_system_memory_mb = 0.0;  // 0: 80 % of the memory available
+  bool mpi_solver_only = false;       // under mpirun: rank 0 holds no factor
   bool json = false;
 };
 
@@ -108,6 +109,11 @@ MappingOptions mapping_options(const MapArgs& args, int threads, bool run_loops)
   options.pair_alignment.max_correspondence_distance = args.max_distance;
   options.pose_graph.information = parse_pose_graph_information(args.information);
   options.pose_graph.covariance = gre.covariance;
+  // The cap of every solve's linear system (the map's, the loop pose graph's, PGO's).
+  const double system_bytes = args.max_system_memory_mb * 1024.0 * 1024.0;
+  gre.solver.max_linear_system_bytes = system_bytes;
+  options.pose_graph.solver.max_linear_system_bytes = system_bytes;
+  options.loops.graph.solver.max_linear_system_bytes = system_bytes;
   return options;
 }
 
@@ -223,7 +229,20 @@ int run_map(const CLI::App& command, const MapArgs& args) {
   MappingOptions options = mapping_options(args, threads, run_loops);
   StageBars<MappingStage> bars(mapping_stage_label, !args.json);
   if (mpi) mpi->attach({files, scans, file_sizes(files)}, store, &options, args.mpi_solver_only);
-  MapGraph graph = build_map_graph(*store, t.T_world_initial, options, bars.callback());
+  // Under mpirun a failure of rank 0's own work (its solve: a linear system over the memory cap,
+  // say) names the rank like the failures the other ranks report.
+  const auto on_rank_0 = [&](auto&& stage) {
+    if (!mpi) return stage();
+    try {
+      return stage();
+    } catch (const Error& e) {
+      const std::string message = e.what();
+      if (message.rfind("rank ", 0) == 0) throw;
+      throw Error("rank 0 of " + std::to_string(mpi->size()) + ": " + message);
+    }
+  };
+  MapGraph graph = on_rank_0(
+      [&] { return build_map_graph(*store, t.T_world_initial, options, bars.callback()); });
   bars.finish();
   const bool full = options.method == MappingMethod::kRegistration &&
                     options.registration.sampling == ResidualSampling::kFull;
@@ -231,7 +250,8 @@ int run_map(const CLI::App& command, const MapArgs& args) {
     check_full_factor_memory(store->frame_points(), graph.pairs,
                              "use --sampling exact or lossless, which keep a few rows per factor");
   }
-  const MappingResult map = optimize_map(*store, std::move(graph), options, bars.callback());
+  const MappingResult map =
+      on_rank_0([&] { return optimize_map(*store, std::move(graph), options, bars.callback()); });
   bars.finish();
   MethodResult result = describe_method(map, options);
 
@@ -394,6 +414,11 @@ void register_map(CLI::App& app, CommandRegistry& registry) {
                   "read frames on demand and keep at most this many MB of them (0: read every "
                   "frame once and keep all)")
       ->check(zero_or_real_in(1.0, 1e9))
+      ->capture_default_str();
+  cmd->add_option("--max-system-memory", args->max_system_memory_mb,
+                  "most MB a solve's linear system (matrix and factor) may take; a larger one "
+                  "ends the run with its estimate (0: 80 % of the memory available)")
+      ->check(zero_or_real_in(1e-3, 1e9, "80 % of the memory available"))
       ->capture_default_str();
   cmd->add_flag("--mpi-solver-only", args->mpi_solver_only,
                 "under mpirun: rank 0 builds and holds no factor, the other ranks share them all "
