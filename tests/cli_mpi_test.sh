@@ -1,11 +1,11 @@
 #!/usr/bin/env bash
 # carat map under mpirun: 2, 3 and 4 ranks give the poses of one process bit for bit (the --out
-# files, the covariances and the JSON ATE), and a rank that sees other files than rank 0, a rank
-# that fails (a frame it cannot read; in the middle of the solve), or dies, rank 0 failing (a
-# frame; its linear system over --max-system-memory),
-# and sampling the ranks cannot share end the whole run cleanly: one line naming
-# the rank and the frame, exit non-zero, no --out, no hang. Other subcommands run on rank 0 alone,
-# usage errors print once, and a signal to mpirun leaves no temporary. Skips (exit 77) when carat was built
+# files, the covariances and the JSON ATE; with loop closure shared over 3 ranks too), and a rank
+# that sees other files than rank 0, a rank that fails (a frame it cannot read; in the middle of
+# the solve) or dies, rank 0 failing (a frame; its linear system over --max-system-memory), and
+# sampling the ranks cannot share end the whole run cleanly: one line naming the rank and the
+# cause, exit non-zero, no --out, no hang. Other subcommands run on rank 0 alone, usage errors
+# print once, and a signal to mpirun leaves no temporary. Skips (exit 77) when carat was built
 # without MPI or mpirun is missing. Needs CARAT (the binary) and CARAT_WITH_MPI (ON or OFF).
 source "$(dirname "$0")/cli_common.sh"
 
@@ -77,6 +77,26 @@ print(a['ate_rmse'] == b['ate_rmse'] and a['iterations'] == b['iterations']
       and min(m['bytes_sent_per_rank']) > 0 and b['frame_store']['max_bytes'] is None
       and 'frame_store' not in a)" "$a.json" "$b.json" "${b##*_}")"
 done
+
+# Loop closure over the ranks: each validates a stretch of the candidates and registers a stretch
+# of the consecutive pairs; the loops, their pose graph and the map are one process's.
+check simulate_loop 0 "" -- "$CARAT" simulate --out "$scratch/loop" --frames 32 --laps 2
+loop_args=(map --frames loop --poses loop/poses.txt --perturb-m 0.3 --perturb-deg 1 --threads 1
+  --loops --json)
+check loops_1 0 "" -- "$CARAT" "${loop_args[@]}" --out loops_1.txt
+cp out loops_1.json
+check loops_3 0 "" -- mpi 3 "${loop_args[@]}" --out loops_3.txt
+cp out loops_3.json
+expect loops_3_same_poses "$(cmp -s loops_1.txt loops_3.txt && echo True)"
+expect loops_3_same_loops "$(python3 -c "
+import json, sys
+a, b = (json.load(open(f)) for f in sys.argv[1:3])
+m = b['mpi']
+print(a['loops'] == {**b['loops'], 'time_s': a['loops']['time_s'], 'pgo': {**b['loops']['pgo'],
+      'time_s': a['loops']['pgo']['time_s']}} and a['loops']['accepted'] > 5
+      and len(m['loop_pairs_per_rank']) == 3 and min(m['loop_pairs_per_rank']) > 0
+      and sum(m['loop_pairs_per_rank']) == a['loops']['candidates'] + a['frames'] - 1
+      and len(m['loop_s_per_rank']) == 3)" loops_1.json loops_3.json)"
 
 # A rank that sees other files: each rank runs in its own folder, as if the shared filesystem
 # served rank 1 a truncated copy of frame 3 (rank 0 sends every file's size; a rank checks them

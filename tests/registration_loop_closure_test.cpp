@@ -265,6 +265,24 @@ TEST(LoopClosureTest, BadInputIsNamed) {
     EXPECT_STREQ(e.what(), "loop closure: min_inlier_fraction must be in [0, 1], got 1.5");
   }
   EXPECT_STREQ(to_string(LoopVerdict::kFewInliers), "few inliers");
+  // A validation run elsewhere (LoopClosureStages) that answers for other candidates is refused.
+  options.min_inlier_fraction = 0.8;
+  std::size_t asked = 0;
+  LoopClosureStages stages;
+  stages.validate = [&](std::span<const LoopCandidate> candidates,
+                        std::span<const Eigen::Isometry3d>, const LoopClosureOptions&) {
+    asked = candidates.size();
+    return std::vector<LoopCheck>(candidates.size() + 1);
+  };
+  try {
+    close_loops(frames, d.guess, options, {}, stages);
+    FAIL() << "no error";
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()), "loop closure: the validation returned " +
+                                         std::to_string(asked + 1) + " checks for " +
+                                         std::to_string(asked) + " candidates");
+  }
+  EXPECT_GT(asked, 0u);
 }
 
 }  // namespace

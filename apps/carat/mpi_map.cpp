@@ -9,6 +9,7 @@
 #include <exception>
 #include <limits>
 #include <new>
+#include <numeric>
 #include <string>
 #include <thread>
 #include <utility>
@@ -49,8 +50,37 @@ enum Command : std::uint64_t {
   kLinearize = 3,    // stream the held factors' linearization records at the poses sent
   kCosts = 4,        // stream their costs
   kFactorCosts = 5,  // answer their costs per correspondence
+  kLoops = 6,        // validate loop candidates or register pairs (the loop step)
 };
 constexpr int kAnswerTag = 7;
+
+/// One rank's share of a loop job (`indices` into its pairs), done with `threads` threads in
+/// this process as close_loops() would, and its answer (`time` started after the job was read).
+std::vector<std::byte> do_loop_share(FrameStore& store, const LoopJob& job,
+                                     std::span<const std::size_t> indices, int threads,
+                                     const Stopwatch& time) {
+  if (job.options.validate) {
+    std::vector<LoopCandidate> candidates;
+    for (const std::size_t k : indices)
+      candidates.push_back(
+          LoopCandidate{job.pairs[k], job.options.descriptor_distance[k], job.options.yaw[k]});
+    LoopClosureOptions options;
+    options.max_correspondence_distance = job.options.max_correspondence_distance;
+    options.min_inlier_fraction = job.options.min_inlier_fraction;
+    options.num_threads = threads;
+    std::vector<LoopCheck> checks;
+    if (!candidates.empty())
+      checks = validate_loop_candidates(store, job.T_world_frame, candidates, options);
+    return encode_loop_checks(checks, time.elapsed_s(), store.stats().loads, peak_rss_bytes());
+  }
+  std::vector<FramePair> pairs;
+  for (const std::size_t k : indices) pairs.push_back(job.pairs[k]);
+  std::vector<PairRegistration> registrations;
+  if (!pairs.empty())
+    registrations = register_pairs(store, pairs, job.T_world_frame, job.options.settings, threads);
+  return encode_registrations(registrations, time.elapsed_s(), store.stats().loads,
+                              peak_rss_bytes());
+}
 constexpr std::size_t kChunk = std::size_t{1} << 30;  // MPI counts are int
 
 /// A failure the test suite asks a rank for (CARAT_MPI_TEST_FAULT="throw@K" or "abort@K": fail
@@ -212,13 +242,21 @@ int MpiMapJob::serve(int threads) {
       send_answer(end);
       continue;
     }
-    if (command != kBuild && command != kOverlaps && command != kFactorCosts) return 0;
+    if (command != kBuild && command != kOverlaps && command != kFactorCosts && command != kLoops)
+      return 0;
     std::vector<std::byte> answer;
     try {
       // Each share's time from where rank 0's own starts: after the job is read.
       if (command == kFactorCosts) {
         if (!held) throw Error("holds no factors (no build job came first)");
         answer = encode_numbers(held->factor_costs(values_of(payload)), peak_rss_bytes());
+      } else if (command == kLoops) {
+        LoopJob job = decode_loop_job(payload);
+        if (!store) store = frames_from(job.source);
+        check_shares(job.shares.size());
+        const Stopwatch time;
+        const std::vector<std::size_t>& indices = job.shares[static_cast<std::size_t>(rank_)];
+        answer = do_loop_share(*store, job, indices, threads, time);
       } else if (command == kOverlaps) {
         OverlapJob job = decode_overlap_job(payload);
         job.options.num_threads = threads;
@@ -297,6 +335,35 @@ void MpiMapJob::attach(MpiFrameSource source, std::shared_ptr<FrameStore> frames
              std::span<const std::size_t> order, const GlobalRegistrationOptions& gre) {
         return hold(pairs, T_world_start, order, gre);
       };
+  const int threads = std::max(1, options->num_threads);  // rank 0's, as the stages would use
+  options->loop_stages.validate = [this, threads](std::span<const LoopCandidate> candidates,
+                                                  std::span<const Eigen::Isometry3d> T_world_guess,
+                                                  const LoopClosureOptions& loops) {
+    LoopWork work;
+    work.validate = true;
+    work.max_correspondence_distance = loops.max_correspondence_distance;
+    work.min_inlier_fraction = loops.min_inlier_fraction;
+    std::vector<FramePair> pairs;
+    for (const LoopCandidate& candidate : candidates) {
+      pairs.push_back(candidate.pair);
+      work.descriptor_distance.push_back(candidate.descriptor_distance);
+      work.yaw.push_back(candidate.yaw);
+    }
+    std::vector<LoopCheck> checks(candidates.size());
+    for (std::size_t k = 0; k < candidates.size(); ++k) checks[k].candidate = candidates[k];
+    share_loop_work(work, pairs, T_world_guess, threads, &checks, nullptr);
+    return checks;
+  };
+  options->loop_stages.register_consecutive =
+      [this, threads](std::span<const FramePair> pairs, std::span<const Eigen::Isometry3d> T_world,
+                      const AlignSettings& settings) {
+        LoopWork work;
+        work.validate = false;
+        work.settings = settings;
+        std::vector<PairRegistration> registrations(pairs.size());
+        share_loop_work(work, pairs, T_world, threads, nullptr, &registrations);
+        return registrations;
+      };
   options->measure_overlaps =
       [this](std::span<FramePair> pairs, std::span<const Eigen::Isometry3d> T_world_frame,
              const DenseGraphOptions& graph,
@@ -325,6 +392,60 @@ std::vector<std::vector<std::byte>> MpiMapJob::collect_answers(const std::string
     if (!message.empty()) throw failed(r, message);
   }
   return answers;
+}
+
+void MpiMapJob::share_loop_work(const LoopWork& work, std::span<const FramePair> pairs,
+                                std::span<const Eigen::Isometry3d> T_world_frame, int threads,
+                                std::vector<LoopCheck>* checks,
+                                std::vector<PairRegistration>* registrations) {
+#if CARAT_WITH_MPI
+  std::uint64_t command = kLoops;
+  // Contiguous stretches in index order: candidates come by their newer frame and consecutive
+  // pairs by frame, so each rank reads about its part of the drive (and the loops' older frames).
+  std::vector<std::size_t> order(pairs.size());
+  std::iota(order.begin(), order.end(), std::size_t{0});
+  const std::vector<std::vector<std::size_t>> shares = split_order(order, size_);
+  std::vector<std::byte> payload = encode_loop_job(source_, work, pairs, T_world_frame, shares);
+  count_sent(payload.size());
+  broadcast(&command, &payload);
+  LoopJob own;  // rank 0's share, as the others read theirs
+  own.options = work;
+  own.pairs.assign(pairs.begin(), pairs.end());
+  own.T_world_frame.assign(T_world_frame.begin(), T_world_frame.end());
+  std::string own_failure;
+  const Stopwatch own_time;
+  std::vector<std::byte> own_answer;
+  try {
+    own_answer = do_loop_share(*store_, own, shares[0], threads, own_time);
+  } catch (const std::bad_alloc&) {
+    own_failure = "out of memory";
+  } catch (const std::exception& e) {
+    own_failure = e.what();
+  }
+  loop_pairs_per_rank_.resize(static_cast<std::size_t>(size_), 0);
+  loop_s_per_rank_.resize(static_cast<std::size_t>(size_), 0.0);
+  std::vector<std::vector<std::byte>> answers = collect_answers(own_failure);
+  answers[0] = std::move(own_answer);
+  frames_read_per_rank_.resize(static_cast<std::size_t>(size_), 0);
+  for (int r = 0; r < size_; ++r) {
+    const auto rank = static_cast<std::size_t>(r);
+    const std::string what = "the answer of rank " + std::to_string(r);
+    const WorkAnswer answer =
+        checks ? read_loop_checks(answers[rank], what, shares[rank], checks)
+               : read_registrations(answers[rank], what, shares[rank], registrations);
+    loop_pairs_per_rank_[rank] += shares[rank].size();
+    loop_s_per_rank_[rank] += answer.seconds;
+    frames_read_per_rank_[rank] = answer.frames_read;
+    if (r > 0) note_peak_rss(rank, answer.peak_rss_bytes);
+  }
+#else
+  (void)work;
+  (void)pairs;
+  (void)T_world_frame;
+  (void)threads;
+  (void)checks;
+  (void)registrations;
+#endif
 }
 
 void MpiMapJob::measure(std::span<FramePair> pairs,
@@ -639,6 +760,8 @@ nlohmann::json MpiMapJob::report() const {
           {"bytes_sent_per_rank", sent},
           {"rounds", rounds_},
           {"bytes_gathered", bytes_gathered_},
+          {"loop_pairs_per_rank", loop_pairs_per_rank_},
+          {"loop_s_per_rank", loop_s_per_rank_},
           {"pairs_measured_per_rank", pairs_measured_per_rank_},
           {"overlap_s_per_rank", overlap_s_per_rank_},
           {"factors_per_rank", factors_per_rank_},

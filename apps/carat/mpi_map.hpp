@@ -81,6 +81,14 @@ class MpiMapJob {
   void measure(std::span<FramePair> pairs, std::span<const Eigen::Isometry3d> T_world_frame,
                const DenseGraphOptions& options,
                const std::function<void(std::size_t, std::size_t)>& progress = {});
+  /// Rank 0: the loop step's GICP over the ranks (each a contiguous stretch of `pairs`): with
+  /// `checks`, the validation of the candidates (whose pairs `pairs` are; the checks hold the
+  /// candidates already) into it; else the registrations of `pairs` into *registrations. Rank 0
+  /// does its share with `threads` threads. Throws carat::Error "rank r of N: ..." as hold().
+  void share_loop_work(const LoopWork& work, std::span<const FramePair> pairs,
+                       std::span<const Eigen::Isometry3d> T_world_frame, int threads,
+                       std::vector<LoopCheck>* checks,
+                       std::vector<PairRegistration>* registrations);
   /// Rank 0: ranks, rounds, linearizations, bytes gathered, and per rank its peak resident
   /// memory, the bytes it sent (rank 0: the jobs and poses; the others: their answers and
   /// records), the pairs measured and their time, the factors built, held and their build time,
@@ -126,6 +134,8 @@ class MpiMapJob {
   std::vector<std::size_t> factors_per_rank_;           // the last round's, built and held
   std::vector<double> build_s_per_rank_;                // the last round's wall time of each share
   std::vector<std::size_t> frames_read_per_rank_;       // frames each rank has read so far
+  std::vector<std::size_t> loop_pairs_per_rank_;        // the loop step's GICP pairs done
+  std::vector<double> loop_s_per_rank_;                 // their wall time
   std::vector<std::size_t> pairs_measured_per_rank_;    // the dense graph's candidates measured
   std::vector<double> overlap_s_per_rank_;              // wall time of each share of them
   std::vector<std::uint64_t> peak_rss_bytes_per_rank_;  // as the ranks last reported it

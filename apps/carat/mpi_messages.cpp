@@ -135,7 +135,150 @@ Job decode_work_job(std::span<const std::byte> bytes, const char* what, ReadOpti
   return job;
 }
 
+/// Every field of a registration (its relative pose and Hessian bit for bit).
+void write_registration(ByteWriter& out, const PairRegistration& r) {
+  static_assert(field_count<PairRegistration>() == 9, "mpi_messages: write the new field");
+  out.put(static_cast<std::int64_t>(r.pair.target));
+  out.put(static_cast<std::int64_t>(r.pair.source));
+  out.put(r.pair.overlap);
+  out.put_array(std::span<const double>(r.T_target_source.matrix().data(), 16));
+  out.put_array(std::span<const double>(r.H.data(), 36));
+  out.put(r.error);
+  out.put(static_cast<std::int64_t>(r.num_correspondences));
+  out.put(static_cast<std::int64_t>(r.iterations));
+  out.put(static_cast<std::uint8_t>(r.converged ? 1 : 0));
+  out.put(static_cast<std::int64_t>(r.constrained_dof));
+  out.put(r.align_s);
+}
+
+PairRegistration read_registration(ByteReader& in) {
+  PairRegistration r;
+  r.pair.target = static_cast<int>(in.get<std::int64_t>());
+  r.pair.source = static_cast<int>(in.get<std::int64_t>());
+  r.pair.overlap = in.get<double>();
+  const std::vector<double> T = in.get_array<double>(16);
+  std::copy(T.begin(), T.end(), r.T_target_source.matrix().data());
+  const std::vector<double> H = in.get_array<double>(36);
+  std::copy(H.begin(), H.end(), r.H.data());
+  r.error = in.get<double>();
+  r.num_correspondences = static_cast<int>(in.get<std::int64_t>());
+  r.iterations = static_cast<int>(in.get<std::int64_t>());
+  const auto converged = in.get<std::uint8_t>();
+  if (converged > 1) in.garbled("converged flag");
+  r.converged = converged == 1;
+  r.constrained_dof = static_cast<int>(in.get<std::int64_t>());
+  r.align_s = in.get<double>();
+  return r;
+}
+
+LoopWork read_loop_work(ByteReader& in) {
+  LoopWork work;
+  const auto validate = in.get<std::uint8_t>();
+  if (validate > 1) in.garbled("loop work kind");
+  work.validate = validate == 1;
+  work.max_correspondence_distance = in.get<double>();
+  work.min_inlier_fraction = in.get<double>();
+  const auto method = in.get<std::uint8_t>();
+  if (method > static_cast<std::uint8_t>(RegistrationMethod::kPointToPoint))
+    in.garbled("registration method");
+  work.settings.method = static_cast<RegistrationMethod>(method);
+  work.settings.max_correspondence_distance = in.get<double>();
+  work.settings.max_iterations = static_cast<int>(in.get<std::int64_t>());
+  work.settings.translation_tolerance = in.get<double>();
+  work.settings.rotation_tolerance = in.get<double>();
+  work.settings.min_correspondences = static_cast<int>(in.get<std::int64_t>());
+  work.settings.num_threads = static_cast<int>(in.get<std::int64_t>());
+  const auto candidates = in.get<std::uint64_t>();
+  if (candidates > in.remaining() / (2 * sizeof(double))) in.garbled("candidate count");
+  work.descriptor_distance = in.get_array<double>(static_cast<std::size_t>(candidates));
+  work.yaw = in.get_array<double>(static_cast<std::size_t>(candidates));
+  return work;
+}
+
 }  // namespace
+
+void write_options(ByteWriter& out, const LoopWork& work) {
+  static_assert(field_count<AlignSettings>() == 7, "mpi_messages: write the new field");
+  out.put(static_cast<std::uint8_t>(work.validate ? 1 : 0));
+  out.put(work.max_correspondence_distance);
+  out.put(work.min_inlier_fraction);
+  out.put(static_cast<std::uint8_t>(work.settings.method));
+  out.put(work.settings.max_correspondence_distance);
+  out.put(static_cast<std::int64_t>(work.settings.max_iterations));
+  out.put(work.settings.translation_tolerance);
+  out.put(work.settings.rotation_tolerance);
+  out.put(static_cast<std::int64_t>(work.settings.min_correspondences));
+  out.put(static_cast<std::int64_t>(work.settings.num_threads));
+  out.put(static_cast<std::uint64_t>(work.descriptor_distance.size()));
+  out.put_array(std::span<const double>(work.descriptor_distance));
+  out.put_array(std::span<const double>(work.yaw));
+}
+
+std::vector<std::byte> encode_loop_job(const MpiFrameSource& source, const LoopWork& work,
+                                       std::span<const FramePair> pairs,
+                                       std::span<const Eigen::Isometry3d> T_world_frame,
+                                       const std::vector<std::vector<std::size_t>>& shares) {
+  return encode_work_job(source, work, pairs, T_world_frame, shares);
+}
+
+LoopJob decode_loop_job(std::span<const std::byte> bytes) {
+  LoopJob job = decode_work_job<LoopJob>(bytes, "the loop job from rank 0", read_loop_work);
+  if (job.options.validate && (job.options.descriptor_distance.size() != job.pairs.size() ||
+                               job.options.yaw.size() != job.pairs.size())) {
+    throw Error("the loop job from rank 0: garbled: " + std::to_string(job.options.yaw.size()) +
+                " candidates' descriptors for " + std::to_string(job.pairs.size()) + " pairs");
+  }
+  return job;
+}
+
+std::vector<std::byte> encode_loop_checks(std::span<const LoopCheck> checks, double seconds,
+                                          std::size_t frames_read, std::uint64_t peak_rss_bytes) {
+  std::vector<std::byte> bytes;
+  ByteWriter out(bytes);
+  write_answer_header(out, seconds, frames_read, peak_rss_bytes, checks.size());
+  for (const LoopCheck& check : checks) {
+    out.put(static_cast<std::uint8_t>(check.verdict));
+    out.put(check.inlier_fraction);
+    write_registration(out, check.registration);
+  }
+  return bytes;
+}
+
+std::vector<std::byte> encode_registrations(std::span<const PairRegistration> registrations,
+                                            double seconds, std::size_t frames_read,
+                                            std::uint64_t peak_rss_bytes) {
+  std::vector<std::byte> bytes;
+  ByteWriter out(bytes);
+  write_answer_header(out, seconds, frames_read, peak_rss_bytes, registrations.size());
+  for (const PairRegistration& r : registrations) write_registration(out, r);
+  return bytes;
+}
+
+WorkAnswer read_loop_checks(std::span<const std::byte> bytes, const std::string& what,
+                            std::span<const std::size_t> expected, std::vector<LoopCheck>* checks) {
+  ByteReader in(bytes, what);
+  const WorkAnswer answer = read_answer_header(in, expected.size(), "check");
+  for (const std::size_t k : expected) {
+    LoopCheck& check = (*checks)[k];
+    const auto verdict = in.get<std::uint8_t>();
+    if (verdict > static_cast<std::uint8_t>(LoopVerdict::kFewInliers)) in.garbled("verdict");
+    check.verdict = static_cast<LoopVerdict>(verdict);
+    check.inlier_fraction = in.get<double>();
+    check.registration = read_registration(in);
+  }
+  in.expect_end();
+  return answer;
+}
+
+WorkAnswer read_registrations(std::span<const std::byte> bytes, const std::string& what,
+                              std::span<const std::size_t> expected,
+                              std::vector<PairRegistration>* registrations) {
+  ByteReader in(bytes, what);
+  const WorkAnswer answer = read_answer_header(in, expected.size(), "registration");
+  for (const std::size_t k : expected) (*registrations)[k] = read_registration(in);
+  in.expect_end();
+  return answer;
+}
 
 std::vector<std::byte> encode_job(const MpiFrameSource& source,
                                   const GlobalRegistrationOptions& options,

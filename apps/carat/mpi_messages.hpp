@@ -1,8 +1,9 @@
 #pragma once
 
 // The messages of `carat map` under mpirun, as bytes (what travels; mpi_map.cpp moves them):
-// rank 0's overlap job (the dense graph's candidates) and build job each round, and each rank's
-// answer (its overlaps or what it holds, or its error); then, every linearization and cost
+// rank 0's loop jobs (the loop step's validations and consecutive registrations), overlap job
+// (the dense graph's candidates) and build job each round, and each rank's answer (its checks,
+// registrations, overlaps or what it holds, or its error); then, every linearization and cost
 // evaluation of the solve, each rank's records as a stream of runs.
 
 #include <Eigen/Geometry>
@@ -12,10 +13,13 @@
 #include <string>
 #include <vector>
 
+#include "carat/base/byte_stream.hpp"
 #include "carat/registration/dense_graph.hpp"
 #include "carat/registration/global_registration.hpp"
 #include "carat/registration/held_factors.hpp"
 #include "carat/registration/io/scan_folder.hpp"
+#include "carat/registration/loop_closure.hpp"
+#include "carat/registration/pair_registration.hpp"
 #include "carat/registration/scan_opening.hpp"
 
 namespace carat::cli {
@@ -58,6 +62,40 @@ struct OverlapJob {
   std::vector<Eigen::Isometry3d> T_world_frame;
   std::vector<std::vector<std::size_t>> shares;  // per rank: the pairs it measures
 };
+
+/// The loop step's GICP that rank 0 shares out: the validation of loop candidates (the pairs
+/// with their descriptors' distance and yaw) or the registration of pairs.
+struct LoopWork {
+  bool validate = true;  // candidates (validate_loop_candidates()), else pairs (register_pairs())
+  double max_correspondence_distance = 1.0;  // LoopClosureOptions: what the validation reads
+  double min_inlier_fraction = 0.8;
+  AlignSettings settings;                   // register_pairs()'s
+  std::vector<double> descriptor_distance;  // per candidate
+  std::vector<double> yaw;                  // per candidate
+};
+
+/// What rank 0 sends for the loop step: how to read the frames, the work, the candidates' (or
+/// the pairs') frames, the guess, and what each rank does (contiguous stretches).
+struct LoopJob {
+  MpiFrameSource source;
+  LoopWork options;
+  std::vector<FramePair> pairs;
+  std::vector<Eigen::Isometry3d> T_world_frame;
+  std::vector<std::vector<std::size_t>> shares;  // per rank: the candidates (pairs) it does
+};
+
+/// Appends every field of `work`.
+void write_options(ByteWriter& out, const LoopWork& work);
+
+/// The loop job as bytes.
+std::vector<std::byte> encode_loop_job(const MpiFrameSource& source, const LoopWork& work,
+                                       std::span<const FramePair> pairs,
+                                       std::span<const Eigen::Isometry3d> T_world_frame,
+                                       const std::vector<std::vector<std::size_t>>& shares);
+
+/// The loop job from its bytes; throws carat::Error ("the loop job from rank 0: garbled: ...")
+/// for bytes encode_loop_job() does not write.
+LoopJob decode_loop_job(std::span<const std::byte> bytes);
 
 /// The overlap job as bytes.
 std::vector<std::byte> encode_overlap_job(const MpiFrameSource& source,
@@ -151,5 +189,24 @@ std::vector<std::byte> encode_overlaps(std::span<const FramePair> pairs, double 
 WorkAnswer read_overlap_answer(std::span<const std::byte> bytes, const std::string& what,
                                std::span<const std::size_t> expected,
                                std::vector<FramePair>* pairs);
+
+/// A rank's answer to a loop job: its time (s), the frames it has read, its peak resident
+/// memory (bytes), and its share's checks (validation) or registrations, in the share's order.
+std::vector<std::byte> encode_loop_checks(std::span<const LoopCheck> checks, double seconds,
+                                          std::size_t frames_read, std::uint64_t peak_rss_bytes);
+/// The same for registrations.
+std::vector<std::byte> encode_registrations(std::span<const PairRegistration> registrations,
+                                            double seconds, std::size_t frames_read,
+                                            std::uint64_t peak_rss_bytes);
+
+/// Reads encode_loop_checks()'s answer into (*checks)[k] for k in `expected`. Throws
+/// carat::Error naming `what` for bytes that are not that answer.
+WorkAnswer read_loop_checks(std::span<const std::byte> bytes, const std::string& what,
+                            std::span<const std::size_t> expected, std::vector<LoopCheck>* checks);
+/// Reads encode_registrations()'s answer into (*registrations)[k] for k in `expected`; throws
+/// as read_loop_checks().
+WorkAnswer read_registrations(std::span<const std::byte> bytes, const std::string& what,
+                              std::span<const std::size_t> expected,
+                              std::vector<PairRegistration>* registrations);
 
 }  // namespace carat::cli

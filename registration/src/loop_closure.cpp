@@ -241,6 +241,13 @@ std::vector<LoopCheck> validate_loop_candidates(FrameStore& frames,
 LoopClosureResult close_loops(FrameStore& frames, std::span<const Eigen::Isometry3d> T_world_guess,
                               const LoopClosureOptions& options,
                               const std::function<void(std::size_t, std::size_t)>& progress) {
+  return close_loops(frames, T_world_guess, options, progress, LoopClosureStages{});
+}
+
+LoopClosureResult close_loops(FrameStore& frames, std::span<const Eigen::Isometry3d> T_world_guess,
+                              const LoopClosureOptions& options,
+                              const std::function<void(std::size_t, std::size_t)>& progress,
+                              const LoopClosureStages& stages) {
   check_counts(frames.size(), T_world_guess.size());
   if (frames.size() < 2) {
     throw Error("loop closure: needs at least 2 frames, got " + std::to_string(frames.size()));
@@ -249,7 +256,13 @@ LoopClosureResult close_loops(FrameStore& frames, std::span<const Eigen::Isometr
   LoopClosureResult out;
   out.candidates = find_loop_candidates(frames, T_world_guess, options, &out.sparse_frames);
   if (progress) progress(1, 3);
-  out.checks = validate_loop_candidates(frames, T_world_guess, out.candidates, options);
+  out.checks = stages.validate
+                   ? stages.validate(out.candidates, T_world_guess, options)
+                   : validate_loop_candidates(frames, T_world_guess, out.candidates, options);
+  if (out.checks.size() != out.candidates.size()) {
+    throw Error("loop closure: the validation returned " + std::to_string(out.checks.size()) +
+                " checks for " + std::to_string(out.candidates.size()) + " candidates");
+  }
   for (const LoopCheck& check : out.checks)
     if (check.verdict == LoopVerdict::kAccepted) out.loops.push_back(check.registration);
   if (progress) progress(2, 3);
@@ -258,7 +271,15 @@ LoopClosureResult close_loops(FrameStore& frames, std::span<const Eigen::Isometr
     consecutive.push_back(FramePair{k, k + 1, 0.0});
   AlignSettings settings;
   settings.max_correspondence_distance = options.max_correspondence_distance;
-  out.odometry = register_pairs(frames, consecutive, T_world_guess, settings, options.num_threads);
+  out.odometry =
+      stages.register_consecutive
+          ? stages.register_consecutive(consecutive, T_world_guess, settings)
+          : register_pairs(frames, consecutive, T_world_guess, settings, options.num_threads);
+  if (out.odometry.size() != consecutive.size()) {
+    throw Error("loop closure: the consecutive registrations returned " +
+                std::to_string(out.odometry.size()) + " pairs for " +
+                std::to_string(consecutive.size()));
+  }
   out.T_world_frame.assign(T_world_guess.begin(), T_world_guess.end());
   if (!out.loops.empty()) {
     std::vector<PairRegistration> edges = out.odometry;

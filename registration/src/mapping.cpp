@@ -148,7 +148,7 @@ MapGraph build_map_graph(FrameStore& frames, std::span<const Eigen::Isometry3d> 
   if (o.close_loops) {
     const Stopwatch time;
     out.loops = close_loops(frames, T_world_initial, o.loops,
-                            stage_progress(progress, MappingStage::kLoops));
+                            stage_progress(progress, MappingStage::kLoops), o.loop_stages);
     if (!out.loops->loops.empty()) out.T_world_start = out.loops->T_world_frame;
     out.times.add("loops", time.elapsed_s());
   }

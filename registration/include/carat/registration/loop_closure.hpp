@@ -97,6 +97,21 @@ std::vector<LoopCheck> validate_loop_candidates(FrameStore& frames,
                                                 std::span<const LoopCandidate> candidates,
                                                 const LoopClosureOptions& options);
 
+/// Where close_loops() runs its two stages of GICP (e.g. shared over the ranks of an MPI job);
+/// each must return what the library function it stands for returns for the same arguments.
+struct LoopClosureStages {
+  /// validate_loop_candidates() of the candidates at the guess; empty: run in this process.
+  std::function<std::vector<LoopCheck>(std::span<const LoopCandidate>,
+                                       std::span<const Eigen::Isometry3d>,
+                                       const LoopClosureOptions&)>
+      validate;
+  /// register_pairs() of the consecutive pairs at the guess with these settings; empty: run in
+  /// this process.
+  std::function<std::vector<PairRegistration>(
+      std::span<const FramePair>, std::span<const Eigen::Isometry3d>, const AlignSettings&)>
+      register_consecutive;
+};
+
 /// Candidates, their validation, GICP of every consecutive pair from the guess, and (when a loop
 /// was accepted) the pose graph of odometry and loops solved from the guess: first without a
 /// kernel, then with options.graph. Throws carat::Error as the stages do (fewer than 2 frames,
@@ -105,6 +120,12 @@ std::vector<LoopCheck> validate_loop_candidates(FrameStore& frames,
 LoopClosureResult close_loops(FrameStore& frames, std::span<const Eigen::Isometry3d> T_world_guess,
                               const LoopClosureOptions& options,
                               const std::function<void(std::size_t, std::size_t)>& progress = {});
+
+/// close_loops() with its validation and consecutive registrations run by `stages` (where set).
+LoopClosureResult close_loops(FrameStore& frames, std::span<const Eigen::Isometry3d> T_world_guess,
+                              const LoopClosureOptions& options,
+                              const std::function<void(std::size_t, std::size_t)>& progress,
+                              const LoopClosureStages& stages);
 
 /// Deprecated: find_loop_candidates() from frames in memory.
 [[deprecated("wrap the frames in a carat::FrameStore")]] inline std::vector<LoopCandidate>
