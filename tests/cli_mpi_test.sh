@@ -78,8 +78,9 @@ print(a['ate_rmse'] == b['ate_rmse'] and a['iterations'] == b['iterations']
       and 'frame_store' not in a)" "$a.json" "$b.json" "${b##*_}")"
 done
 
-# Loop closure over the ranks: each validates a stretch of the candidates and registers a stretch
-# of the consecutive pairs; the loops, their pose graph and the map are one process's.
+# Loop closure over the ranks: each describes a stretch of the frames, validates a stretch of the
+# candidates and registers a stretch of the consecutive pairs; the loops, their pose graph and the
+# map are one process's.
 check simulate_loop 0 "" -- "$CARAT" simulate --out "$scratch/loop" --frames 32 --laps 2
 loop_args=(map --frames loop --poses loop/poses.txt --perturb-m 0.3 --perturb-deg 1 --threads 1
   --loops --json)
@@ -95,7 +96,7 @@ m = b['mpi']
 print(a['loops'] == {**b['loops'], 'time_s': a['loops']['time_s'], 'pgo': {**b['loops']['pgo'],
       'time_s': a['loops']['pgo']['time_s']}} and a['loops']['accepted'] > 5
       and len(m['loop_pairs_per_rank']) == 3 and min(m['loop_pairs_per_rank']) > 0
-      and sum(m['loop_pairs_per_rank']) == a['loops']['candidates'] + a['frames'] - 1
+      and sum(m['loop_pairs_per_rank']) == a['loops']['candidates'] + 2 * a['frames'] - 1
       and len(m['loop_s_per_rank']) == 3)" loops_1.json loops_3.json)"
 
 # A rank that sees other files: each rank runs in its own folder, as if the shared filesystem

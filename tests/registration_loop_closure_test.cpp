@@ -283,6 +283,24 @@ TEST(LoopClosureTest, BadInputIsNamed) {
                                          std::to_string(asked) + " candidates");
   }
   EXPECT_GT(asked, 0u);
+  // Descriptors made elsewhere: one per frame, of the options' shape.
+  std::vector<ScanContext> descriptors(d.guess.size() - 1);
+  try {
+    find_loop_candidates(descriptors, d.guess, options);
+    FAIL() << "no error";
+  } catch (const Error& e) {
+    EXPECT_STREQ(e.what(), "loop closure: 99 descriptors but 100 poses");
+  }
+  descriptors.resize(d.guess.size());
+  descriptors[7].valid = true;
+  descriptors[7].rings = 20;
+  descriptors[7].sectors = 30;
+  try {
+    find_loop_candidates(descriptors, d.guess, options);
+    FAIL() << "no error";
+  } catch (const Error& e) {
+    EXPECT_STREQ(e.what(), "loop closure: the descriptor of frame 7 is not 20 rings by 60 sectors");
+  }
 }
 
 }  // namespace

@@ -1,5 +1,8 @@
 #include "mpi_map.hpp"
 
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cstdint>
@@ -19,6 +22,7 @@
 #include "carat/base/stopwatch.hpp"
 #include "carat/registration/dense_graph.hpp"
 #include "carat/registration/frame_store.hpp"
+#include "carat/registration/scan_context.hpp"
 #include "cli_support.hpp"
 #include "mpi_launch.hpp"
 #include "mpi_messages.hpp"
@@ -59,7 +63,18 @@ constexpr int kAnswerTag = 7;
 std::vector<std::byte> do_loop_share(FrameStore& store, const LoopJob& job,
                                      std::span<const std::size_t> indices, int threads,
                                      const Stopwatch& time) {
-  if (job.options.validate) {
+  if (job.options.kind == LoopWork::Kind::kDescribe) {
+    std::vector<ScanContext> descriptors(indices.size());
+    tbb::task_arena arena(std::max(1, threads));
+    arena.execute([&] {
+      tbb::parallel_for(std::size_t{0}, indices.size(), [&](std::size_t q) {
+        const auto frame = static_cast<std::size_t>(job.pairs[indices[q]].target);
+        descriptors[q] = make_scan_context(store.get(frame)->cloud(), job.options.descriptor);
+      });
+    });
+    return encode_descriptors(descriptors, time.elapsed_s(), store.stats().loads, peak_rss_bytes());
+  }
+  if (job.options.kind == LoopWork::Kind::kValidate) {
     std::vector<LoopCandidate> candidates;
     for (const std::size_t k : indices)
       candidates.push_back(
@@ -340,7 +355,7 @@ void MpiMapJob::attach(MpiFrameSource source, std::shared_ptr<FrameStore> frames
                                                   std::span<const Eigen::Isometry3d> T_world_guess,
                                                   const LoopClosureOptions& loops) {
     LoopWork work;
-    work.validate = true;
+    work.kind = LoopWork::Kind::kValidate;
     work.max_correspondence_distance = loops.max_correspondence_distance;
     work.min_inlier_fraction = loops.min_inlier_fraction;
     std::vector<FramePair> pairs;
@@ -351,19 +366,31 @@ void MpiMapJob::attach(MpiFrameSource source, std::shared_ptr<FrameStore> frames
     }
     std::vector<LoopCheck> checks(candidates.size());
     for (std::size_t k = 0; k < candidates.size(); ++k) checks[k].candidate = candidates[k];
-    share_loop_work(work, pairs, T_world_guess, threads, &checks, nullptr);
+    share_loop_work(work, pairs, T_world_guess, threads, &checks, nullptr, nullptr);
     return checks;
   };
   options->loop_stages.register_consecutive =
       [this, threads](std::span<const FramePair> pairs, std::span<const Eigen::Isometry3d> T_world,
                       const AlignSettings& settings) {
         LoopWork work;
-        work.validate = false;
+        work.kind = LoopWork::Kind::kRegister;
         work.settings = settings;
         std::vector<PairRegistration> registrations(pairs.size());
-        share_loop_work(work, pairs, T_world, threads, nullptr, &registrations);
+        share_loop_work(work, pairs, T_world, threads, nullptr, &registrations, nullptr);
         return registrations;
       };
+  options->loop_stages.describe = [this, threads](std::size_t count,
+                                                  const ScanContextOptions& descriptor) {
+    LoopWork work;
+    work.kind = LoopWork::Kind::kDescribe;
+    work.descriptor = descriptor;
+    std::vector<FramePair> items;  // item k: frame k
+    for (std::size_t k = 0; k < count; ++k)
+      items.push_back(FramePair{static_cast<int>(k), static_cast<int>(k), 0.0});
+    std::vector<ScanContext> descriptors(count);
+    share_loop_work(work, items, {}, threads, nullptr, nullptr, &descriptors);
+    return descriptors;
+  };
   options->measure_overlaps =
       [this](std::span<FramePair> pairs, std::span<const Eigen::Isometry3d> T_world_frame,
              const DenseGraphOptions& graph,
@@ -397,7 +424,8 @@ std::vector<std::vector<std::byte>> MpiMapJob::collect_answers(const std::string
 void MpiMapJob::share_loop_work(const LoopWork& work, std::span<const FramePair> pairs,
                                 std::span<const Eigen::Isometry3d> T_world_frame, int threads,
                                 std::vector<LoopCheck>* checks,
-                                std::vector<PairRegistration>* registrations) {
+                                std::vector<PairRegistration>* registrations,
+                                std::vector<ScanContext>* descriptors) {
 #if CARAT_WITH_MPI
   std::uint64_t command = kLoops;
   // Contiguous stretches in index order: candidates come by their newer frame and consecutive
@@ -431,8 +459,9 @@ void MpiMapJob::share_loop_work(const LoopWork& work, std::span<const FramePair>
     const auto rank = static_cast<std::size_t>(r);
     const std::string what = "the answer of rank " + std::to_string(r);
     const WorkAnswer answer =
-        checks ? read_loop_checks(answers[rank], what, shares[rank], checks)
-               : read_registrations(answers[rank], what, shares[rank], registrations);
+        checks        ? read_loop_checks(answers[rank], what, shares[rank], checks)
+        : descriptors ? read_descriptors(answers[rank], what, shares[rank], descriptors)
+                      : read_registrations(answers[rank], what, shares[rank], registrations);
     loop_pairs_per_rank_[rank] += shares[rank].size();
     loop_s_per_rank_[rank] += answer.seconds;
     frames_read_per_rank_[rank] = answer.frames_read;
@@ -445,6 +474,7 @@ void MpiMapJob::share_loop_work(const LoopWork& work, std::span<const FramePair>
   (void)threads;
   (void)checks;
   (void)registrations;
+  (void)descriptors;
 #endif
 }
 

@@ -81,14 +81,15 @@ class MpiMapJob {
   void measure(std::span<FramePair> pairs, std::span<const Eigen::Isometry3d> T_world_frame,
                const DenseGraphOptions& options,
                const std::function<void(std::size_t, std::size_t)>& progress = {});
-  /// Rank 0: the loop step's GICP over the ranks (each a contiguous stretch of `pairs`): with
+  /// Rank 0: the loop step's work over the ranks (each a contiguous stretch of `pairs`): with
   /// `checks`, the validation of the candidates (whose pairs `pairs` are; the checks hold the
-  /// candidates already) into it; else the registrations of `pairs` into *registrations. Rank 0
-  /// does its share with `threads` threads. Throws carat::Error "rank r of N: ..." as hold().
+  /// candidates already) into it; with `descriptors`, the descriptor of each item's target frame
+  /// into it; else the registrations of `pairs` into *registrations. Rank 0 does its share with
+  /// `threads` threads. Throws carat::Error "rank r of N: ..." as hold().
   void share_loop_work(const LoopWork& work, std::span<const FramePair> pairs,
                        std::span<const Eigen::Isometry3d> T_world_frame, int threads,
-                       std::vector<LoopCheck>* checks,
-                       std::vector<PairRegistration>* registrations);
+                       std::vector<LoopCheck>* checks, std::vector<PairRegistration>* registrations,
+                       std::vector<ScanContext>* descriptors);
   /// Rank 0: ranks, rounds, linearizations, bytes gathered, and per rank its peak resident
   /// memory, the bytes it sent (rank 0: the jobs and poses; the others: their answers and
   /// records), the pairs measured and their time, the factors built, held and their build time,

@@ -173,9 +173,9 @@ PairRegistration read_registration(ByteReader& in) {
 
 LoopWork read_loop_work(ByteReader& in) {
   LoopWork work;
-  const auto validate = in.get<std::uint8_t>();
-  if (validate > 1) in.garbled("loop work kind");
-  work.validate = validate == 1;
+  const auto kind = in.get<std::uint8_t>();
+  if (kind > static_cast<std::uint8_t>(LoopWork::Kind::kDescribe)) in.garbled("loop work kind");
+  work.kind = static_cast<LoopWork::Kind>(kind);
   work.max_correspondence_distance = in.get<double>();
   work.min_inlier_fraction = in.get<double>();
   const auto method = in.get<std::uint8_t>();
@@ -188,6 +188,11 @@ LoopWork read_loop_work(ByteReader& in) {
   work.settings.rotation_tolerance = in.get<double>();
   work.settings.min_correspondences = static_cast<int>(in.get<std::int64_t>());
   work.settings.num_threads = static_cast<int>(in.get<std::int64_t>());
+  work.descriptor.rings = static_cast<int>(in.get<std::int64_t>());
+  work.descriptor.sectors = static_cast<int>(in.get<std::int64_t>());
+  work.descriptor.max_range = in.get<double>();
+  work.descriptor.height_offset = in.get<double>();
+  work.descriptor.min_occupied_bins = static_cast<int>(in.get<std::int64_t>());
   const auto candidates = in.get<std::uint64_t>();
   if (candidates > in.remaining() / (2 * sizeof(double))) in.garbled("candidate count");
   work.descriptor_distance = in.get_array<double>(static_cast<std::size_t>(candidates));
@@ -199,7 +204,8 @@ LoopWork read_loop_work(ByteReader& in) {
 
 void write_options(ByteWriter& out, const LoopWork& work) {
   static_assert(field_count<AlignSettings>() == 7, "mpi_messages: write the new field");
-  out.put(static_cast<std::uint8_t>(work.validate ? 1 : 0));
+  static_assert(field_count<ScanContextOptions>() == 5, "mpi_messages: write the new field");
+  out.put(static_cast<std::uint8_t>(work.kind));
   out.put(work.max_correspondence_distance);
   out.put(work.min_inlier_fraction);
   out.put(static_cast<std::uint8_t>(work.settings.method));
@@ -209,6 +215,11 @@ void write_options(ByteWriter& out, const LoopWork& work) {
   out.put(work.settings.rotation_tolerance);
   out.put(static_cast<std::int64_t>(work.settings.min_correspondences));
   out.put(static_cast<std::int64_t>(work.settings.num_threads));
+  out.put(static_cast<std::int64_t>(work.descriptor.rings));
+  out.put(static_cast<std::int64_t>(work.descriptor.sectors));
+  out.put(work.descriptor.max_range);
+  out.put(work.descriptor.height_offset);
+  out.put(static_cast<std::int64_t>(work.descriptor.min_occupied_bins));
   out.put(static_cast<std::uint64_t>(work.descriptor_distance.size()));
   out.put_array(std::span<const double>(work.descriptor_distance));
   out.put_array(std::span<const double>(work.yaw));
@@ -223,8 +234,9 @@ std::vector<std::byte> encode_loop_job(const MpiFrameSource& source, const LoopW
 
 LoopJob decode_loop_job(std::span<const std::byte> bytes) {
   LoopJob job = decode_work_job<LoopJob>(bytes, "the loop job from rank 0", read_loop_work);
-  if (job.options.validate && (job.options.descriptor_distance.size() != job.pairs.size() ||
-                               job.options.yaw.size() != job.pairs.size())) {
+  if (job.options.kind == LoopWork::Kind::kValidate &&
+      (job.options.descriptor_distance.size() != job.pairs.size() ||
+       job.options.yaw.size() != job.pairs.size())) {
     throw Error("the loop job from rank 0: garbled: " + std::to_string(job.options.yaw.size()) +
                 " candidates' descriptors for " + std::to_string(job.pairs.size()) + " pairs");
   }
@@ -242,6 +254,49 @@ std::vector<std::byte> encode_loop_checks(std::span<const LoopCheck> checks, dou
     write_registration(out, check.registration);
   }
   return bytes;
+}
+
+std::vector<std::byte> encode_descriptors(std::span<const ScanContext> descriptors, double seconds,
+                                          std::size_t frames_read, std::uint64_t peak_rss_bytes) {
+  static_assert(field_count<ScanContext>() == 6, "mpi_messages: write the new field");
+  std::vector<std::byte> bytes;
+  ByteWriter out(bytes);
+  write_answer_header(out, seconds, frames_read, peak_rss_bytes, descriptors.size());
+  for (const ScanContext& d : descriptors) {
+    out.put(static_cast<std::int64_t>(d.rings));
+    out.put(static_cast<std::int64_t>(d.sectors));
+    out.put(static_cast<std::uint64_t>(d.bins.size()));
+    out.put_array(std::span<const float>(d.bins));
+    out.put(static_cast<std::uint64_t>(d.ring_key.size()));
+    out.put_array(std::span<const float>(d.ring_key));
+    out.put(static_cast<std::int64_t>(d.occupied_bins));
+    out.put(static_cast<std::uint8_t>(d.valid ? 1 : 0));
+  }
+  return bytes;
+}
+
+WorkAnswer read_descriptors(std::span<const std::byte> bytes, const std::string& what,
+                            std::span<const std::size_t> expected,
+                            std::vector<ScanContext>* descriptors) {
+  ByteReader in(bytes, what);
+  const WorkAnswer answer = read_answer_header(in, expected.size(), "descriptor");
+  for (const std::size_t k : expected) {
+    ScanContext& d = (*descriptors)[k];
+    d.rings = static_cast<int>(in.get<std::int64_t>());
+    d.sectors = static_cast<int>(in.get<std::int64_t>());
+    const auto bins = in.get<std::uint64_t>();
+    if (bins > in.remaining() / sizeof(float)) in.garbled("bin count");
+    d.bins = in.get_array<float>(static_cast<std::size_t>(bins));
+    const auto keys = in.get<std::uint64_t>();
+    if (keys > in.remaining() / sizeof(float)) in.garbled("ring key count");
+    d.ring_key = in.get_array<float>(static_cast<std::size_t>(keys));
+    d.occupied_bins = static_cast<int>(in.get<std::int64_t>());
+    const auto valid = in.get<std::uint8_t>();
+    if (valid > 1) in.garbled("valid flag");
+    d.valid = valid == 1;
+  }
+  in.expect_end();
+  return answer;
 }
 
 std::vector<std::byte> encode_registrations(std::span<const PairRegistration> registrations,

@@ -66,10 +66,17 @@ struct OverlapJob {
 /// The loop step's GICP that rank 0 shares out: the validation of loop candidates (the pairs
 /// with their descriptors' distance and yaw) or the registration of pairs.
 struct LoopWork {
-  bool validate = true;  // candidates (validate_loop_candidates()), else pairs (register_pairs())
+  /// What the ranks do with the items (the job's pairs).
+  enum class Kind : std::uint8_t {
+    kValidate = 0,  // validate_loop_candidates() of the candidates
+    kRegister = 1,  // register_pairs() of the pairs
+    kDescribe = 2,  // make_scan_context() of each item's target frame
+  };
+  Kind kind = Kind::kValidate;
   double max_correspondence_distance = 1.0;  // LoopClosureOptions: what the validation reads
   double min_inlier_fraction = 0.8;
   AlignSettings settings;                   // register_pairs()'s
+  ScanContextOptions descriptor;            // make_scan_context()'s
   std::vector<double> descriptor_distance;  // per candidate
   std::vector<double> yaw;                  // per candidate
 };
@@ -194,6 +201,9 @@ WorkAnswer read_overlap_answer(std::span<const std::byte> bytes, const std::stri
 /// memory (bytes), and its share's checks (validation) or registrations, in the share's order.
 std::vector<std::byte> encode_loop_checks(std::span<const LoopCheck> checks, double seconds,
                                           std::size_t frames_read, std::uint64_t peak_rss_bytes);
+/// The same for descriptors.
+std::vector<std::byte> encode_descriptors(std::span<const ScanContext> descriptors, double seconds,
+                                          std::size_t frames_read, std::uint64_t peak_rss_bytes);
 /// The same for registrations.
 std::vector<std::byte> encode_registrations(std::span<const PairRegistration> registrations,
                                             double seconds, std::size_t frames_read,
@@ -203,6 +213,11 @@ std::vector<std::byte> encode_registrations(std::span<const PairRegistration> re
 /// carat::Error naming `what` for bytes that are not that answer.
 WorkAnswer read_loop_checks(std::span<const std::byte> bytes, const std::string& what,
                             std::span<const std::size_t> expected, std::vector<LoopCheck>* checks);
+/// Reads encode_descriptors()'s answer into (*descriptors)[k] for k in `expected`; throws as
+/// read_loop_checks().
+WorkAnswer read_descriptors(std::span<const std::byte> bytes, const std::string& what,
+                            std::span<const std::size_t> expected,
+                            std::vector<ScanContext>* descriptors);
 /// Reads encode_registrations()'s answer into (*registrations)[k] for k in `expected`; throws
 /// as read_loop_checks().
 WorkAnswer read_registrations(std::span<const std::byte> bytes, const std::string& what,

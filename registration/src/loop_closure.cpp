@@ -106,12 +106,6 @@ std::vector<LoopCandidate> find_loop_candidates(FrameStore& frames,
   check_counts(frames.size(), T_world_guess.size());
   check_options(options);
   const std::size_t n = frames.size();
-  // Distance travelled along the guess up to each frame.
-  std::vector<double> travel(n, 0.0);
-  for (std::size_t k = 1; k < n; ++k) {
-    travel[k] = travel[k - 1] +
-                (T_world_guess[k].translation() - T_world_guess[k - 1].translation()).norm();
-  }
   std::vector<ScanContext> descriptors(n);
   const int threads = std::clamp(options.num_threads, 1, tbb::info::default_concurrency());
   tbb::task_arena arena(threads);
@@ -120,6 +114,39 @@ std::vector<LoopCandidate> find_loop_candidates(FrameStore& frames,
       descriptors[k] = make_scan_context(frames.get(k)->cloud(), options.descriptor);
     });
   });
+  return find_loop_candidates(descriptors, T_world_guess, options, sparse_frames);
+}
+
+std::vector<LoopCandidate> find_loop_candidates(std::span<const ScanContext> descriptors,
+                                                std::span<const Eigen::Isometry3d> T_world_guess,
+                                                const LoopClosureOptions& options,
+                                                std::vector<int>* sparse_frames) {
+  if (descriptors.size() != T_world_guess.size()) {
+    throw Error("loop closure: " + std::to_string(descriptors.size()) + " descriptors but " +
+                std::to_string(T_world_guess.size()) + " poses");
+  }
+  check_options(options);
+  const std::size_t n = descriptors.size();
+  for (std::size_t k = 0; k < n; ++k) {
+    const ScanContext& d = descriptors[k];
+    if (d.valid &&
+        (d.rings != options.descriptor.rings || d.sectors != options.descriptor.sectors ||
+         d.ring_key.size() != static_cast<std::size_t>(d.rings) ||
+         d.bins.size() !=
+             static_cast<std::size_t>(d.rings) * static_cast<std::size_t>(d.sectors))) {
+      throw Error("loop closure: the descriptor of frame " + std::to_string(k) + " is not " +
+                  std::to_string(options.descriptor.rings) + " rings by " +
+                  std::to_string(options.descriptor.sectors) + " sectors");
+    }
+  }
+  // Distance travelled along the guess up to each frame.
+  std::vector<double> travel(n, 0.0);
+  for (std::size_t k = 1; k < n; ++k) {
+    travel[k] = travel[k - 1] +
+                (T_world_guess[k].translation() - T_world_guess[k - 1].translation()).norm();
+  }
+  const int threads = std::clamp(options.num_threads, 1, tbb::info::default_concurrency());
+  tbb::task_arena arena(threads);
   RingKeys keys;
   keys.rings = static_cast<std::size_t>(options.descriptor.rings);
   std::vector<int> tree_frame;  // tree index -> frame
@@ -254,7 +281,12 @@ LoopClosureResult close_loops(FrameStore& frames, std::span<const Eigen::Isometr
   }
   check_options(options);
   LoopClosureResult out;
-  out.candidates = find_loop_candidates(frames, T_world_guess, options, &out.sparse_frames);
+  if (stages.describe) {
+    const std::vector<ScanContext> descriptors = stages.describe(frames.size(), options.descriptor);
+    out.candidates = find_loop_candidates(descriptors, T_world_guess, options, &out.sparse_frames);
+  } else {
+    out.candidates = find_loop_candidates(frames, T_world_guess, options, &out.sparse_frames);
+  }
   if (progress) progress(1, 3);
   out.checks = stages.validate
                    ? stages.validate(out.candidates, T_world_guess, options)

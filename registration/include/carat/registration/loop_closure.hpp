@@ -89,6 +89,14 @@ std::vector<LoopCandidate> find_loop_candidates(FrameStore& frames,
                                                 const LoopClosureOptions& options,
                                                 std::vector<int>* sparse_frames = nullptr);
 
+/// find_loop_candidates() from descriptors already made, one per frame (make_scan_context() of
+/// each frame's cloud with options.descriptor, e.g. on other processes). Throws carat::Error for
+/// mismatched counts or options out of range.
+std::vector<LoopCandidate> find_loop_candidates(std::span<const ScanContext> descriptors,
+                                                std::span<const Eigen::Isometry3d> T_world_guess,
+                                                const LoopClosureOptions& options,
+                                                std::vector<int>* sparse_frames = nullptr);
+
 /// GICP for every candidate from two starts: the descriptor's yaw (no translation) and the
 /// guess's relative pose; the start whose result matches more of the source's points counts.
 /// Parallel over candidates; results do not depend on the thread count.
@@ -100,6 +108,9 @@ std::vector<LoopCheck> validate_loop_candidates(FrameStore& frames,
 /// Where close_loops() runs its two stages of GICP (e.g. shared over the ranks of an MPI job);
 /// each must return what the library function it stands for returns for the same arguments.
 struct LoopClosureStages {
+  /// The Scan Context descriptor of each of the frames (their count given) with these options,
+  /// as make_scan_context() makes it; empty: made in this process.
+  std::function<std::vector<ScanContext>(std::size_t, const ScanContextOptions&)> describe;
   /// validate_loop_candidates() of the candidates at the guess; empty: run in this process.
   std::function<std::vector<LoopCheck>(std::span<const LoopCandidate>,
                                        std::span<const Eigen::Isometry3d>,
