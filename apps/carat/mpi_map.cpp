@@ -54,9 +54,10 @@ enum Command : std::uint64_t {
   kLinearize = 3,    // stream the held factors' linearization records at the poses sent
   kCosts = 4,        // stream their costs
   kFactorCosts = 5,  // answer their costs per correspondence
-  kLoops = 6,        // validate loop candidates or register pairs (the loop step)
+  kLoops = 6,        // the loop step: describe frames, validate candidates or register pairs
 };
 constexpr int kAnswerTag = 7;
+constexpr std::size_t kChunk = std::size_t{1} << 30;  // MPI counts are int
 
 /// One rank's share of a loop job (`indices` into its pairs), done with `threads` threads in
 /// this process as close_loops() would, and its answer (`time` started after the job was read).
@@ -96,7 +97,6 @@ std::vector<std::byte> do_loop_share(FrameStore& store, const LoopJob& job,
   return encode_registrations(registrations, time.elapsed_s(), store.stats().loads,
                               peak_rss_bytes());
 }
-constexpr std::size_t kChunk = std::size_t{1} << 30;  // MPI counts are int
 
 /// A failure the test suite asks a rank for (CARAT_MPI_TEST_FAULT="throw@K" or "abort@K": fail
 /// the K-th linearization with an error, or die there as a crash would); at 0: none.

@@ -105,8 +105,9 @@ std::vector<LoopCheck> validate_loop_candidates(FrameStore& frames,
                                                 std::span<const LoopCandidate> candidates,
                                                 const LoopClosureOptions& options);
 
-/// Where close_loops() runs its two stages of GICP (e.g. shared over the ranks of an MPI job);
-/// each must return what the library function it stands for returns for the same arguments.
+/// Where close_loops() makes its descriptors and runs its GICP (e.g. shared over the ranks of an
+/// MPI job); each must return what the library function it stands for returns for the same
+/// arguments.
 struct LoopClosureStages {
   /// The Scan Context descriptor of each of the frames (their count given) with these options,
   /// as make_scan_context() makes it; empty: made in this process.
@@ -132,7 +133,8 @@ LoopClosureResult close_loops(FrameStore& frames, std::span<const Eigen::Isometr
                               const LoopClosureOptions& options,
                               const std::function<void(std::size_t, std::size_t)>& progress = {});
 
-/// close_loops() with its validation and consecutive registrations run by `stages` (where set).
+/// close_loops() with its descriptors, validation and consecutive registrations made by `stages`
+/// (where set).
 LoopClosureResult close_loops(FrameStore& frames, std::span<const Eigen::Isometry3d> T_world_guess,
                               const LoopClosureOptions& options,
                               const std::function<void(std::size_t, std::size_t)>& progress,

@@ -96,8 +96,8 @@ struct MappingOptions {
   /// When set, measures the dense graph's candidates instead of this process (MPI); the graph is
   /// the one build_dense_graph() finds from the same measurements.
   MappingOverlapMeasurer measure_overlaps;
-  /// Where the loop step's validation and consecutive registrations run (MPI); empty members:
-  /// in this process.
+  /// Where the loop step's descriptors, validation and consecutive registrations are made (MPI);
+  /// empty members: in this process.
   LoopClosureStages loop_stages;
 
   /// GlobalRegistrationOptions with mapping_solver_options().
