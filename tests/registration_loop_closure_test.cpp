@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <set>
 #include <string>
@@ -244,6 +245,42 @@ TEST(LoopClosureTest, ACorridorOfIdenticalScansIsNotAccepted) {
   for (const LoopCandidate& c : candidates) EXPECT_EQ(c.descriptor_distance, 0.0);
   const auto checks = validate_loop_candidates(frames, guess, candidates, options);
   for (const LoopCheck& check : checks) EXPECT_EQ(check.verdict, LoopVerdict::kDegenerate);
+}
+
+TEST(LoopClosureTest, ALoopFarFromTheGuessIsRejected) {
+  // A true revisit (the same place on the two laps), but a guess whose second lap is shifted by
+  // 60 m: farther than odometry drifts over the path between the frames (10 % of it), so a loop
+  // that would move the second lap there is refused, unless the limit is lifted.
+  const DriftingDrive& d = drifting_drive();
+  const auto& truth = d.pipeline.T_world_truth;
+  FrameStore frames(d.pipeline.frames);
+  const int i = 10;
+  const int j = 60;
+  std::vector<Eigen::Isometry3d> guess(truth.begin(), truth.end());
+  for (std::size_t k = 55; k < guess.size(); ++k)
+    guess[k].translation() += Eigen::Vector3d(60.0, 0.0, 0.0);
+  const Eigen::Isometry3d T_ij =
+      truth[static_cast<std::size_t>(i)].inverse() * truth[static_cast<std::size_t>(j)];
+  const LoopCandidate candidate{FramePair{i, j, 0.0}, 0.1,
+                                std::atan2(T_ij.linear()(1, 0), T_ij.linear()(0, 0))};
+  LoopClosureOptions options;
+  const auto far = validate_loop_candidates(frames, guess, std::span(&candidate, 1), options);
+  ASSERT_EQ(far.size(), 1u);
+  EXPECT_EQ(far[0].verdict, LoopVerdict::kTooFarFromGuess);
+  EXPECT_STREQ(to_string(far[0].verdict), "too far from the guess");
+  options.max_drift_fraction = std::numeric_limits<double>::infinity();
+  const auto kept = validate_loop_candidates(frames, guess, std::span(&candidate, 1), options);
+  ASSERT_EQ(kept[0].verdict, LoopVerdict::kAccepted);
+  const Eigen::Isometry3d error = T_ij.inverse() * kept[0].registration.T_target_source;
+  EXPECT_LT(error.translation().norm(), 0.2);
+  options.max_drift_fraction = 0.0;
+  try {
+    validate_loop_candidates(frames, guess, std::span(&candidate, 1), options);
+    FAIL() << "no error";
+  } catch (const Error& e) {
+    EXPECT_STREQ(e.what(),
+                 "loop closure: max_drift_fraction must be > 0 (infinity: no limit), got 0");
+  }
 }
 
 TEST(LoopClosureTest, BadInputIsNamed) {

@@ -8,8 +8,8 @@ nlohmann::json loops_json(const std::optional<LoopClosureResult>& loops, double 
   nlohmann::json j = {{"ran", loops.has_value()}};
   if (!loops) return j;
   nlohmann::json rejected = nlohmann::json::object();
-  for (LoopVerdict v :
-       {LoopVerdict::kNotConverged, LoopVerdict::kDegenerate, LoopVerdict::kFewInliers}) {
+  for (LoopVerdict v : {LoopVerdict::kNotConverged, LoopVerdict::kDegenerate,
+                        LoopVerdict::kFewInliers, LoopVerdict::kTooFarFromGuess}) {
     std::size_t count = 0;
     for (const LoopCheck& check : loops->checks) count += check.verdict == v;
     rejected[to_string(v)] = count;

@@ -83,6 +83,7 @@ std::vector<std::byte> do_loop_share(FrameStore& store, const LoopJob& job,
     LoopClosureOptions options;
     options.max_correspondence_distance = job.options.max_correspondence_distance;
     options.min_inlier_fraction = job.options.min_inlier_fraction;
+    options.max_drift_fraction = job.options.max_drift_fraction;
     options.num_threads = threads;
     std::vector<LoopCheck> checks;
     if (!candidates.empty())
@@ -358,6 +359,7 @@ void MpiMapJob::attach(MpiFrameSource source, std::shared_ptr<FrameStore> frames
     work.kind = LoopWork::Kind::kValidate;
     work.max_correspondence_distance = loops.max_correspondence_distance;
     work.min_inlier_fraction = loops.min_inlier_fraction;
+    work.max_drift_fraction = loops.max_drift_fraction;
     std::vector<FramePair> pairs;
     for (const LoopCandidate& candidate : candidates) {
       pairs.push_back(candidate.pair);

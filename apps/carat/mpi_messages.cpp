@@ -178,6 +178,7 @@ LoopWork read_loop_work(ByteReader& in) {
   work.kind = static_cast<LoopWork::Kind>(kind);
   work.max_correspondence_distance = in.get<double>();
   work.min_inlier_fraction = in.get<double>();
+  work.max_drift_fraction = in.get<double>();
   const auto method = in.get<std::uint8_t>();
   if (method > static_cast<std::uint8_t>(RegistrationMethod::kPointToPoint))
     in.garbled("registration method");
@@ -208,6 +209,7 @@ void write_options(ByteWriter& out, const LoopWork& work) {
   out.put(static_cast<std::uint8_t>(work.kind));
   out.put(work.max_correspondence_distance);
   out.put(work.min_inlier_fraction);
+  out.put(work.max_drift_fraction);
   out.put(static_cast<std::uint8_t>(work.settings.method));
   out.put(work.settings.max_correspondence_distance);
   out.put(static_cast<std::int64_t>(work.settings.max_iterations));
@@ -316,7 +318,7 @@ WorkAnswer read_loop_checks(std::span<const std::byte> bytes, const std::string&
   for (const std::size_t k : expected) {
     LoopCheck& check = (*checks)[k];
     const auto verdict = in.get<std::uint8_t>();
-    if (verdict > static_cast<std::uint8_t>(LoopVerdict::kFewInliers)) in.garbled("verdict");
+    if (verdict > static_cast<std::uint8_t>(LoopVerdict::kTooFarFromGuess)) in.garbled("verdict");
     check.verdict = static_cast<LoopVerdict>(verdict);
     check.inlier_fraction = in.get<double>();
     check.registration = read_registration(in);

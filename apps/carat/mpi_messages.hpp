@@ -75,6 +75,7 @@ struct LoopWork {
   Kind kind = Kind::kValidate;
   double max_correspondence_distance = 1.0;  // LoopClosureOptions: what the validation reads
   double min_inlier_fraction = 0.8;
+  double max_drift_fraction = 0.1;
   AlignSettings settings;                   // register_pairs()'s
   ScanContextOptions descriptor;            // make_scan_context()'s
   std::vector<double> descriptor_distance;  // per candidate

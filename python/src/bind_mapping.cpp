@@ -178,7 +178,7 @@ MappingResult pose_graph(const py::handle& frames_in, const py::handle& graph,
 py::dict close_loops_py(const py::handle& frames_in, const py::handle& poses_in,
                         double exclude_recent_m, double max_descriptor_distance,
                         double min_inlier_fraction, double max_correspondence_distance,
-                        int threads) {
+                        double max_drift_fraction, int threads) {
   FrameStore frames(frames_from_sequence(frames_in, "frames"));
   const auto poses = poses_for_frames(poses_in, frames.size());
   LoopClosureOptions options;
@@ -186,6 +186,7 @@ py::dict close_loops_py(const py::handle& frames_in, const py::handle& poses_in,
   options.max_descriptor_distance = max_descriptor_distance;
   options.min_inlier_fraction = min_inlier_fraction;
   options.max_correspondence_distance = max_correspondence_distance;
+  options.max_drift_fraction = max_drift_fraction;
   options.num_threads = threads_argument(threads);
   const LoopClosureResult result = run_released([&](InterruptCheck& check) {
     options.graph.solver.iteration_callback = check.iteration_callback();
@@ -435,12 +436,13 @@ Returns a carat.MappingResult.)");
   def_checked(m, "close_loops", &close_loops_py, py::arg("frames"), py::arg("poses"),
               py::arg("exclude_recent_m") = 100.0, py::arg("max_descriptor_distance") = 0.35,
               py::arg("min_inlier_fraction") = 0.8, py::arg("max_correspondence_distance") = 1.0,
-              py::arg("threads") = 1,
+              py::arg("max_drift_fraction") = 0.1, py::arg("threads") = 1,
               R"(Closes the loops of a drive from a drifting guess (N x 4 x 4 T_world_frame).
 
 Scan Context candidates (each frame's best match at least exclude_recent_m back along the
 path), validated by GICP (converged, 6 directions fixed, min_inlier_fraction of the source's
-points within max_correspondence_distance), then a pose graph of consecutive GICP and the
+points within max_correspondence_distance, moving the newer frame from the guess by at most
+max_drift_fraction of the path between the two), then a pose graph of consecutive GICP and the
 accepted loops. Returns a dict: poses (the pose graph's result; the guess when no loop was
 accepted), candidates (target, source, descriptor_distance, yaw, verdict, inlier_fraction,
 T_target_source each), loops (K x 2), sparse_frames, summary (None without loops).)");

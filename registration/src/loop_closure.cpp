@@ -56,6 +56,8 @@ void check_options(const LoopClosureOptions& o) {
     fail("max_correspondence_distance", "finite and > 0 (metres)", o.max_correspondence_distance);
   if (!(o.min_inlier_fraction >= 0.0 && o.min_inlier_fraction <= 1.0))
     fail("min_inlier_fraction", "in [0, 1]", o.min_inlier_fraction);
+  if (!(o.max_drift_fraction > 0.0))
+    fail("max_drift_fraction", "> 0 (infinity: no limit)", o.max_drift_fraction);
   if (o.num_threads < 1) fail("num_threads", ">= 1", o.num_threads);
 }
 
@@ -95,6 +97,8 @@ const char* to_string(LoopVerdict verdict) {
       return "degenerate";
     case LoopVerdict::kFewInliers:
       return "few inliers";
+    case LoopVerdict::kTooFarFromGuess:
+      return "too far from the guess";
   }
   return "unknown";
 }
@@ -214,6 +218,12 @@ std::vector<LoopCheck> validate_loop_candidates(FrameStore& frames,
   check_counts(frames.size(), T_world_guess.size());
   check_options(options);
   std::vector<LoopCheck> checks(candidates.size());
+  // Distance travelled along the guess up to each frame.
+  std::vector<double> travel(T_world_guess.size(), 0.0);
+  for (std::size_t k = 1; k < travel.size(); ++k) {
+    travel[k] = travel[k - 1] +
+                (T_world_guess[k].translation() - T_world_guess[k - 1].translation()).norm();
+  }
   const int threads = std::clamp(options.num_threads, 1, tbb::info::default_concurrency());
   tbb::task_arena arena(threads);
   arena.execute([&] {
@@ -257,6 +267,9 @@ std::vector<LoopCheck> validate_loop_candidates(FrameStore& frames,
         check.verdict = LoopVerdict::kDegenerate;
       } else if (check.inlier_fraction < options.min_inlier_fraction) {
         check.verdict = LoopVerdict::kFewInliers;
+      } else if ((starts[1].inverse() * chosen.T_target_source).translation().norm() >
+                 options.max_drift_fraction * std::abs(travel[j] - travel[i])) {
+        check.verdict = LoopVerdict::kTooFarFromGuess;
       } else {
         check.verdict = LoopVerdict::kAccepted;
       }

@@ -29,6 +29,12 @@ struct LoopClosureOptions {
   double max_descriptor_distance = 0.35;     ///< candidates must match at least this well
   double max_correspondence_distance = 1.0;  ///< metres: GICP's last stage (a first stage uses
                                              ///< three times this); the inlier distance
+  double max_drift_fraction = 0.1;   ///< a loop is accepted only if its relative pose moves the
+                                     ///< newer frame, against the guess's, by at most this
+                                     ///< fraction of the path the guess travels between the two
+                                     ///< frames (> 0; infinity: no limit): odometry drifts by a
+                                     ///< few percent, while a repeated place (the same block of a
+                                     ///< grid city) aligns at whole block lengths off
   double min_inlier_fraction = 0.8;  ///< share of the source's points within that distance of
                                      ///< the target at the result, for a loop to be accepted;
                                      ///< high because the ground matches almost anywhere (in
@@ -49,13 +55,16 @@ struct LoopCandidate {
 
 /// Why a candidate was accepted or not.
 enum class LoopVerdict {
-  kAccepted,      ///< converged, fully constrained, enough inliers
-  kNotConverged,  ///< GICP did not converge from either start, or found too few pairs
-  kDegenerate,    ///< the pair constrains fewer than 6 directions (a corridor, a plane)
-  kFewInliers,    ///< converged, but too few of the source's points match the target
+  kAccepted,         ///< converged, fully constrained, enough inliers
+  kNotConverged,     ///< GICP did not converge from either start, or found too few pairs
+  kDegenerate,       ///< the pair constrains fewer than 6 directions (a corridor, a plane)
+  kFewInliers,       ///< converged, but too few of the source's points match the target
+  kTooFarFromGuess,  ///< moves the newer frame farther from the guess than odometry drifts
+                     ///< (LoopClosureOptions::max_drift_fraction)
 };
 
-/// Name of a verdict: "accepted", "not converged", "degenerate", "few inliers".
+/// Name of a verdict: "accepted", "not converged", "degenerate", "few inliers", "too far from
+/// the guess".
 const char* to_string(LoopVerdict verdict);
 
 /// The validation of one candidate.
