@@ -109,6 +109,30 @@ WorkAnswer read_answer_header(ByteReader& in, std::size_t items, const char* nam
   return answer;
 }
 
+/// An answer of one item per entry of a share: the header, then write(out, item) for each.
+template <class Item, class Write>
+std::vector<std::byte> encode_items(std::span<const Item> items, double seconds,
+                                    std::size_t frames_read, std::uint64_t peak_rss_bytes,
+                                    Write write) {
+  std::vector<std::byte> bytes;
+  ByteWriter out(bytes);
+  write_answer_header(out, seconds, frames_read, peak_rss_bytes, items.size());
+  for (const Item& item : items) write(out, item);
+  return bytes;
+}
+
+/// Reads encode_items()'s answer for the share `expected`: read(in, k) for each of its indices
+/// (`name` says of what, in errors).
+template <class Read>
+WorkAnswer read_items(std::span<const std::byte> bytes, const std::string& what,
+                      std::span<const std::size_t> expected, const char* name, Read read) {
+  ByteReader in(bytes, what);
+  const WorkAnswer answer = read_answer_header(in, expected.size(), name);
+  for (const std::size_t k : expected) read(in, k);
+  in.expect_end();
+  return answer;
+}
+
 /// A job: how to read the frames, the stage's settings, the pairs, the poses and the shares.
 template <class Options>
 std::vector<std::byte> encode_work_job(const MpiFrameSource& source, const Options& options,
@@ -247,42 +271,34 @@ LoopJob decode_loop_job(std::span<const std::byte> bytes) {
 
 std::vector<std::byte> encode_loop_checks(std::span<const LoopCheck> checks, double seconds,
                                           std::size_t frames_read, std::uint64_t peak_rss_bytes) {
-  std::vector<std::byte> bytes;
-  ByteWriter out(bytes);
-  write_answer_header(out, seconds, frames_read, peak_rss_bytes, checks.size());
-  for (const LoopCheck& check : checks) {
-    out.put(static_cast<std::uint8_t>(check.verdict));
-    out.put(check.inlier_fraction);
-    write_registration(out, check.registration);
-  }
-  return bytes;
+  return encode_items(checks, seconds, frames_read, peak_rss_bytes,
+                      [](ByteWriter& out, const LoopCheck& check) {
+                        out.put(static_cast<std::uint8_t>(check.verdict));
+                        out.put(check.inlier_fraction);
+                        write_registration(out, check.registration);
+                      });
 }
 
 std::vector<std::byte> encode_descriptors(std::span<const ScanContext> descriptors, double seconds,
                                           std::size_t frames_read, std::uint64_t peak_rss_bytes) {
   static_assert(field_count<ScanContext>() == 6, "mpi_messages: write the new field");
-  std::vector<std::byte> bytes;
-  ByteWriter out(bytes);
-  write_answer_header(out, seconds, frames_read, peak_rss_bytes, descriptors.size());
-  for (const ScanContext& d : descriptors) {
-    out.put(static_cast<std::int64_t>(d.rings));
-    out.put(static_cast<std::int64_t>(d.sectors));
-    out.put(static_cast<std::uint64_t>(d.bins.size()));
-    out.put_array(std::span<const float>(d.bins));
-    out.put(static_cast<std::uint64_t>(d.ring_key.size()));
-    out.put_array(std::span<const float>(d.ring_key));
-    out.put(static_cast<std::int64_t>(d.occupied_bins));
-    out.put(static_cast<std::uint8_t>(d.valid ? 1 : 0));
-  }
-  return bytes;
+  return encode_items(descriptors, seconds, frames_read, peak_rss_bytes,
+                      [](ByteWriter& out, const ScanContext& d) {
+                        out.put(static_cast<std::int64_t>(d.rings));
+                        out.put(static_cast<std::int64_t>(d.sectors));
+                        out.put(static_cast<std::uint64_t>(d.bins.size()));
+                        out.put_array(std::span<const float>(d.bins));
+                        out.put(static_cast<std::uint64_t>(d.ring_key.size()));
+                        out.put_array(std::span<const float>(d.ring_key));
+                        out.put(static_cast<std::int64_t>(d.occupied_bins));
+                        out.put(static_cast<std::uint8_t>(d.valid ? 1 : 0));
+                      });
 }
 
 WorkAnswer read_descriptors(std::span<const std::byte> bytes, const std::string& what,
                             std::span<const std::size_t> expected,
                             std::vector<ScanContext>* descriptors) {
-  ByteReader in(bytes, what);
-  const WorkAnswer answer = read_answer_header(in, expected.size(), "descriptor");
-  for (const std::size_t k : expected) {
+  return read_items(bytes, what, expected, "descriptor", [&](ByteReader& in, std::size_t k) {
     ScanContext& d = (*descriptors)[k];
     d.rings = static_cast<int>(in.get<std::int64_t>());
     d.sectors = static_cast<int>(in.get<std::int64_t>());
@@ -296,45 +312,33 @@ WorkAnswer read_descriptors(std::span<const std::byte> bytes, const std::string&
     const auto valid = in.get<std::uint8_t>();
     if (valid > 1) in.garbled("valid flag");
     d.valid = valid == 1;
-  }
-  in.expect_end();
-  return answer;
+  });
 }
 
 std::vector<std::byte> encode_registrations(std::span<const PairRegistration> registrations,
                                             double seconds, std::size_t frames_read,
                                             std::uint64_t peak_rss_bytes) {
-  std::vector<std::byte> bytes;
-  ByteWriter out(bytes);
-  write_answer_header(out, seconds, frames_read, peak_rss_bytes, registrations.size());
-  for (const PairRegistration& r : registrations) write_registration(out, r);
-  return bytes;
+  return encode_items(registrations, seconds, frames_read, peak_rss_bytes, write_registration);
 }
 
 WorkAnswer read_loop_checks(std::span<const std::byte> bytes, const std::string& what,
                             std::span<const std::size_t> expected, std::vector<LoopCheck>* checks) {
-  ByteReader in(bytes, what);
-  const WorkAnswer answer = read_answer_header(in, expected.size(), "check");
-  for (const std::size_t k : expected) {
+  return read_items(bytes, what, expected, "check", [&](ByteReader& in, std::size_t k) {
     LoopCheck& check = (*checks)[k];
     const auto verdict = in.get<std::uint8_t>();
     if (verdict > static_cast<std::uint8_t>(LoopVerdict::kTooFarFromGuess)) in.garbled("verdict");
     check.verdict = static_cast<LoopVerdict>(verdict);
     check.inlier_fraction = in.get<double>();
     check.registration = read_registration(in);
-  }
-  in.expect_end();
-  return answer;
+  });
 }
 
 WorkAnswer read_registrations(std::span<const std::byte> bytes, const std::string& what,
                               std::span<const std::size_t> expected,
                               std::vector<PairRegistration>* registrations) {
-  ByteReader in(bytes, what);
-  const WorkAnswer answer = read_answer_header(in, expected.size(), "registration");
-  for (const std::size_t k : expected) (*registrations)[k] = read_registration(in);
-  in.expect_end();
-  return answer;
+  return read_items(bytes, what, expected, "registration", [&](ByteReader& in, std::size_t k) {
+    (*registrations)[k] = read_registration(in);
+  });
 }
 
 std::vector<std::byte> encode_job(const MpiFrameSource& source,
@@ -364,26 +368,19 @@ OverlapJob decode_overlap_job(std::span<const std::byte> bytes) {
 
 std::vector<std::byte> encode_overlaps(std::span<const FramePair> pairs, double measure_s,
                                        std::size_t frames_read, std::uint64_t peak_rss_bytes) {
-  std::vector<std::byte> bytes;
-  ByteWriter out(bytes);
-  write_answer_header(out, measure_s, frames_read, peak_rss_bytes, pairs.size());
-  for (const FramePair& pair : pairs) out.put(pair.overlap);
-  return bytes;
+  return encode_items(pairs, measure_s, frames_read, peak_rss_bytes,
+                      [](ByteWriter& out, const FramePair& pair) { out.put(pair.overlap); });
 }
 
 WorkAnswer read_overlap_answer(std::span<const std::byte> bytes, const std::string& what,
                                std::span<const std::size_t> expected,
                                std::vector<FramePair>* pairs) {
-  ByteReader in(bytes, what);
-  const WorkAnswer answer = read_answer_header(in, expected.size(), "pair");
-  for (const std::size_t k : expected) {
+  return read_items(bytes, what, expected, "pair", [&](ByteReader& in, std::size_t k) {
     const double overlap = in.get<double>();
     if (!(overlap >= 0.0 && overlap <= 1.0))
       in.garbled("overlap " + std::to_string(overlap) + " of pair " + std::to_string(k));
     (*pairs)[k].overlap = overlap;
-  }
-  in.expect_end();
-  return answer;
+  });
 }
 
 std::vector<std::uint64_t> file_sizes(const std::vector<ScanFile>& files) {
