@@ -177,8 +177,8 @@ MappingResult pose_graph(const py::handle& frames_in, const py::handle& graph,
 
 py::dict close_loops_py(const py::handle& frames_in, const py::handle& poses_in,
                         double exclude_recent_m, double max_descriptor_distance,
-                        double min_inlier_fraction, double max_correspondence_distance,
-                        double max_drift_fraction, int threads) {
+                        double min_inlier_fraction, double max_correspondence_distance, int threads,
+                        double max_drift_fraction) {
   FrameStore frames(frames_from_sequence(frames_in, "frames"));
   const auto poses = poses_for_frames(poses_in, frames.size());
   LoopClosureOptions options;
@@ -436,7 +436,7 @@ Returns a carat.MappingResult.)");
   def_checked(m, "close_loops", &close_loops_py, py::arg("frames"), py::arg("poses"),
               py::arg("exclude_recent_m") = 100.0, py::arg("max_descriptor_distance") = 0.35,
               py::arg("min_inlier_fraction") = 0.8, py::arg("max_correspondence_distance") = 1.0,
-              py::arg("max_drift_fraction") = 0.1, py::arg("threads") = 1,
+              py::arg("threads") = 1, py::arg("max_drift_fraction") = 0.1,
               R"(Closes the loops of a drive from a drifting guess (N x 4 x 4 T_world_frame).
 
 Scan Context candidates (each frame's best match at least exclude_recent_m back along the

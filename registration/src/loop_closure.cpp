@@ -85,6 +85,16 @@ bool align_from(const Frame& target, const Frame& source, const Eigen::Isometry3
   return true;
 }
 
+/// Distance travelled along the guess up to each frame (metres; 0 at frame 0).
+std::vector<double> path_travel(std::span<const Eigen::Isometry3d> T_world_guess) {
+  std::vector<double> travel(T_world_guess.size(), 0.0);
+  for (std::size_t k = 1; k < travel.size(); ++k) {
+    travel[k] = travel[k - 1] +
+                (T_world_guess[k].translation() - T_world_guess[k - 1].translation()).norm();
+  }
+  return travel;
+}
+
 }  // namespace
 
 const char* to_string(LoopVerdict verdict) {
@@ -143,12 +153,7 @@ std::vector<LoopCandidate> find_loop_candidates(std::span<const ScanContext> des
                   std::to_string(options.descriptor.sectors) + " sectors");
     }
   }
-  // Distance travelled along the guess up to each frame.
-  std::vector<double> travel(n, 0.0);
-  for (std::size_t k = 1; k < n; ++k) {
-    travel[k] = travel[k - 1] +
-                (T_world_guess[k].translation() - T_world_guess[k - 1].translation()).norm();
-  }
+  const std::vector<double> travel = path_travel(T_world_guess);
   const int threads = std::clamp(options.num_threads, 1, tbb::info::default_concurrency());
   tbb::task_arena arena(threads);
   RingKeys keys;
@@ -218,12 +223,7 @@ std::vector<LoopCheck> validate_loop_candidates(FrameStore& frames,
   check_counts(frames.size(), T_world_guess.size());
   check_options(options);
   std::vector<LoopCheck> checks(candidates.size());
-  // Distance travelled along the guess up to each frame.
-  std::vector<double> travel(T_world_guess.size(), 0.0);
-  for (std::size_t k = 1; k < travel.size(); ++k) {
-    travel[k] = travel[k - 1] +
-                (T_world_guess[k].translation() - T_world_guess[k - 1].translation()).norm();
-  }
+  const std::vector<double> travel = path_travel(T_world_guess);
   const int threads = std::clamp(options.num_threads, 1, tbb::info::default_concurrency());
   tbb::task_arena arena(threads);
   arena.execute([&] {
