@@ -149,6 +149,49 @@ TEST(KdTreeTest, NearestWithinMatchesBruteForce) {
 }
 
 }  // namespace
+TEST(KdTreeTest, EveryCloudSizeAndManyPointsAtOnePosition) {
+  std::mt19937 rng(29);
+  std::uniform_real_distribution<float> u(-2.0f, 2.0f);
+  // Sizes around the leaf and vector widths, and far more points at one position than a leaf
+  // holds (they cannot be told apart by a split plane).
+  for (const int n : {1, 2, 7, 8, 9, 55, 56, 57, 113, 300}) {
+    PointCloud cloud;
+    for (int k = 0; k < n; ++k) cloud.points.emplace_back(u(rng), u(rng), u(rng));
+    if (n == 300)
+      for (int k = 0; k < 200; ++k) cloud.points.emplace_back(0.5f, 0.5f, 0.5f);
+    const KdTree tree(cloud);
+    for (int q = 0; q < 50; ++q) {
+      const Eigen::Vector3f query =
+          q == 0 ? Eigen::Vector3f(0.5f, 0.5f, 0.5f) : Eigen::Vector3f(u(rng), u(rng), u(rng));
+      float best = std::numeric_limits<float>::infinity();
+      for (const auto& p : cloud.points) {
+        const Eigen::Vector3f d = p - query;
+        best = std::min(best, d.x() * d.x() + d.y() * d.y() + d.z() * d.z());
+      }
+      std::uint32_t index = 0;
+      float sq = -1.0f;
+      ASSERT_TRUE(tree.nearest_within(query, 100.0f, &index, &sq)) << "n " << n;
+      EXPECT_EQ(sq, best) << "n " << n << " query " << q;
+      const Eigen::Vector3f d = cloud.points[index] - query;
+      EXPECT_EQ(sq, d.x() * d.x() + d.y() * d.y() + d.z() * d.z());
+      EXPECT_EQ(tree.nearest_within(query, 0.5f * best, &index, &sq), best == 0.0f);
+    }
+  }
+  // 250 points at one position: the 240 nearest of a query there are all at distance 0.
+  PointCloud repeated;
+  for (int k = 0; k < 250; ++k) repeated.points.emplace_back(1.0f, 2.0f, 3.0f);
+  repeated.points.emplace_back(1.0f, 2.0f, 4.0f);
+  const KdTree tree(repeated);
+  std::vector<std::uint32_t> indices(240);
+  std::vector<float> distances(240);
+  ASSERT_EQ(tree.knn(Eigen::Vector3f(1.0f, 2.0f, 3.0f), 240, indices.data(), distances.data()),
+            240);
+  std::sort(indices.begin(), indices.end());
+  EXPECT_EQ(std::unique(indices.begin(), indices.end()), indices.end());  // distinct points
+  EXPECT_LT(indices.back(), 250u);
+  for (const float distance : distances) EXPECT_EQ(distance, 0.0f);
+}
+
 TEST(KdTreeTest, KnnMatchesBruteForce) {
   std::mt19937 rng(23);
   std::uniform_real_distribution<float> u(-5.0f, 5.0f);

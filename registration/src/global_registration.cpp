@@ -237,7 +237,7 @@ RegistrationFactor build_factor(const Frame& target, const Frame& source, const 
   RegistrationFactor factor;
   Stopwatch step;
   const Eigen::Isometry3d T_ij = T_world_target.inverse() * T_world_source;
-  const std::vector<GicpCorrespondence> correspondences = find_correspondences(
+  const std::vector<std::array<std::uint32_t, 2>> correspondences = find_nearest_pairs(
       target.cloud(), target.tree(), source.cloud(), T_ij, options.max_correspondence_distance);
   if (static_cast<int>(correspondences.size()) < options.min_correspondences) {
     char distance[32];
@@ -250,7 +250,9 @@ RegistrationFactor build_factor(const Frame& target, const Frame& source, const 
                 " m (need " + std::to_string(options.min_correspondences) +
                 "); the frames do not overlap at the initial poses" + names);
   }
-  auto full = std::make_shared<const GicpBlock>(correspondences, T_ij);
+  auto full = std::make_shared<const GicpBlock>(target.cloud().points, target.cloud().covariances,
+                                                source.cloud().points, source.cloud().covariances,
+                                                correspondences, T_ij);
   factor.correspondences = correspondences.size();
   factor.correspondence_bytes = full->memory_bytes();
   factor.correspondence_s = step.restart();

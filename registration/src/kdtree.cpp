@@ -1,29 +1,38 @@
 #include "carat/registration/kdtree.hpp"
 
 #include <algorithm>
-#include <array>
+#include <bit>
 #include <cmath>
 #include <limits>
 #include <numeric>
-#include <type_traits>
+
+#include "carat/base/multiversion.hpp"
 
 namespace carat {
 namespace {
 
-/// Most points a leaf holds.
-constexpr std::uint32_t kLeafSize = 20;
+/// Most points a leaf holds: large leaves, scanned a vector at a time, keep the descents short
+/// (on 0.25 m scans of 11,000 points, leaves of 56 answer in two thirds of the time of 20).
+constexpr std::uint32_t kLeafSize = 56;
 /// Node::dim of a leaf.
 constexpr std::uint32_t kLeaf = 3;
+/// Lanes of one group of leaf points: a leaf's points are stored as whole groups of this many
+/// x, y and z coordinates, padded with points at infinity (never closer than any bound).
+constexpr std::uint32_t kLanes = 8;
+/// Groups of lanes a leaf spans at most.
+constexpr std::uint32_t kLeafGroups = (kLeafSize + kLanes - 1) / kLanes;
+/// Deepest path a search can take (a median split halves a cell; 2^32 points need 32 levels).
+constexpr int kMaxDepth = 64;
 
-/// A position in leaf order, padded to 16 bytes so that a leaf is one contiguous run.
-struct alignas(16) LeafPoint {
-  float x, y, z, pad;
-};
+/// Eight floats, one vector register (or two, or four narrower ones, depending on the clone).
+typedef float Lanes __attribute__((vector_size(kLanes * sizeof(float))));
+/// Eight lane indices.
+typedef std::int32_t LaneIndices __attribute__((vector_size(kLanes * sizeof(std::int32_t))));
 
 /// A tree node. Inner: the points with coordinate `dim` below `split` are in the left child
 /// (the next node), those above in the right child (node `right_or_begin`), those equal in
 /// either.
-/// Leaf: points [begin, end) of the leaf-ordered arrays.
+/// Leaf: points [begin, end) of the leaf-ordered arrays; `begin` is a multiple of kLanes.
 struct Node {
   float split = 0.0f;
   std::uint32_t dim = kLeaf;
@@ -31,12 +40,27 @@ struct Node {
   std::uint32_t end = 0;
 };
 
-/// Squared distance, summed x, y, z in this order everywhere: the lower bound of a cell below is
-/// summed the same way from smaller terms, so it never exceeds the distance of a point inside
-/// (float addition and multiplication are monotone).
-[[gnu::always_inline]] inline float squared_distance(const LeafPoint& p, const float* q) {
-  const float dx = p.x - q[0], dy = p.y - q[1], dz = p.z - q[2];
-  return dx * dx + dy * dy + dz * dz;
+/// The arrays one search reads.
+struct TreeView {
+  const Node* nodes;
+  const float* x;  ///< leaf order, grouped by kLanes
+  const float* y;
+  const float* z;
+  const std::uint32_t* order;  ///< cloud index of each leaf-ordered point
+};
+
+/// Squared distances of one group of leaf points from q, each summed x, y, z in this order as
+/// everywhere: the lower bound of a cell below is summed the same way from smaller terms, so it
+/// never exceeds the distance of a point inside (float addition and multiplication are
+/// monotone).
+[[gnu::always_inline]] inline void group_distances(const TreeView& tree, std::uint32_t at,
+                                                   const float* q, Lanes& d) {
+  Lanes x, y, z;
+  __builtin_memcpy(&x, tree.x + at, sizeof(Lanes));
+  __builtin_memcpy(&y, tree.y + at, sizeof(Lanes));
+  __builtin_memcpy(&z, tree.z + at, sizeof(Lanes));
+  const Lanes dx = x - q[0], dy = y - q[1], dz = z - q[2];
+  d = dx * dx + dy * dy + dz * dz;
 }
 
 /// The one nearest point strictly closer than a bound; ties keep the point met first.
@@ -44,18 +68,36 @@ struct NearestResult {
   static constexpr std::uint32_t kNone = ~std::uint32_t{0};
   float worst;
   std::uint32_t position = kNone;  ///< in leaf order
-  /// Leaf points [begin, end), without a branch per point.
-  void add_leaf(const LeafPoint* points, std::uint32_t begin, std::uint32_t end, const float* q) {
-    float best = worst;
-    std::uint32_t at = position;
-    for (std::uint32_t j = begin; j < end; ++j) {
-      const float d = squared_distance(points[j], q);
-      const bool closer = d < best;
-      at = closer ? j : at;
-      best = closer ? d : best;
+  /// Leaf points [begin, end) (at most kLeafSize): the smallest distance over the leaf, then the
+  /// first point at it, which is what visiting the points one by one with "strictly closer"
+  /// keeps.
+  [[gnu::always_inline]] inline void add_leaf(const TreeView& tree, std::uint32_t begin,
+                                              std::uint32_t end, const float* q) {
+    constexpr float kInf = std::numeric_limits<float>::infinity();
+    Lanes d[kLeafGroups];
+    Lanes smallest = Lanes{} + kInf;
+    const std::uint32_t groups = (end - begin + kLanes - 1) / kLanes;
+    for (std::uint32_t g = 0; g < groups; ++g) {
+      group_distances(tree, begin + g * kLanes, q, d[g]);
+      smallest = d[g] < smallest ? d[g] : smallest;  // a NaN distance never wins
     }
+    float best = smallest[0];
+    for (std::uint32_t lane = 1; lane < kLanes; ++lane)
+      best = smallest[lane] < best ? smallest[lane] : best;
+    if (!(best < worst)) return;
+    LaneIndices lanes;
+    for (std::uint32_t lane = 0; lane < kLanes; ++lane)
+      lanes[lane] = static_cast<std::int32_t>(lane);
+    LaneIndices first = LaneIndices{} + std::numeric_limits<std::int32_t>::max();
+    for (std::uint32_t g = 0; g < groups; ++g) {
+      const LaneIndices here = lanes + static_cast<std::int32_t>(g * kLanes);
+      const LaneIndices candidate = d[g] == best ? here : first;
+      first = candidate < first ? candidate : first;
+    }
+    std::int32_t lane = first[0];
+    for (std::uint32_t k = 1; k < kLanes; ++k) lane = first[k] < lane ? first[k] : lane;
     worst = best;
-    position = at;
+    position = begin + static_cast<std::uint32_t>(lane);
   }
 };
 
@@ -69,11 +111,16 @@ struct KnnResult {
   float worst = std::numeric_limits<float>::infinity();
   std::uint32_t* indices;
   float* distances;
-  void add_leaf(const LeafPoint* points, std::uint32_t begin, std::uint32_t end, const float* q,
-                const std::uint32_t* order) {
-    for (std::uint32_t j = begin; j < end; ++j) add(squared_distance(points[j], q), order[j]);
+  [[gnu::always_inline]] inline void add_leaf(const TreeView& tree, std::uint32_t begin,
+                                              std::uint32_t end, const float* q) {
+    for (std::uint32_t at = begin; at < end; at += kLanes) {
+      Lanes d;
+      group_distances(tree, at, q, d);
+      const std::uint32_t n = std::min(kLanes, end - at);
+      for (std::uint32_t lane = 0; lane < n; ++lane) add(d[lane], tree.order[at + lane]);
+    }
   }
-  void add(float d, std::uint32_t i) {
+  [[gnu::always_inline]] inline void add(float d, std::uint32_t i) {
     if (!(d < worst)) return;
     int j = count < k ? count++ : k - 1;
     for (; j > 0 && distances[j - 1] > d; --j) {
@@ -86,6 +133,60 @@ struct KnnResult {
   }
 };
 
+/// Visits the leaves whose cells may hold a point closer than result.worst, nearer child first:
+/// a far child is visited after the near one, if its cell (at least sqrt(off . off) from q,
+/// off being q's offsets beyond the split planes on the path) is still closer than the worst
+/// point kept.
+template <class Result>
+[[gnu::always_inline]] inline void search(const TreeView& tree, const float* q, Result& result) {
+  struct Pending {
+    std::uint32_t node;
+    float bound;  ///< off . off of its cell
+    float off[3];
+  };
+  Pending stack[kMaxDepth];
+  int top = 0;
+  std::uint32_t node = 0;
+  float off[3] = {0.0f, 0.0f, 0.0f};
+  for (;;) {
+    const Node* n = tree.nodes + node;
+    while (n->dim != kLeaf) {
+      const float diff = q[n->dim] - n->split;
+      const std::uint32_t near = diff < 0.0f ? node + 1 : n->right_or_begin;
+      Pending& far = stack[top++];
+      far.node = diff < 0.0f ? n->right_or_begin : node + 1;
+      far.off[0] = off[0];
+      far.off[1] = off[1];
+      far.off[2] = off[2];
+      far.off[n->dim] = diff;  // the far cell lies beyond the split plane
+      far.bound = far.off[0] * far.off[0] + far.off[1] * far.off[1] + far.off[2] * far.off[2];
+      node = near;
+      n = tree.nodes + node;
+    }
+    result.add_leaf(tree, n->right_or_begin, n->end, q);
+    for (;;) {
+      if (top == 0) return;
+      const Pending& next = stack[--top];
+      if (next.bound < result.worst) {
+        node = next.node;
+        off[0] = next.off[0];
+        off[1] = next.off[1];
+        off[2] = next.off[2];
+        break;
+      }
+    }
+  }
+}
+
+CARAT_MULTIVERSION_WIDE void search_nearest(const TreeView& tree, const float* q,
+                                            NearestResult& result) {
+  search(tree, q, result);
+}
+
+CARAT_MULTIVERSION_WIDE void search_knn(const TreeView& tree, const float* q, KnnResult& result) {
+  search(tree, q, result);
+}
+
 }  // namespace
 
 struct KdTree::Impl {
@@ -94,39 +195,12 @@ struct KdTree::Impl {
   /// Splits points [begin, end) (of `order`) into a subtree; returns its root node.
   std::uint32_t build(std::uint32_t begin, std::uint32_t end);
 
-  /// Visits the subtree at `node` whose cell lies at least sqrt(off . off) from q.
-  template <class Result>
-  void search(std::uint32_t node, const float* q, std::array<float, 3>& off, Result& result) const {
-    const Node& n = nodes[node];
-    if (n.dim == kLeaf) {
-      if constexpr (std::is_same_v<Result, NearestResult>) {
-        result.add_leaf(points.data(), n.right_or_begin, n.end, q);
-      } else {
-        result.add_leaf(points.data(), n.right_or_begin, n.end, q, order.data());
-      }
-      return;
-    }
-    const float diff = q[n.dim] - n.split;
-    const std::uint32_t near = diff < 0.0f ? node + 1 : n.right_or_begin;
-    const std::uint32_t far = diff < 0.0f ? n.right_or_begin : node + 1;
-    search(near, q, off, result);
-    const float saved = off[n.dim];
-    off[n.dim] = diff;  // the far cell lies beyond the split plane
-    if (off[0] * off[0] + off[1] * off[1] + off[2] * off[2] < result.worst)
-      search(far, q, off, result);
-    off[n.dim] = saved;
-  }
-
-  template <class Result>
-  void search(const Eigen::Vector3f& query, Result& result) const {
-    std::array<float, 3> off{0.0f, 0.0f, 0.0f};
-    search(0, query.data(), off, result);
-  }
+  TreeView view() const { return {nodes.data(), x.data(), y.data(), z.data(), order.data()}; }
 
   const PointCloud& cloud;
   std::vector<Node> nodes;
   std::vector<std::uint32_t> order;  ///< cloud index of the j-th point in leaf order
-  std::vector<LeafPoint> points;     ///< positions in leaf order
+  std::vector<float> x, y, z;        ///< positions in leaf order, grouped by kLanes
 };
 
 KdTree::Impl::Impl(const PointCloud& positions) : cloud(positions) {
@@ -136,11 +210,31 @@ KdTree::Impl::Impl(const PointCloud& positions) : cloud(positions) {
   std::iota(order.begin(), order.end(), 0u);
   nodes.reserve(2 * (n / kLeafSize + 1));
   build(0, n);
-  points.resize(n);
-  for (std::uint32_t j = 0; j < n; ++j) {
-    const Eigen::Vector3f& p = cloud.points[order[j]];
-    points[j] = {p.x(), p.y(), p.z(), 0.0f};
+  // Lay the leaves out in whole groups of lanes, padded with points at infinity.
+  std::uint32_t lanes = 0;
+  for (const Node& node : nodes)
+    if (node.dim == kLeaf) lanes += (node.end - node.right_or_begin + kLanes - 1) / kLanes * kLanes;
+  constexpr float kInf = std::numeric_limits<float>::infinity();
+  x.assign(lanes, kInf);
+  y.assign(lanes, kInf);
+  z.assign(lanes, kInf);
+  std::vector<std::uint32_t> grouped(lanes, ~std::uint32_t{0});
+  std::uint32_t at = 0;
+  for (Node& node : nodes) {
+    if (node.dim != kLeaf) continue;
+    const std::uint32_t begin = node.right_or_begin, count = node.end - begin;
+    for (std::uint32_t j = 0; j < count; ++j) {
+      const Eigen::Vector3f& p = cloud.points[order[begin + j]];
+      x[at + j] = p.x();
+      y[at + j] = p.y();
+      z[at + j] = p.z();
+      grouped[at + j] = order[begin + j];
+    }
+    node.right_or_begin = at;
+    node.end = at + count;
+    at += (count + kLanes - 1) / kLanes * kLanes;
   }
+  order = std::move(grouped);
 }
 
 std::uint32_t KdTree::Impl::build(std::uint32_t begin, std::uint32_t end) {
@@ -155,16 +249,19 @@ std::uint32_t KdTree::Impl::build(std::uint32_t begin, std::uint32_t end) {
   }
   Eigen::Index dim = 0;
   const float extent = (hi - lo).maxCoeff(&dim);
-  if (end - begin <= kLeafSize || !(extent > 0.0f)) {  // small, or all points at one position
+  if (end - begin <= kLeafSize) {
     nodes[node].right_or_begin = begin;
     nodes[node].end = end;
     return node;
   }
+  // Points all at one position (or not finite) are halved all the same, so that no leaf holds
+  // more than kLeafSize: they compare equal to the split and may lie on either side of it.
+  if (!(extent > 0.0f)) dim = 0;
   const std::uint32_t middle = begin + (end - begin) / 2;
   // A NaN coordinate sorts as +infinity, so that the order stays a strict weak order.
   const auto coordinate = [&](std::uint32_t i) {
-    const float x = cloud.points[i][dim];
-    return std::isnan(x) ? std::numeric_limits<float>::infinity() : x;
+    const float c = cloud.points[i][dim];
+    return std::isnan(c) ? std::numeric_limits<float>::infinity() : c;
   };
   std::nth_element(order.begin() + begin, order.begin() + middle, order.begin() + end,
                    [&](std::uint32_t a, std::uint32_t b) { return coordinate(a) < coordinate(b); });
@@ -184,14 +281,14 @@ int KdTree::knn(const Eigen::Vector3f& query, int k, std::uint32_t* indices,
                 float* squared_distances) const {
   if (impl_->nodes.empty() || k <= 0) return 0;
   KnnResult result(k, indices, squared_distances);
-  impl_->search(query, result);
+  search_knn(impl_->view(), query.data(), result);
   return result.count;
 }
 
 std::size_t KdTree::memory_bytes() const {
   return sizeof(Impl) + impl_->nodes.capacity() * sizeof(Node) +
          impl_->order.capacity() * sizeof(std::uint32_t) +
-         impl_->points.capacity() * sizeof(LeafPoint);
+         (impl_->x.capacity() + impl_->y.capacity() + impl_->z.capacity()) * sizeof(float);
 }
 
 bool KdTree::nearest(const Eigen::Vector3f& query, std::uint32_t* index,
@@ -202,10 +299,17 @@ bool KdTree::nearest(const Eigen::Vector3f& query, std::uint32_t* index,
 bool KdTree::nearest_within(const Eigen::Vector3f& query, float max_squared_distance,
                             std::uint32_t* index, float* squared_distance) const {
   if (impl_->nodes.empty() || !(max_squared_distance >= 0.0f)) return false;
-  // Strictly-closer-than bound: the next float up makes the maximum distance itself count.
-  NearestResult result{
-      std::nextafter(max_squared_distance, std::numeric_limits<float>::infinity())};
-  impl_->search(query, result);
+  // Strictly-closer-than bound: the next float up makes the maximum distance itself count
+  // (for a float >= 0 below infinity, the next bit pattern; a libm call costs more than a query's
+  // leaf).
+  float bound = max_squared_distance;
+  if (bound == 0.0f) {  // also -0
+    bound = std::numeric_limits<float>::denorm_min();
+  } else if (bound < std::numeric_limits<float>::infinity()) {
+    bound = std::bit_cast<float>(std::bit_cast<std::uint32_t>(bound) + 1u);
+  }
+  NearestResult result{bound};
+  search_nearest(impl_->view(), query.data(), result);
   if (result.position == NearestResult::kNone) return false;
   *index = impl_->order[result.position];
   *squared_distance = result.worst;

@@ -9,6 +9,7 @@
 #include <string>
 
 #include "carat/base/error.hpp"
+#include "carat/base/multiversion.hpp"
 #include "carat/residuals/registration_rows.hpp"
 #include "pose_gram_sum.hpp"
 
@@ -19,8 +20,9 @@ constexpr std::size_t kChunk = 512;
 
 /// The upper-triangular W (w0 w1 w2; 0 w3 w4; 0 0 w5) with W^T W = C^-1 for the symmetric C
 /// given by its upper triangle (c00 c01 c02 c11 c12 c22), in closed form: the inverse by
-/// cofactors, then its 3 x 3 Cholesky factor. False unless C is positive definite.
-bool whitening_of(const std::array<double, 6>& C, std::array<double, 6>* W) {
+/// cofactors, then its 3 x 3 Cholesky factor. False unless C is positive definite. Without a
+/// branch (W holds NaNs or garbage when false), so that a loop over it vectorizes.
+[[gnu::always_inline]] inline bool whitening_of(const double* C, double* W) {
   const double c00 = C[0], c01 = C[1], c02 = C[2], c11 = C[3], c12 = C[4], c22 = C[5];
   // Cofactors of the symmetric C.
   const double a00 = c11 * c22 - c12 * c12, a01 = c02 * c12 - c01 * c22,
@@ -28,21 +30,26 @@ bool whitening_of(const std::array<double, 6>& C, std::array<double, 6>* W) {
   const double a11 = c00 * c22 - c02 * c02, a12 = c01 * c02 - c00 * c12,
                a22 = c00 * c11 - c01 * c01;
   const double det = c00 * a00 + c01 * a01 + c02 * a02;
-  // Leading minors of C positive <=> C positive definite.
-  if (!(c00 > 0.0 && a22 > 0.0 && det > 0.0)) return false;
   const double inv = 1.0 / det;
   const double i00 = a00 * inv, i01 = a01 * inv, i02 = a02 * inv;
   const double i11 = a11 * inv, i12 = a12 * inv, i22 = a22 * inv;
   const double w0 = std::sqrt(i00);
   const double w1 = i01 / w0, w2 = i02 / w0;
   const double s3 = i11 - w1 * w1;
-  if (!(s3 > 0.0)) return false;
   const double w3 = std::sqrt(s3);
   const double w4 = (i12 - w1 * w2) / w3;
   const double s5 = i22 - w2 * w2 - w4 * w4;
-  if (!(s5 > 0.0)) return false;
-  *W = {w0, w1, w2, w3, w4, std::sqrt(s5)};
-  return std::isfinite(w0 + w1 + w2 + w3 + w4 + (*W)[5]);
+  const double w5 = std::sqrt(s5);
+  W[0] = w0;
+  W[1] = w1;
+  W[2] = w2;
+  W[3] = w3;
+  W[4] = w4;
+  W[5] = w5;
+  const double sum = w0 + w1 + w2 + w3 + w4 + w5;
+  // Leading minors of C positive <=> C positive definite; then the factor must be finite
+  // (sum - sum is 0 exactly when the sum is finite).
+  return (c00 > 0.0) & (a22 > 0.0) & (det > 0.0) & (s3 > 0.0) & (s5 > 0.0) & (sum - sum == 0.0);
 }
 
 /// T_ij as scalars: an Eigen temporary per point costs a store-forwarding stall in these loops.
@@ -101,25 +108,68 @@ struct Pose {
   J[5] = -a2;
 }
 
-/// The whitening W of the fused covariance C_target + R C_source R^T, both given by their upper
-/// triangles (xx xy xz yy yz zz); false unless it is positive definite.
-bool fused_whitening(const std::array<double, 6>& target, const std::array<double, 6>& source,
-                     const Eigen::Matrix3d& R, std::array<double, 6>* W) {
+/// The fused covariance C_target + R C_source R^T, both given by their upper triangles
+/// (xx xy xz yy yz zz); R row-major.
+[[gnu::always_inline]] inline void fuse(const double* target, const double* source, const double* R,
+                                        double* fused) {
   const double s00 = source[0], s01 = source[1], s02 = source[2], s11 = source[3], s12 = source[4],
                s22 = source[5];
   double M[3][3];  // R C_source
   for (int i = 0; i < 3; ++i) {
-    M[i][0] = R(i, 0) * s00 + R(i, 1) * s01 + R(i, 2) * s02;
-    M[i][1] = R(i, 0) * s01 + R(i, 1) * s11 + R(i, 2) * s12;
-    M[i][2] = R(i, 0) * s02 + R(i, 1) * s12 + R(i, 2) * s22;
+    M[i][0] = R[3 * i] * s00 + R[3 * i + 1] * s01 + R[3 * i + 2] * s02;
+    M[i][1] = R[3 * i] * s01 + R[3 * i + 1] * s11 + R[3 * i + 2] * s12;
+    M[i][2] = R[3 * i] * s02 + R[3 * i + 1] * s12 + R[3 * i + 2] * s22;
   }
   const auto rotated = [&](int i, int j) {
-    return M[i][0] * R(j, 0) + M[i][1] * R(j, 1) + M[i][2] * R(j, 2);
+    return M[i][0] * R[3 * j] + M[i][1] * R[3 * j + 1] + M[i][2] * R[3 * j + 2];
   };
-  const std::array<double, 6> fused = {target[0] + rotated(0, 0), target[1] + rotated(0, 1),
-                                       target[2] + rotated(0, 2), target[3] + rotated(1, 1),
-                                       target[4] + rotated(1, 2), target[5] + rotated(2, 2)};
-  return whitening_of(fused, W);
+  fused[0] = target[0] + rotated(0, 0);
+  fused[1] = target[1] + rotated(0, 1);
+  fused[2] = target[2] + rotated(0, 2);
+  fused[3] = target[3] + rotated(1, 1);
+  fused[4] = target[4] + rotated(1, 2);
+  fused[5] = target[5] + rotated(2, 2);
+}
+
+/// The whitening W of the fused covariance C_target + R C_source R^T (upper triangles, R
+/// row-major); false unless it is positive definite.
+bool fused_whitening(const std::array<double, 6>& target, const std::array<double, 6>& source,
+                     const double* R, std::array<double, 6>* W) {
+  double fused[6];
+  fuse(target.data(), source.data(), R, fused);
+  return whitening_of(fused, W->data());
+}
+
+/// Covariance pairs whitened at once.
+constexpr std::size_t kBatch = 8;
+
+/// fused_whitening() of kBatch pairs given lane by lane (target[e * kBatch + lane]: entry e of
+/// pair lane's target covariance; W alike), written for the compiler to vectorize over the
+/// lanes: the same operations in the same order, so each lane has the bits fused_whitening()
+/// gives it (this file is compiled without fused multiply-adds). ok[lane] is 1 where it
+/// succeeded.
+CARAT_MULTIVERSION_WIDE void fused_whitenings(const double* __restrict target,
+                                              const double* __restrict source,
+                                              const double* __restrict R, double* __restrict W,
+                                              int* __restrict ok) {
+  for (std::size_t lane = 0; lane < kBatch; ++lane) {
+    double t[6], c[6], fused[6], w[6];
+    for (std::size_t e = 0; e < 6; ++e) {
+      t[e] = target[e * kBatch + lane];
+      c[e] = source[e * kBatch + lane];
+    }
+    fuse(t, c, R, fused);
+    ok[lane] = whitening_of(fused, w);
+    for (std::size_t e = 0; e < 6; ++e) W[e * kBatch + lane] = w[e];
+  }
+}
+
+/// The rotation of T, row-major.
+std::array<double, 9> row_major(const Eigen::Isometry3d& T) {
+  std::array<double, 9> R;
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) R[static_cast<std::size_t>(3 * i + j)] = T.linear()(i, j);
+  return R;
 }
 
 /// The upper triangle of sym(A) = (A + A^T) / 2.
@@ -133,7 +183,7 @@ std::array<double, 6> symmetric_part(const Eigen::Matrix3d& A) {
 GicpBlock::GicpBlock(std::span<const GicpCorrespondence> correspondences,
                      const Eigen::Isometry3d& T_target_source) {
   if (correspondences.empty()) throw Error("GicpBlock: no correspondences");
-  const Eigen::Matrix3d R = T_target_source.linear();
+  const std::array<double, 9> R = row_major(T_target_source);
   points_.reserve(correspondences.size());
   for (std::size_t k = 0; k < correspondences.size(); ++k) {
     const auto& c = correspondences[k];
@@ -148,7 +198,7 @@ GicpBlock::GicpBlock(std::span<const GicpCorrespondence> correspondences,
     }
     std::array<double, 6> W;
     if (!fused_whitening(symmetric_part(c.covariance_target), symmetric_part(c.covariance_source),
-                         R, &W)) {
+                         R.data(), &W)) {
       throw Error("GicpBlock: correspondence " + std::to_string(k) +
                   ": fused covariance is not positive definite");
     }
@@ -174,10 +224,10 @@ GicpBlock::GicpBlock(std::span<const Eigen::Vector3f> target_means,
                 std::to_string(source_means.size()) + " source means but " +
                 std::to_string(source_covariances.size()) + " covariances");
   }
-  const Eigen::Matrix3d R = T_target_source.linear();
+  const std::array<double, 9> R = row_major(T_target_source);
   enum Fault : int { kNone, kIndex, kNonFinite, kNotPositiveDefinite };
-  // Point k, or why it cannot be built.
-  const auto make = [&](std::size_t k, Point* p) {
+  // Why pair k cannot be built, short of the whitening (kNone when it can be tried).
+  const auto check = [&](std::size_t k) {
     const auto [t, s] = pairs[k];
     if (t >= target_means.size() || s >= source_means.size()) return kIndex;
     const Eigen::Vector3f& mt = target_means[t];
@@ -188,29 +238,56 @@ GicpBlock::GicpBlock(std::span<const Eigen::Vector3f> target_means,
         (!mt.allFinite() || !ms.allFinite() || !ct.allFinite() || !cs.allFinite())) {
       return kNonFinite;
     }
-    const std::array<double, 6> target = {ct[0], ct[1], ct[2], ct[3], ct[4], ct[5]};
-    const std::array<double, 6> source = {cs[0], cs[1], cs[2], cs[3], cs[4], cs[5]};
-    if (!fused_whitening(target, source, R, &p->whitening)) return kNotPositiveDefinite;
-    p->target = {mt.x(), mt.y(), mt.z()};
-    p->source = {ms.x(), ms.y(), ms.z()};
     return kNone;
   };
   points_.resize(pairs.size());
   std::atomic<std::size_t> first_fault{pairs.size()};
+  const auto fault_at = [&](std::size_t k) {
+    std::size_t seen = first_fault.load(std::memory_order_relaxed);
+    while (k < seen && !first_fault.compare_exchange_weak(seen, k, std::memory_order_relaxed)) {
+    }
+  };
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, pairs.size(), 1024), [&](const auto& range) {
-    for (std::size_t k = range.begin(); k != range.end(); ++k) {
-      if (make(k, &points_[k]) == kNone) continue;
-      std::size_t seen = first_fault.load(std::memory_order_relaxed);
-      while (k < seen && !first_fault.compare_exchange_weak(seen, k, std::memory_order_relaxed)) {
+    // Whitenings kBatch pairs at a time; a pair that fails its checks is whitened as the
+    // identity and reported.
+    double target[6 * kBatch], source[6 * kBatch], W[6 * kBatch];
+    int ok[kBatch];
+    for (std::size_t k0 = range.begin(); k0 < range.end(); k0 += kBatch) {
+      const std::size_t n = std::min<std::size_t>(kBatch, range.end() - k0);
+      for (std::size_t lane = 0; lane < kBatch; ++lane) {
+        const std::size_t k = k0 + lane;
+        if (lane >= n || check(k) != kNone) {
+          for (std::size_t e = 0; e < 6; ++e)
+            target[e * kBatch + lane] = source[e * kBatch + lane] = e == 0 || e == 3 || e == 5;
+          continue;
+        }
+        const Eigen::Matrix<float, 6, 1>& ct = target_covariances[pairs[k][0]];
+        const Eigen::Matrix<float, 6, 1>& cs = source_covariances[pairs[k][1]];
+        for (std::size_t e = 0; e < 6; ++e) {
+          target[e * kBatch + lane] = ct[static_cast<Eigen::Index>(e)];
+          source[e * kBatch + lane] = cs[static_cast<Eigen::Index>(e)];
+        }
       }
-      return;
+      fused_whitenings(target, source, R.data(), W, ok);
+      for (std::size_t lane = 0; lane < n; ++lane) {
+        const std::size_t k = k0 + lane;
+        if (!ok[lane] || check(k) != kNone) {
+          fault_at(k);
+          return;
+        }
+        const Eigen::Vector3f& mt = target_means[pairs[k][0]];
+        const Eigen::Vector3f& ms = source_means[pairs[k][1]];
+        Point& p = points_[k];
+        p.target = {mt.x(), mt.y(), mt.z()};
+        p.source = {ms.x(), ms.y(), ms.z()};
+        for (std::size_t e = 0; e < 6; ++e) p.whitening[e] = W[e * kBatch + lane];
+      }
     }
   });
   // The first faulty pair, whatever the scheduling was.
   const std::size_t k = first_fault.load();
   if (k == pairs.size()) return;
-  Point unused;
-  switch (make(k, &unused)) {
+  switch (check(k)) {
     case kIndex:
       throw Error("GicpBlock: pair " + std::to_string(k) + " names target point " +
                   std::to_string(pairs[k][0]) + " of " + std::to_string(target_means.size()) +

@@ -16,7 +16,7 @@ namespace carat {
 /// A k-d tree over the positions of a cloud; the cloud must outlive the tree and not change.
 class KdTree {
  public:
-  /// Builds the tree (up to 20 points a leaf). An empty cloud gives a tree that finds nothing.
+  /// Builds the tree (up to 56 points a leaf). An empty cloud gives a tree that finds nothing.
   explicit KdTree(const PointCloud& cloud);
   ~KdTree();
   KdTree(const KdTree&) = delete;

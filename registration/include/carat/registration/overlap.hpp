@@ -4,6 +4,7 @@
 /// the target under a relative pose.
 
 #include <Eigen/Geometry>
+#include <array>
 #include <cstdint>
 #include <vector>
 
@@ -26,7 +27,15 @@ class VoxelOccupancy {
 
  private:
   double voxel_size_;
+  double inverse_size_;              // 1 / voxel_size_
   std::vector<std::uint64_t> keys_;  // sorted, unique
+  // The occupied voxels as one bit each over their bounding box (when the box is at most 256
+  // voxels per occupied one), else as keys_ by open addressing (linear probing, ~0 when empty).
+  std::array<std::int64_t, 3> box_begin_{};  // grid coordinates of the box's first voxel
+  std::array<std::int64_t, 3> box_size_{};   // voxels along each axis (0: no bitmap)
+  std::vector<std::uint64_t> bits_;          // bit ((x * size_y) + y) * size_z + z of the box
+  std::vector<std::uint64_t> table_;
+  int shift_ = 64;  // a key's home slot: (key * multiplier) >> shift_
 };
 
 /// Fraction in [0, 1] of the source points (every `stride`-th, >= 1) whose voxel is occupied in
