@@ -5,6 +5,7 @@
 #include <cmath>
 #include <limits>
 #include <random>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -190,6 +191,59 @@ TEST(KdTreeTest, EveryCloudSizeAndManyPointsAtOnePosition) {
   EXPECT_EQ(std::unique(indices.begin(), indices.end()), indices.end());  // distinct points
   EXPECT_LT(indices.back(), 250u);
   for (const float distance : distances) EXPECT_EQ(distance, 0.0f);
+}
+
+TEST(KdTreeTest, RunsOfQueriesFindWhatSingleQueriesFind) {
+  std::mt19937 rng(31);
+  std::uniform_real_distribution<float> u(-5.0f, 5.0f);
+  std::normal_distribution<float> step(0.0f, 0.05f);
+  PointCloud cloud;
+  // A surface-like scan: a plane, a wall and a post, with repeated points.
+  for (int k = 0; k < 3000; ++k) cloud.points.emplace_back(u(rng), u(rng), 0.0f);
+  for (int k = 0; k < 1500; ++k) cloud.points.emplace_back(u(rng), 3.0f, 0.5f * (u(rng) + 5.0f));
+  for (int k = 0; k < 100; ++k) cloud.points.emplace_back(1.0f, 1.0f, 0.4f);
+  const KdTree tree(cloud);
+  // A walk that drifts through the cloud (each search starts where the one before ended), with
+  // jumps far outside it and back.
+  std::vector<Eigen::Vector3f> queries;
+  Eigen::Vector3f at(0.0f, 0.0f, 0.2f);
+  for (int k = 0; k < 3000; ++k) {
+    at += Eigen::Vector3f(step(rng), step(rng), 0.2f * step(rng));
+    if (k % 97 == 0 || at.cwiseAbs().maxCoeff() > 5.0f)
+      at = Eigen::Vector3f(u(rng), u(rng), 0.1f * u(rng));
+    queries.push_back(k % 211 == 0 ? Eigen::Vector3f(40.0f, -30.0f, 9.0f) : at);
+  }
+  queries.emplace_back(1.0f, 1.0f, 0.4f);  // on the repeated points
+  for (const float bound : {0.0f, 0.01f, 0.25f, 1.0f, 1e6f}) {
+    std::vector<std::uint32_t> indices(queries.size());
+    std::vector<float> distances(queries.size());
+    tree.nearest_within(queries, bound, indices.data(), distances.data());
+    int found = 0;
+    for (std::size_t k = 0; k < queries.size(); ++k) {
+      std::uint32_t index = 0;
+      float sq = 0.0f;
+      if (!tree.nearest_within(queries[k], bound, &index, &sq)) {
+        EXPECT_EQ(indices[k], KdTree::kNotFound) << "query " << k << " bound " << bound;
+        continue;
+      }
+      ++found;
+      ASSERT_NE(indices[k], KdTree::kNotFound) << "query " << k << " bound " << bound;
+      EXPECT_EQ(distances[k], sq) << "query " << k << " bound " << bound;
+      const Eigen::Vector3f d = cloud.points[indices[k]] - queries[k];
+      EXPECT_EQ(distances[k], d.x() * d.x() + d.y() * d.y() + d.z() * d.z());
+    }
+    if (bound >= 0.25f) {
+      EXPECT_GT(found, 2500) << bound;  // and misses: the queries far outside
+    }
+  }
+  std::uint32_t index = 0;
+  float distance = 0.0f;
+  const Eigen::Vector3f one(0.0f, 0.0f, 0.0f);
+  tree.nearest_within(std::span(&one, 1), -1.0f, &index, &distance);
+  EXPECT_EQ(index, KdTree::kNotFound);
+  const PointCloud empty;
+  KdTree(empty).nearest_within(std::span(&one, 1), 1.0f, &index, &distance);
+  EXPECT_EQ(index, KdTree::kNotFound);
 }
 
 TEST(KdTreeTest, KnnMatchesBruteForce) {

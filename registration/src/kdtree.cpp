@@ -40,9 +40,21 @@ struct Node {
   std::uint32_t end = 0;
 };
 
+/// The region of space a node stands for, bounded by the split planes above it (closed: points
+/// on a plane may lie on either side), and its parent.
+struct Cell {
+  float lo[3];
+  float hi[3];
+  std::uint32_t parent;
+};
+
+/// No node.
+constexpr std::uint32_t kNoNode = ~std::uint32_t{0};
+
 /// The arrays one search reads.
 struct TreeView {
   const Node* nodes;
+  const Cell* cells;
   const float* x;  ///< leaf order, grouped by kLanes
   const float* y;
   const float* z;
@@ -133,12 +145,15 @@ struct KnnResult {
   }
 };
 
-/// Visits the leaves whose cells may hold a point closer than result.worst, nearer child first:
-/// a far child is visited after the near one, if its cell (at least sqrt(off . off) from q,
-/// off being q's offsets beyond the split planes on the path) is still closer than the worst
-/// point kept.
+/// Visits the leaves of the subtree at `node` whose cells may hold a point closer than
+/// result.worst, nearer child first: a far child is visited after the near one, if its cell (at
+/// least sqrt(off . off) from q, off being q's offsets beyond the subtree's cell, `start_off`, and
+/// beyond the split planes on the path) is still closer than the worst point kept. Returns the
+/// first leaf visited (the one whose cell holds q when q lies in the subtree's cell).
 template <class Result>
-[[gnu::always_inline]] inline void search(const TreeView& tree, const float* q, Result& result) {
+[[gnu::always_inline]] inline std::uint32_t search(const TreeView& tree, std::uint32_t node,
+                                                   const float* start_off, const float* q,
+                                                   Result& result) {
   struct Pending {
     std::uint32_t node;
     float bound;  ///< off . off of its cell
@@ -146,8 +161,8 @@ template <class Result>
   };
   Pending stack[kMaxDepth];
   int top = 0;
-  std::uint32_t node = 0;
-  float off[3] = {0.0f, 0.0f, 0.0f};
+  std::uint32_t first_leaf = kNoNode;
+  float off[3] = {start_off[0], start_off[1], start_off[2]};
   for (;;) {
     const Node* n = tree.nodes + node;
     while (n->dim != kLeaf) {
@@ -163,9 +178,10 @@ template <class Result>
       node = near;
       n = tree.nodes + node;
     }
+    if (first_leaf == kNoNode) first_leaf = node;
     result.add_leaf(tree, n->right_or_begin, n->end, q);
     for (;;) {
-      if (top == 0) return;
+      if (top == 0) return first_leaf;
       const Pending& next = stack[--top];
       if (next.bound < result.worst) {
         node = next.node;
@@ -175,6 +191,69 @@ template <class Result>
         break;
       }
     }
+  }
+}
+
+/// The whole tree.
+template <class Result>
+[[gnu::always_inline]] inline void search(const TreeView& tree, const float* q, Result& result) {
+  constexpr float kZero[3] = {0.0f, 0.0f, 0.0f};
+  search(tree, 0, kZero, q, result);
+}
+
+/// q's offsets beyond a cell [lo, hi] along each axis (0 inside it): the same differences the
+/// descent from the root forms against the cell's bounding split planes.
+[[gnu::always_inline]] inline void offsets(const Cell& cell, const float* q, float* off) {
+  for (int d = 0; d < 3; ++d) {
+    const float below = q[d] - cell.lo[d], above = q[d] - cell.hi[d];
+    off[d] = below < 0.0f ? below : (above > 0.0f ? above : 0.0f);
+  }
+}
+
+/// Whether q lies in the closed cell.
+[[gnu::always_inline]] inline bool inside(const Cell& cell, const float* q) {
+  return q[0] >= cell.lo[0] && q[0] <= cell.hi[0] && q[1] >= cell.lo[1] && q[1] <= cell.hi[1] &&
+         q[2] >= cell.lo[2] && q[2] <= cell.hi[2];
+}
+
+/// Whether every point strictly closer to q than sqrt(worst) lies in the closed cell (q in it).
+[[gnu::always_inline]] inline bool ball_inside(const Cell& cell, const float* q, float worst) {
+  for (int d = 0; d < 3; ++d) {
+    const float below = q[d] - cell.lo[d], above = cell.hi[d] - q[d];
+    if (!(below * below >= worst && above * above >= worst)) return false;
+  }
+  return true;
+}
+
+/// Nearest points of a run of queries, each search starting from the leaf whose cell held the
+/// query before: climb to the lowest cell holding q, search it, then climb on, searching each
+/// sibling cell still closer than the nearest point found, until the ball of that radius lies
+/// inside the cell searched. The nearest distance is the top-down search's exactly; among points
+/// at that very distance another one may be kept.
+CARAT_MULTIVERSION_WIDE void search_nearest_run(const TreeView& tree,
+                                                const Eigen::Vector3f* queries, std::size_t count,
+                                                float bound, std::uint32_t* positions,
+                                                float* distances) {
+  std::uint32_t leaf = 0;
+  for (std::size_t k = 0; k < count; ++k) {
+    const float* q = queries[k].data();
+    NearestResult result{bound};
+    std::uint32_t node = leaf;
+    while (node != 0 && !inside(tree.cells[node], q)) node = tree.cells[node].parent;
+    constexpr float kZero[3] = {0.0f, 0.0f, 0.0f};
+    leaf = search(tree, node, kZero, q, result);
+    while (node != 0 && !ball_inside(tree.cells[node], q, result.worst)) {
+      const std::uint32_t parent = tree.cells[node].parent;
+      const std::uint32_t sibling =
+          node == parent + 1 ? tree.nodes[parent].right_or_begin : parent + 1;
+      float off[3];
+      offsets(tree.cells[sibling], q, off);
+      if (off[0] * off[0] + off[1] * off[1] + off[2] * off[2] < result.worst)
+        search(tree, sibling, off, q, result);
+      node = parent;
+    }
+    positions[k] = result.position;
+    distances[k] = result.worst;
   }
 }
 
@@ -195,10 +274,13 @@ struct KdTree::Impl {
   /// Splits points [begin, end) (of `order`) into a subtree; returns its root node.
   std::uint32_t build(std::uint32_t begin, std::uint32_t end);
 
-  TreeView view() const { return {nodes.data(), x.data(), y.data(), z.data(), order.data()}; }
+  TreeView view() const {
+    return {nodes.data(), cells.data(), x.data(), y.data(), z.data(), order.data()};
+  }
 
   const PointCloud& cloud;
   std::vector<Node> nodes;
+  std::vector<Cell> cells;           ///< of each node
   std::vector<std::uint32_t> order;  ///< cloud index of the j-th point in leaf order
   std::vector<float> x, y, z;        ///< positions in leaf order, grouped by kLanes
 };
@@ -210,11 +292,24 @@ KdTree::Impl::Impl(const PointCloud& positions) : cloud(positions) {
   std::iota(order.begin(), order.end(), 0u);
   nodes.reserve(2 * (n / kLeafSize + 1));
   build(0, n);
+  // Cells from the root down (a node's children come after it).
+  constexpr float kInf = std::numeric_limits<float>::infinity();
+  cells.resize(nodes.size());
+  cells[0] = {{-kInf, -kInf, -kInf}, {kInf, kInf, kInf}, 0};
+  for (std::uint32_t i = 0; i < nodes.size(); ++i) {
+    const Node& node = nodes[i];
+    if (node.dim == kLeaf) continue;
+    Cell left = cells[i], right = cells[i];
+    left.hi[node.dim] = node.split;
+    right.lo[node.dim] = node.split;
+    left.parent = right.parent = i;
+    cells[i + 1] = left;
+    cells[node.right_or_begin] = right;
+  }
   // Lay the leaves out in whole groups of lanes, padded with points at infinity.
   std::uint32_t lanes = 0;
   for (const Node& node : nodes)
     if (node.dim == kLeaf) lanes += (node.end - node.right_or_begin + kLanes - 1) / kLanes * kLanes;
-  constexpr float kInf = std::numeric_limits<float>::infinity();
   x.assign(lanes, kInf);
   y.assign(lanes, kInf);
   z.assign(lanes, kInf);
@@ -287,7 +382,7 @@ int KdTree::knn(const Eigen::Vector3f& query, int k, std::uint32_t* indices,
 
 std::size_t KdTree::memory_bytes() const {
   return sizeof(Impl) + impl_->nodes.capacity() * sizeof(Node) +
-         impl_->order.capacity() * sizeof(std::uint32_t) +
+         impl_->cells.capacity() * sizeof(Cell) + impl_->order.capacity() * sizeof(std::uint32_t) +
          (impl_->x.capacity() + impl_->y.capacity() + impl_->z.capacity()) * sizeof(float);
 }
 
@@ -296,19 +391,43 @@ bool KdTree::nearest(const Eigen::Vector3f& query, std::uint32_t* index,
   return knn(query, 1, index, squared_distance) == 1;
 }
 
+namespace {
+
+/// The strictly-closer-than bound that makes a maximum squared distance (>= 0) itself count:
+/// the next float up (for a float below infinity, the next bit pattern; a libm call costs more
+/// than a query's leaf).
+float inclusive_bound(float max_squared_distance) {
+  if (max_squared_distance == 0.0f) return std::numeric_limits<float>::denorm_min();  // also -0
+  if (max_squared_distance < std::numeric_limits<float>::infinity())
+    return std::bit_cast<float>(std::bit_cast<std::uint32_t>(max_squared_distance) + 1u);
+  return max_squared_distance;
+}
+
+}  // namespace
+
+void KdTree::nearest_within(std::span<const Eigen::Vector3f> queries, float max_squared_distance,
+                            std::uint32_t* indices, float* squared_distances) const {
+  if (impl_->nodes.empty() || !(max_squared_distance >= 0.0f)) {
+    std::fill_n(indices, queries.size(), kNotFound);
+    std::fill_n(squared_distances, queries.size(), std::numeric_limits<float>::infinity());
+    return;
+  }
+  search_nearest_run(impl_->view(), queries.data(), queries.size(),
+                     inclusive_bound(max_squared_distance), indices, squared_distances);
+  for (std::size_t k = 0; k < queries.size(); ++k) {
+    if (indices[k] == NearestResult::kNone) {
+      indices[k] = kNotFound;
+      squared_distances[k] = std::numeric_limits<float>::infinity();
+    } else {
+      indices[k] = impl_->order[indices[k]];
+    }
+  }
+}
+
 bool KdTree::nearest_within(const Eigen::Vector3f& query, float max_squared_distance,
                             std::uint32_t* index, float* squared_distance) const {
   if (impl_->nodes.empty() || !(max_squared_distance >= 0.0f)) return false;
-  // Strictly-closer-than bound: the next float up makes the maximum distance itself count
-  // (for a float >= 0 below infinity, the next bit pattern; a libm call costs more than a query's
-  // leaf).
-  float bound = max_squared_distance;
-  if (bound == 0.0f) {  // also -0
-    bound = std::numeric_limits<float>::denorm_min();
-  } else if (bound < std::numeric_limits<float>::infinity()) {
-    bound = std::bit_cast<float>(std::bit_cast<std::uint32_t>(bound) + 1u);
-  }
-  NearestResult result{bound};
+  NearestResult result{inclusive_bound(max_squared_distance)};
   search_nearest(impl_->view(), query.data(), result);
   if (result.position == NearestResult::kNone) return false;
   *index = impl_->order[result.position];

@@ -7,6 +7,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <memory>
+#include <span>
 #include <vector>
 
 #include "carat/registration/point_cloud.hpp"
@@ -35,6 +36,17 @@ class KdTree {
   /// nearest distance is within an ulp of the bound), but branches beyond the bound are pruned.
   bool nearest_within(const Eigen::Vector3f& query, float max_squared_distance,
                       std::uint32_t* index, float* squared_distance) const;
+
+  /// What nearest_within() finds for each query, in order: indices[k] (kNotFound when no point
+  /// is within the bound) and squared_distances[k] (infinity then). The distances are exactly
+  /// nearest_within()'s; among points at the very same distance another one may be returned.
+  /// Each search starts in the cell where the one before ended, so runs of nearby queries (a scan
+  /// in voxel order) are answered faster than one at a time.
+  void nearest_within(std::span<const Eigen::Vector3f> queries, float max_squared_distance,
+                      std::uint32_t* indices, float* squared_distances) const;
+
+  /// The index nearest_within() gives a query with no point within the bound.
+  static constexpr std::uint32_t kNotFound = ~std::uint32_t{0};
 
   /// Bytes the tree holds (its nodes and its index array; the cloud is not counted).
   std::size_t memory_bytes() const;
