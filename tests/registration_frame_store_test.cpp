@@ -105,6 +105,25 @@ TEST(FrameStoreTest, FramesInUseStayAndCount) {
   EXPECT_EQ(*s.calls, 2);
 }
 
+TEST(FrameStoreTest, ReleasingTheCacheKeepsOnlyFramesInUse) {
+  CountingStore s(3.5, true);  // room for three frames
+  FrameStore& store = *s.store;
+  const std::shared_ptr<const Frame> held = store.get(0);
+  store.get(1);
+  store.get(2);
+  store.release_cached();  // 1 and 2 go; 0 is held
+  store.get(0);
+  EXPECT_EQ(*s.calls, 3);
+  store.get(1);  // read again
+  store.get(2);
+  EXPECT_EQ(*s.calls, 5);
+  EXPECT_EQ(store.stats().evictions, 0u);  // not dropped for the cap
+  // A resident store keeps its frames.
+  FrameStore resident = resident_store(drive().frames);
+  resident.release_cached();
+  EXPECT_EQ(resident.get(1), drive().frames[1]);
+}
+
 TEST(FrameStoreTest, LoaderErrorsPassThroughAndAreRetried) {
   int calls = 0;
   FrameStore store(

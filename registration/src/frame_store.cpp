@@ -1,5 +1,7 @@
 #include "carat/registration/frame_store.hpp"
 
+#include <malloc.h>
+
 #include <algorithm>
 #include <exception>
 #include <string>
@@ -85,6 +87,27 @@ void FrameStore::evict_locked(std::size_t incoming) {
     ++stats_.evictions;
     it = lru_.erase(it);
   }
+}
+
+void FrameStore::release_cached() {
+  if (!load_) return;
+  std::lock_guard lock(mutex_);
+  for (auto it = lru_.begin(); it != lru_.end();) {
+    Entry& entry = entries_[*it];
+    if (entry.frame.use_count() > 1) {
+      ++it;
+      continue;
+    }
+    bytes_ -= entry.bytes;
+    entry.frame.reset();
+    entry.bytes = 0;
+    it = lru_.erase(it);
+  }
+#ifdef __GLIBC__
+  // Frames are freed into the malloc arenas of the threads that loaded them, which the caller's
+  // next allocations (a solver's, on another thread) would not reuse: return those pages.
+  malloc_trim(0);
+#endif
 }
 
 FrameStoreStats FrameStore::stats() const {

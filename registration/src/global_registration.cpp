@@ -422,9 +422,14 @@ GlobalRegistrationResult optimize_registration(
     std::span<const Eigen::Isometry3d> T_world_frame, const GlobalRegistrationOptions& options,
     const std::function<void(std::size_t, std::size_t)>& progress) {
   check_resident(frames, pairs, T_world_frame, options);
+  int rounds_built = 0;
   return optimize_registration(
       [&](std::span<const Eigen::Isometry3d> T_world_start) {
-        return build_registration_factors(frames, pairs, {}, T_world_start, options, progress);
+        std::vector<RegistrationFactor> factors =
+            build_registration_factors(frames, pairs, {}, T_world_start, options, progress);
+        // The last round's solve needs no frame: free the cache for the solver's memory.
+        if (++rounds_built == options.rounds) frames.release_cached();
+        return factors;
       },
       pairs, T_world_frame, options);
 }

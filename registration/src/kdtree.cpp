@@ -225,45 +225,53 @@ template <class Result>
   return true;
 }
 
-/// Nearest points of a run of queries, each search starting from the leaf whose cell held the
-/// query before: climb to the lowest cell holding q, search it, then climb on, searching each
-/// sibling cell still closer than the nearest point found, until the ball of that radius lies
-/// inside the cell searched. The nearest distance is the top-down search's exactly; among points
-/// at that very distance another one may be kept.
+/// One search of a run of queries, started from `leaf`, the leaf whose cell held the query before
+/// (set to the one holding q): climb to the lowest cell holding q, search it, then climb on,
+/// searching each sibling cell still closer than the worst point kept, until the ball of that
+/// radius lies inside the cell searched. The distances kept are the top-down search's exactly;
+/// among points at the very same distance another one may be kept.
+template <class Result>
+[[gnu::always_inline]] inline void search_from(const TreeView& tree, const float* q,
+                                               std::uint32_t& leaf, Result& result) {
+  std::uint32_t node = leaf;
+  while (node != 0 && !inside(tree.cells[node], q)) node = tree.cells[node].parent;
+  constexpr float kZero[3] = {0.0f, 0.0f, 0.0f};
+  leaf = search(tree, node, kZero, q, result);
+  while (node != 0 && !ball_inside(tree.cells[node], q, result.worst)) {
+    const std::uint32_t parent = tree.cells[node].parent;
+    const std::uint32_t sibling =
+        node == parent + 1 ? tree.nodes[parent].right_or_begin : parent + 1;
+    float off[3];
+    offsets(tree.cells[sibling], q, off);
+    if (off[0] * off[0] + off[1] * off[1] + off[2] * off[2] < result.worst)
+      search(tree, sibling, off, q, result);
+    node = parent;
+  }
+}
+
+/// The nearest point of one query (search from the root).
+CARAT_MULTIVERSION_WIDE void search_nearest(const TreeView& tree, const float* q,
+                                            NearestResult& result) {
+  search(tree, q, result);
+}
+
+/// The k nearest points of one query (search from the root).
+CARAT_MULTIVERSION_WIDE void search_knn(const TreeView& tree, const float* q, KnnResult& result) {
+  search(tree, q, result);
+}
+
+/// Nearest points (leaf order) and squared distances of a run of queries.
 CARAT_MULTIVERSION_WIDE void search_nearest_run(const TreeView& tree,
                                                 const Eigen::Vector3f* queries, std::size_t count,
                                                 float bound, std::uint32_t* positions,
                                                 float* distances) {
   std::uint32_t leaf = 0;
   for (std::size_t k = 0; k < count; ++k) {
-    const float* q = queries[k].data();
     NearestResult result{bound};
-    std::uint32_t node = leaf;
-    while (node != 0 && !inside(tree.cells[node], q)) node = tree.cells[node].parent;
-    constexpr float kZero[3] = {0.0f, 0.0f, 0.0f};
-    leaf = search(tree, node, kZero, q, result);
-    while (node != 0 && !ball_inside(tree.cells[node], q, result.worst)) {
-      const std::uint32_t parent = tree.cells[node].parent;
-      const std::uint32_t sibling =
-          node == parent + 1 ? tree.nodes[parent].right_or_begin : parent + 1;
-      float off[3];
-      offsets(tree.cells[sibling], q, off);
-      if (off[0] * off[0] + off[1] * off[1] + off[2] * off[2] < result.worst)
-        search(tree, sibling, off, q, result);
-      node = parent;
-    }
+    search_from(tree, queries[k].data(), leaf, result);
     positions[k] = result.position;
     distances[k] = result.worst;
   }
-}
-
-CARAT_MULTIVERSION_WIDE void search_nearest(const TreeView& tree, const float* q,
-                                            NearestResult& result) {
-  search(tree, q, result);
-}
-
-CARAT_MULTIVERSION_WIDE void search_knn(const TreeView& tree, const float* q, KnnResult& result) {
-  search(tree, q, result);
 }
 
 }  // namespace

@@ -50,6 +50,10 @@ class FrameStore {
   std::shared_ptr<const Frame> get(std::size_t k);
   /// True when the frames are held in memory by the caller (the first constructor).
   bool resident() const { return !load_; }
+  /// Drops every cached frame that no caller holds, when frames are read on demand (a later
+  /// get() reads it again); a resident store keeps its frames. For a pipeline done with its
+  /// frames, such as the solve after the last round of factors.
+  void release_cached();
   /// Counts so far.
   FrameStoreStats stats() const;
   /// Points of each frame as last given or loaded (0: not loaded yet), indexed by frame.
