@@ -37,6 +37,11 @@ constexpr std::uint64_t kMultiplier = 0x9E3779B97F4A7C15ull;
          static_cast<std::uint64_t>(c[2]);
 }
 
+/// Coordinate `axis` (0, 1, 2) of a key.
+[[gnu::always_inline]] inline std::int64_t key_coordinate(std::uint64_t key, std::size_t axis) {
+  return static_cast<std::int64_t>((key >> (42 - 21 * axis)) & ((1u << 21) - 1));
+}
+
 }  // namespace
 
 VoxelOccupancy::VoxelOccupancy(const PointCloud& cloud, double voxel_size)
@@ -63,7 +68,7 @@ VoxelOccupancy::VoxelOccupancy(const PointCloud& cloud, double voxel_size)
   hi.fill(std::numeric_limits<std::int64_t>::min());
   for (const std::uint64_t key : keys_) {
     for (std::size_t axis = 0; axis < 3; ++axis) {
-      const auto c = static_cast<std::int64_t>((key >> (42 - 21 * axis)) & ((1u << 21) - 1));
+      const auto c = key_coordinate(key, axis);
       lo[axis] = std::min(lo[axis], c);
       hi[axis] = std::max(hi[axis], c);
     }
@@ -78,7 +83,7 @@ VoxelOccupancy::VoxelOccupancy(const PointCloud& cloud, double voxel_size)
     for (const std::uint64_t key : keys_) {
       std::int64_t at = 0;
       for (std::size_t axis = 0; axis < 3; ++axis) {
-        const auto c = static_cast<std::int64_t>((key >> (42 - 21 * axis)) & ((1u << 21) - 1));
+        const auto c = key_coordinate(key, axis);
         at = at * box_size_[axis] + (c - box_begin_[axis]);
       }
       bits_[static_cast<std::size_t>(at) / 64] |= std::uint64_t{1} << (at % 64);

@@ -252,11 +252,13 @@ GicpBlock::GicpBlock(std::span<const Eigen::Vector3f> target_means,
     // identity and reported.
     double target[6 * kBatch], source[6 * kBatch], W[6 * kBatch];
     int ok[kBatch];
+    bool usable[kBatch];
     for (std::size_t k0 = range.begin(); k0 < range.end(); k0 += kBatch) {
       const std::size_t n = std::min<std::size_t>(kBatch, range.end() - k0);
       for (std::size_t lane = 0; lane < kBatch; ++lane) {
         const std::size_t k = k0 + lane;
-        if (lane >= n || check(k) != kNone) {
+        usable[lane] = lane < n && check(k) == kNone;
+        if (!usable[lane]) {
           for (std::size_t e = 0; e < 6; ++e)
             target[e * kBatch + lane] = source[e * kBatch + lane] = e == 0 || e == 3 || e == 5;
           continue;
@@ -271,7 +273,7 @@ GicpBlock::GicpBlock(std::span<const Eigen::Vector3f> target_means,
       fused_whitenings(target, source, R.data(), W, ok);
       for (std::size_t lane = 0; lane < n; ++lane) {
         const std::size_t k = k0 + lane;
-        if (!ok[lane] || check(k) != kNone) {
+        if (!ok[lane] || !usable[lane]) {
           fault_at(k);
           return;
         }
