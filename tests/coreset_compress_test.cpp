@@ -209,6 +209,82 @@ TEST(CompressTest, BlockWithoutRowExtractionIsIndexedNotCopied) {
   EXPECT_EQ(indexed->tangent_dim(), 12);
 }
 
+// Rows chosen by the caller: each kept row counts its weight times, in the rows' evaluation, in
+// H, b and c (the block evaluated in one call), and in the cost; rows or weights that do not fit
+// are named.
+TEST(CompressTest, ChosenRowsCountWithTheirWeights) {
+  PlaneProblem problem = make_plane_problem(40, 91);
+  const double* params[2] = {problem.pose_i, problem.pose_j};
+  const std::vector<int> rows{2, 5, 9, 31};
+  const std::vector<double> weights{1.0, 2.0, 4.0, 0.5};
+  for (const bool extracts : {true, false}) {
+    const std::shared_ptr<const ResidualBlock> block =
+        extracts ? std::shared_ptr<const ResidualBlock>(problem.block)
+                 : std::make_shared<NoExtractBlock>(problem.block);
+    const auto kept = compress_rows(block, rows, weights);
+    ASSERT_EQ(kept->num_rows(), 4);
+    Eigen::VectorXd r_all, r;
+    Eigen::MatrixXd J_all, J;
+    evaluate_full_jacobian(*problem.block, params, &r_all, &J_all);
+    evaluate_full_jacobian(*kept, params, &r, &J);
+    Eigen::MatrixXd H_expected = Eigen::MatrixXd::Zero(J_all.cols(), J_all.cols());
+    Eigen::VectorXd b_expected = Eigen::VectorXd::Zero(J_all.cols());
+    double c_expected = 0.0;
+    for (std::size_t k = 0; k < rows.size(); ++k) {
+      const auto i = static_cast<Eigen::Index>(rows[k]);
+      const double s = std::sqrt(weights[k]);
+      EXPECT_NEAR(r[static_cast<Eigen::Index>(k)], s * r_all[i], 1e-12 * (1 + std::abs(r_all[i])));
+      H_expected += weights[k] * J_all.row(i).transpose() * J_all.row(i);
+      b_expected += weights[k] * J_all.row(i).transpose() * r_all[i];
+      c_expected += weights[k] * r_all[i] * r_all[i];
+    }
+    const int D = kept->reduced_dim();
+    Eigen::MatrixXd H = Eigen::MatrixXd::Zero(D, D);
+    Eigen::VectorXd b = Eigen::VectorXd::Zero(D);
+    const double c = kept->accumulate(params, H, b);
+    EXPECT_NEAR(c, c_expected, 1e-12 * c_expected);
+    EXPECT_NEAR(kept->squared_norm(params), c_expected, 1e-12 * c_expected);
+    // H and b over the reduced coordinates: the full ones mapped through the block's reduced map.
+    Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> A(D, J_all.cols());
+    problem.block->reduced_map(params, A.data());
+    const Eigen::MatrixXd H_full = A.transpose() * H * A;
+    EXPECT_LT((H_full - H_expected).norm(), 1e-10 * H_expected.norm());
+    EXPECT_LT((A.transpose() * b - b_expected).norm(), 1e-10 * (1 + b_expected.norm()));
+  }
+  expect_error(
+      [&] {
+        compress_rows(problem.block, {2, 5}, {1.0});
+      },
+      "compress_rows: 2 rows but 1 weights");
+  expect_error([&] { compress_rows(problem.block, {}, {}); }, "compress_rows: no rows");
+  expect_error(
+      [&] {
+        compress_rows(problem.block, {5, 2}, {1.0, 1.0});
+      },
+      "compress_rows: rows must ascend without repeats; row 2 follows 5");
+  expect_error(
+      [&] {
+        compress_rows(problem.block, {5, 5}, {1.0, 1.0});
+      },
+      "compress_rows: rows must ascend without repeats; row 5 follows 5");
+  expect_error(
+      [&] {
+        compress_rows(problem.block, {2, 40}, {1.0, 1.0});
+      },
+      "compress_rows: row 40 is out of range (the block has 40 rows)");
+  expect_error(
+      [&] {
+        compress_rows(problem.block, {2, 5}, {1.0, 0.0});
+      },
+      "compress_rows: the weight of row 5 is 0; weights must be finite and > 0");
+  expect_error(
+      [&] {
+        compress_rows(problem.block, {2, 5}, {1.0, std::numeric_limits<double>::infinity()});
+      },
+      "compress_rows: the weight of row 5 is inf; weights must be finite and > 0");
+  expect_error([&] { compress_rows(nullptr, {2}, {1.0}); }, "compress_rows: block is null");
+}
+
 TEST(CompressTest, FewRowsAndBadOptions) {
   PlaneProblem problem = make_plane_problem(20, 81);
   const double* params[2] = {problem.pose_i, problem.pose_j};

@@ -3,7 +3,10 @@
 // the full optimum and re-compression reaches it, and the evaluation of full costs.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <random>
+#include <string>
+#include <vector>
 
 #include "carat/coreset/problem_compression.hpp"
 #include "carat/solver/autodiff_block.hpp"
@@ -93,21 +96,74 @@ TEST(ProblemCompressionTest, RecompressionReachesTheFullOptimum) {
   // The problem's blocks are untouched: still the full one.
   EXPECT_EQ(recompressed.num_residual_rows(), 10000u);
 
-  // The default, compressed solves then full iterations: the same optimum, fewer compressions,
-  // and the compressed costs beside the full ones.
+  // The surrogate's compressions alone (no sampled start), compressed solves then full
+  // iterations: the same optimum, fewer compressions, and the compressed costs beside the full
+  // ones.
   Problem surrogate = curve_problem();
-  RecompressedSolveOptions defaults;
-  defaults.inner = tight();
-  const RecompressedSolveSummary s = solve_recompressed(surrogate, defaults);
+  RecompressedSolveOptions compressions;
+  compressions.inner = tight();
+  compressions.sampled_start = false;
+  const RecompressedSolveSummary s = solve_recompressed(surrogate, compressions);
   EXPECT_EQ(s.mode, CompressionMode::kSurrogate);
   EXPECT_EQ(s.termination, TerminationType::kConvergence) << s.brief_report();
   EXPECT_LE(std::abs(s.final_cost - optimum), 1e-9 * optimum) << s.brief_report();
+  EXPECT_FALSE(s.sampled_start);
   EXPECT_GE(s.recompressions, 1);
   EXPECT_GE(s.full_iterations, 1);
   EXPECT_EQ(s.compressed_initial_cost, s.initial_cost);  // exact at the first compression
   EXPECT_NE(s.compressed_final_cost, s.final_cost);      // the surrogate's own cost differs
   EXPECT_NEAR(s.initial_cost, evaluate_problem(curve_problem()).cost, 1e-12 * s.initial_cost);
   EXPECT_NE(s.brief_report().find("(compressed "), std::string::npos) << s.brief_report();
+}
+
+// The default surrogate starts from a uniformly sampled problem: 64 of the 10,000 rows (the
+// larger of 4 x the coreset's 7, min_target_rows 64 and 10,000 / 256), whose solution lowers the
+// full cost; full iterations from there reach the full optimum. A problem of blocks too small to
+// sample starts with the compressions instead.
+TEST(ProblemCompressionTest, TheDefaultSurrogateStartsFromASampledProblem) {
+  Problem full = curve_problem();
+  solve(tight(), full);
+  const double optimum = evaluate_problem(full).cost;
+  Problem sampled = curve_problem();
+  RecompressedSolveOptions options;
+  options.inner = tight();
+  const RecompressedSolveSummary s = solve_recompressed(sampled, options);
+  EXPECT_EQ(s.termination, TerminationType::kConvergence) << s.brief_report();
+  EXPECT_LE(std::abs(s.final_cost - optimum), 1e-9 * optimum) << s.brief_report();
+  EXPECT_TRUE(s.sampled_start);
+  EXPECT_EQ(s.sampled_rows, 64u);
+  EXPECT_NEAR(s.initial_cost, evaluate_problem(curve_problem()).cost, 1e-12 * s.initial_cost);
+  EXPECT_LT(s.sampled_start_cost, 0.1 * s.initial_cost);  // 18,357 -> about 208
+  EXPECT_GT(s.sampled_start_cost, s.final_cost);          // a subsample's optimum is not the full
+  EXPECT_GE(s.full_iterations, 1);
+  EXPECT_GT(s.inner_iterations, 0);
+  EXPECT_NE(s.brief_report().find("sampled start on 64 rows"), std::string::npos)
+      << s.brief_report();
+  EXPECT_EQ(sampled.num_residual_rows(), 10000u);  // the problem's blocks are untouched
+  // Sampled at least at sampled_rows_share: 1 / 16 of 10,000 rows is 625.
+  Problem shared = curve_problem();
+  options.sampled_rows_share = 1.0 / 16.0;
+  const RecompressedSolveSummary more = solve_recompressed(shared, options);
+  EXPECT_EQ(more.sampled_rows, 625u);
+  EXPECT_LE(std::abs(more.final_cost - optimum), 1e-9 * optimum) << more.brief_report();
+
+  // 100 blocks of 100 rows: a sample of 64 would keep more than a quarter of the rows.
+  const std::vector<Eigen::Vector2d> data = curve_data(10000, 1);
+  Problem blocks;
+  const VariableId mc = blocks.add_euclidean(Eigen::Vector2d(0.0, 0.0));
+  for (std::size_t b = 0; b < 100; ++b) {
+    blocks.add_residual_block(
+        make_autodiff_block<1, VariableSize<2>>(
+            ExpResidual{},
+            std::vector<Eigen::Vector2d>(data.begin() + 100 * b, data.begin() + 100 * (b + 1))),
+        {mc});
+  }
+  options.sampled_rows_share = 1.0 / 256.0;
+  const RecompressedSolveSummary whole = solve_recompressed(blocks, options);
+  EXPECT_FALSE(whole.sampled_start);
+  EXPECT_EQ(whole.sampled_rows, 0u);
+  EXPECT_GE(whole.recompressions, 1);
+  EXPECT_LE(std::abs(whole.final_cost - optimum), 1e-9 * optimum) << whole.brief_report();
 }
 
 TEST(ProblemCompressionTest, CompressOnceReportsTheFullCostAndKeepsTheOriginals) {
@@ -144,6 +200,25 @@ TEST(ProblemCompressionTest, BadOptionsAreErrors) {
   options.max_recompressions = 3;
   options.inner.max_iterations = -1;
   EXPECT_THROW(solve_recompressed(problem, options), Error);
+  options.inner.max_iterations = 50;
+  const auto message_of = [&](const RecompressedSolveOptions& bad) {
+    try {
+      solve_recompressed(problem, bad);
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  options.sampled_rows_factor = 0;
+  EXPECT_EQ(message_of(options), "solve_recompressed: sampled_rows_factor must be >= 1, got 0");
+  options.sampled_rows_factor = 4;
+  options.sampled_rows_share = 1.5;
+  EXPECT_EQ(message_of(options),
+            "solve_recompressed: sampled_rows_share must be in [0, 1], got 1.5");
+  options.sampled_rows_share = std::nan("");
+  EXPECT_EQ(message_of(options),
+            "solve_recompressed: sampled_rows_share must be in [0, 1], got nan");
+  options.sampled_rows_share = 1.0 / 256.0;
   ProblemCompressionOptions small;
   small.compression.target_rows = 3;  // below the minimum of 7 for D = 2
   EXPECT_THROW(

@@ -1,6 +1,8 @@
 #include "carat/coreset/compress.hpp"
 
 #include <algorithm>
+#include <cmath>
+#include <memory>
 #include <numeric>
 #include <span>
 #include <string>
@@ -82,41 +84,57 @@ std::shared_ptr<CompressedBlock> compress(std::shared_ptr<const ResidualBlock> b
   }
   const int n = block->num_rows();
   const int r = block->reduced_dim();
-  // Per-thread scratch that only grows (up to kMaxReusedRows rows): compressing thousands of
-  // factors in a row would otherwise map and fault in fresh pages for every block's rows.
-  constexpr std::size_t kMaxReusedRows = 1 << 18;
+  // Per-thread scratch that only grows, up to kMaxReusedBytes: compressing thousands of factors
+  // in a row, or one large block again and again (solve_recompressed()), would otherwise map and
+  // fault in fresh pages on every call. A larger block gets scratch of its own, not zero-filled.
+  constexpr std::size_t kMaxReusedBytes = std::size_t{64} << 20;
   // A block's evaluate_rows() may run parallel work whose scheduler starts another compress()
   // on this thread; the flag keeps that nested call off the buffers in use.
   thread_local std::vector<double> reused_jacobian, reused_residuals;
   thread_local std::vector<int> reused_indices;
   thread_local bool in_use = false;
-  std::vector<double> local_jacobian, local_residuals;
-  std::vector<int> local_indices;
   const auto size = static_cast<std::size_t>(n);
-  const bool reuse = size <= kMaxReusedRows && !in_use;
+  const std::size_t jacobian_size = size * static_cast<std::size_t>(r);
+  const bool reuse = size * ((static_cast<std::size_t>(r) + 1) * sizeof(double) + sizeof(int)) <=
+                         kMaxReusedBytes &&
+                     !in_use;
   struct Claim {
     bool* flag;
     ~Claim() {
       if (flag) *flag = false;
     }
   } claim{reuse ? &in_use : nullptr};
-  if (reuse) in_use = true;
-  std::vector<double>& jacobian_buffer = reuse ? reused_jacobian : local_jacobian;
-  std::vector<double>& residual_buffer = reuse ? reused_residuals : local_residuals;
-  std::vector<int>& all = reuse ? reused_indices : local_indices;
-  if (jacobian_buffer.size() < size * static_cast<std::size_t>(r))
-    jacobian_buffer.resize(size * static_cast<std::size_t>(r));
-  if (residual_buffer.size() < size) residual_buffer.resize(size);
-  if (all.size() < size) {
-    const std::size_t old = all.size();
-    all.resize(size);
-    std::iota(all.begin() + static_cast<std::ptrdiff_t>(old), all.end(), static_cast<int>(old));
+  std::unique_ptr<double[]> local_jacobian, local_residuals;
+  std::unique_ptr<int[]> local_indices;
+  double* jacobian_buffer = nullptr;
+  double* residual_buffer = nullptr;
+  int* all = nullptr;
+  if (reuse) {
+    in_use = true;
+    if (reused_jacobian.size() < jacobian_size) reused_jacobian.resize(jacobian_size);
+    if (reused_residuals.size() < size) reused_residuals.resize(size);
+    if (reused_indices.size() < size) {
+      const std::size_t old = reused_indices.size();
+      reused_indices.resize(size);
+      std::iota(reused_indices.begin() + static_cast<std::ptrdiff_t>(old), reused_indices.end(),
+                static_cast<int>(old));
+    }
+    jacobian_buffer = reused_jacobian.data();
+    residual_buffer = reused_residuals.data();
+    all = reused_indices.data();
+  } else {
+    local_jacobian = std::make_unique_for_overwrite<double[]>(jacobian_size);
+    local_residuals = std::make_unique_for_overwrite<double[]>(size);
+    local_indices = std::make_unique_for_overwrite<int[]>(size);
+    std::iota(local_indices.get(), local_indices.get() + size, 0);
+    jacobian_buffer = local_jacobian.get();
+    residual_buffer = local_residuals.get();
+    all = local_indices.get();
   }
-  block->evaluate_rows(values, std::span<const int>(all.data(), size), residual_buffer.data(),
-                       jacobian_buffer.data());
+  block->evaluate_rows(values, std::span<const int>(all, size), residual_buffer, jacobian_buffer);
   const Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> J(
-      jacobian_buffer.data(), n, r);
-  const Eigen::Map<const Eigen::VectorXd> e(residual_buffer.data(), n);
+      jacobian_buffer, n, r);
+  const Eigen::Map<const Eigen::VectorXd> e(residual_buffer, n);
   RowCoresetOptions row_options;
   row_options.target_rows = options.target_rows;
   row_options.clusters = options.clusters;
@@ -127,6 +145,32 @@ std::shared_ptr<CompressedBlock> compress(std::shared_ptr<const ResidualBlock> b
     return freeze_group_loss(*block, values, std::move(coreset), e.squaredNorm());
   }
   return make_compressed(std::move(block), std::move(coreset.rows), std::move(coreset.weights));
+}
+
+std::shared_ptr<CompressedBlock> compress_rows(std::shared_ptr<const ResidualBlock> block,
+                                               std::vector<int> rows, std::vector<double> weights) {
+  if (!block) throw Error("compress_rows: block is null");
+  if (rows.empty()) throw Error("compress_rows: no rows");
+  if (rows.size() != weights.size()) {
+    throw Error("compress_rows: " + std::to_string(rows.size()) + " rows but " +
+                std::to_string(weights.size()) + " weights");
+  }
+  const int n = block->num_rows();
+  for (std::size_t k = 0; k < rows.size(); ++k) {
+    if (rows[k] < 0 || rows[k] >= n) {
+      throw Error("compress_rows: row " + std::to_string(rows[k]) + " is out of range (" +
+                  label(*block) + " has " + std::to_string(n) + " rows)");
+    }
+    if (k > 0 && rows[k] <= rows[k - 1]) {
+      throw Error("compress_rows: rows must ascend without repeats; row " +
+                  std::to_string(rows[k]) + " follows " + std::to_string(rows[k - 1]));
+    }
+    if (!std::isfinite(weights[k]) || !(weights[k] > 0.0)) {
+      throw Error("compress_rows: the weight of row " + std::to_string(rows[k]) + " is " +
+                  message_number(weights[k]) + "; weights must be finite and > 0");
+    }
+  }
+  return make_compressed(std::move(block), std::move(rows), std::move(weights));
 }
 
 std::shared_ptr<CompressedBlock> compress_random(std::shared_ptr<const ResidualBlock> block,

@@ -1,7 +1,9 @@
 #include "carat/coreset/compressed_block.hpp"
 
 #include <cmath>
+#include <numeric>
 #include <string>
+#include <vector>
 
 #include "carat/base/error.hpp"
 
@@ -60,17 +62,47 @@ void CompressedBlock::evaluate_rows(ParameterPointers params, std::span<const in
   }
 }
 
+namespace {
+
+/// Largest scratch (bytes) for evaluating every kept row in one call of the inner block.
+constexpr std::size_t kOneCallBytes = std::size_t{16} << 20;
+
+}  // namespace
+
+bool CompressedBlock::in_one_call(bool with_jacobian) const {
+  const std::size_t doubles =
+      with_jacobian ? static_cast<std::size_t>(inner_->reduced_dim()) + 1 : 1;
+  return rows_.size() * doubles * sizeof(double) <= kOneCallBytes;
+}
+
 double CompressedBlock::accumulate(ParameterPointers params, Eigen::Ref<Eigen::MatrixXd> H_r,
                                    Eigen::Ref<Eigen::VectorXd> b_r) const {
   // Folded: the inner block's rows are the rows, and its own (possibly fused) accumulate() sums
   // them.
   if (folded()) return inner_->accumulate(params, H_r, b_r) + constant_cost_;
-  return ResidualBlock::accumulate(params, H_r, b_r);
+  if (!in_one_call(true)) return ResidualBlock::accumulate(params, H_r, b_r);
+  // Every kept row in one call of the inner block (a block that calls out per evaluation, such
+  // as a Python function's, is called once rather than per chunk of rows).
+  const auto n = static_cast<Eigen::Index>(rows_.size());
+  std::vector<int> all(rows_.size());
+  std::iota(all.begin(), all.end(), 0);
+  Eigen::VectorXd e(n);
+  Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> J(n, reduced_dim());
+  evaluate_rows(params, all, e.data(), J.data());
+  H_r.selfadjointView<Eigen::Lower>().rankUpdate(J.transpose());
+  H_r.triangularView<Eigen::StrictlyUpper>() = H_r.transpose();
+  b_r.noalias() += J.transpose() * e;
+  return constant_cost_ + e.squaredNorm();
 }
 
 double CompressedBlock::squared_norm(ParameterPointers params) const {
   if (folded()) return inner_->squared_norm(params) + constant_cost_;
-  return ResidualBlock::squared_norm(params);
+  if (!in_one_call(false)) return ResidualBlock::squared_norm(params);
+  std::vector<int> all(rows_.size());
+  std::iota(all.begin(), all.end(), 0);
+  Eigen::VectorXd e(static_cast<Eigen::Index>(rows_.size()));
+  evaluate_rows(params, all, e.data(), nullptr);
+  return constant_cost_ + e.squaredNorm();
 }
 
 std::unique_ptr<ResidualBlock> CompressedBlock::extract_rows(std::span<const int> rows) const {

@@ -10,8 +10,11 @@
 
 #include "carat/base/error.hpp"
 #include "carat/base/stopwatch.hpp"
+#include "carat/coreset/compress.hpp"
+#include "carat/coreset/row_coreset.hpp"
 #include "carat/solver/evaluate.hpp"
 #include "carat/solver/solve.hpp"
+#include "shuffle.hpp"
 
 namespace carat {
 namespace {
@@ -61,10 +64,18 @@ class CompressedSolver {
   SolverSummary solve_full(const SolverOptions& options);
   RecompressedSolveSummary finish(TerminationType type, std::string message);
 
+  /// kSurrogate's sampled start (see compressed_solve.hpp): solves the problem with its large
+  /// blocks sampled and moves the problem to the result when that lowers the full cost. False
+  /// (nothing done) when sampling would keep more than a quarter of the rows.
+  bool run_sampled_start();
+
   RecompressedSolveSummary run_once();
   RecompressedSolveSummary run_surrogate();
+  /// Compressions while the compressed solve beats a full step, then full iterations.
+  RecompressedSolveSummary run_compressions();
   RecompressedSolveSummary run_recompress();
-  RecompressedSolveSummary run_full_then_surrogate();
+  /// The full solve, switching to run_compressions() where its Gauss-Newton model fails.
+  RecompressedSolveSummary run_full_then_compressions();
   /// Full iterations to finish a mode that ends at the full optimum.
   RecompressedSolveSummary finish_with_full(std::string why);
 
@@ -152,7 +163,71 @@ RecompressedSolveSummary CompressedSolver::run_once() {
                 "one compression, solved (not the full optimum): " + solved.message);
 }
 
+bool CompressedSolver::run_sampled_start() {
+  const Stopwatch stage;
+  const auto blocks = problem_.blocks();
+  const ProblemCompressionOptions& compression = options_.compression;
+  // Which blocks are sampled, to how many rows; the rest stay whole (those compress_problem()
+  // would leave, those with a loss per row group, whose groups a row sample would split, and
+  // those of too few rows to gain from it).
+  std::vector<int> targets(blocks.size(), 0);
+  std::size_t rows = 0;
+  for (std::size_t k = 0; k < blocks.size(); ++k) {
+    const ResidualBlock& block = *blocks[k].block;
+    const ResidualBlockId id{static_cast<std::int32_t>(k)};
+    const int n = block.num_rows();
+    const int target = std::max(
+        {options_.sampled_rows_factor * minimum_coreset_rows(block.reduced_dim()),
+         compression.min_target_rows,
+         static_cast<int>(std::ceil(options_.sampled_rows_share * static_cast<double>(n)))});
+    const bool whole = (compression.select && !compression.select(id, block)) ||
+                       block.group_loss() != nullptr || n <= compression.min_rows ||
+                       n / 2 <= target;
+    if (!whole) targets[k] = target;
+    rows += static_cast<std::size_t>(whole ? n : target);
+  }
+  const bool any = std::any_of(targets.begin(), targets.end(), [](int t) { return t > 0; });
+  if (!any || rows > summary_.full_rows / 4) return false;
+  Problem sampled = problem_;
+  for (std::size_t k = 0; k < blocks.size(); ++k) {
+    if (targets[k] == 0) continue;
+    // Floyd's draw of the rows, not compress_random()'s permutation of all of them.
+    const int n = blocks[k].block->num_rows();
+    std::vector<int> rows_kept =
+        internal::seeded_sample(n, targets[k], compression.compression.seed + k);
+    std::vector<double> weights(rows_kept.size(),
+                                static_cast<double>(n) / static_cast<double>(targets[k]));
+    sampled.replace_residual_block(
+        ResidualBlockId{static_cast<std::int32_t>(k)},
+        compress_rows(blocks[k].block, std::move(rows_kept), std::move(weights)));
+  }
+  summary_.compression_s += stage.elapsed_s();
+  summary_.sampled_start = true;
+  summary_.sampled_rows = rows;
+  const Values start = values_of(problem_);
+  const double compressed_final = summary_.compressed_final_cost;
+  const SolverSummary solved = solve_compressed(sampled, inner_.max_iterations);
+  summary_.compressed_final_cost = compressed_final;  // for compressed problems only
+  summary_.initial_cost = full_cost_at(start);
+  summary_.sampled_start_cost = solved.termination == TerminationType::kFailure
+                                    ? std::numeric_limits<double>::infinity()
+                                    : full_cost_at(values_of(sampled));
+  // Keep the sampled solution only where it lowered the full cost (the problem holds it now).
+  if (!(summary_.sampled_start_cost < summary_.initial_cost)) problem_.set_all_values(start);
+  return true;
+}
+
 RecompressedSolveSummary CompressedSolver::run_surrogate() {
+  if (!options_.sampled_start || !run_sampled_start()) return run_compressions();
+  const double initial = summary_.initial_cost;
+  RecompressedSolveSummary out = run_full_then_compressions();
+  out.initial_cost = initial;
+  out.message = "sampled start (full cost " + message_number(initial) + " -> " +
+                message_number(out.sampled_start_cost) + "), then " + out.message;
+  return out;
+}
+
+RecompressedSolveSummary CompressedSolver::run_compressions() {
   Values x = values_of(problem_);
   double cost = 0.0;
   for (int outer = 0; outer < options_.max_recompressions; ++outer) {
@@ -285,7 +360,7 @@ RecompressedSolveSummary CompressedSolver::run_recompress() {
   }
 }
 
-RecompressedSolveSummary CompressedSolver::run_full_then_surrogate() {
+RecompressedSolveSummary CompressedSolver::run_full_then_compressions() {
   SolverOptions options = inner_;
   const int switch_at = options_.switch_iteration;
   bool switch_now = false;
@@ -317,7 +392,7 @@ RecompressedSolveSummary CompressedSolver::run_full_then_surrogate() {
   }
   summary_.switched_to_compression = true;
   const double initial = summary_.initial_cost;
-  RecompressedSolveSummary out = run_surrogate();
+  RecompressedSolveSummary out = run_compressions();
   out.initial_cost = initial;
   return out;
 }
@@ -329,7 +404,7 @@ RecompressedSolveSummary CompressedSolver::run() {
     case CompressionMode::kRecompress:
       return run_recompress();
     case CompressionMode::kAuto:
-      return run_full_then_surrogate();
+      return run_full_then_compressions();
     case CompressionMode::kFull: {
       const SolverSummary full = solve_full(inner_);
       summary_.initial_cost = full.initial_cost;
@@ -376,6 +451,14 @@ bool RecompressedSolveOptions::validate(std::string* error) const {
     *error = "tolerances must be >= 0";
     return false;
   }
+  if (sampled_rows_factor < 1) {
+    *error = "sampled_rows_factor must be >= 1, got " + std::to_string(sampled_rows_factor);
+    return false;
+  }
+  if (!(sampled_rows_share >= 0.0 && sampled_rows_share <= 1.0)) {
+    *error = "sampled_rows_share must be in [0, 1], got " + message_number(sampled_rows_share);
+    return false;
+  }
   if (!(surrogate_gain >= 0.0) || !std::isfinite(surrogate_gain)) {
     *error = "surrogate_gain must be finite and >= 0, got " + message_number(surrogate_gain);
     return false;
@@ -394,6 +477,8 @@ std::string RecompressedSolveSummary::brief_report() const {
          (recompressions > 0 ? " (compressed " + message_number(compressed_initial_cost) + " -> " +
                                    message_number(compressed_final_cost) + ")"
                              : std::string()) +
+         (sampled_start ? ", sampled start on " + std::to_string(sampled_rows) + " rows"
+                        : std::string()) +
          ", " + std::to_string(recompressions) + " compressions, " +
          std::to_string(inner_iterations) + " compressed and " + std::to_string(full_iterations) +
          " full iterations, " + std::to_string(full_rows) + " -> " +

@@ -24,8 +24,8 @@ using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::R
 
 /// Rows per chunk of the first phase (summed in one pass, then reduced as units).
 constexpr long kChunkRows = 32;
-/// Largest block whose per-thread scratch is kept between calls (as compress() does).
-constexpr long kMaxReusedRows = 1L << 18;
+/// Largest scratch (bytes) kept per thread between calls, as compress() keeps its own.
+constexpr double kMaxReusedBytes = 64.0 * (1 << 20);
 
 /// Re-solves the final weights against the exact target sums (minimum-norm correction of the
 /// weights so that sum w_k [p_k; 1] = target), which removes the rounding the levels left
@@ -326,7 +326,7 @@ RowCoreset select_coreset_rows(const Eigen::Ref<const RowMatrix>& J_r,
   std::sort(idx.begin(), idx.end(), [&](int a, int b) {
     return rows.ids[static_cast<std::size_t>(a)] < rows.ids[static_cast<std::size_t>(b)];
   });
-  if (N > kMaxReusedRows) {  // a huge block's scratch is not kept for the next call
+  if (scratch > kMaxReusedBytes) {  // a huge block's scratch is not kept for the next call
     std::vector<int>().swap(chunk_order);
     std::vector<int>().swap(position);
     items = internal::Items();

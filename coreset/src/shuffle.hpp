@@ -5,8 +5,10 @@
 // with a 32-byte state: std::mt19937_64's 2.5 KB state took longer to seed than the shuffle of
 // a thousand items, and every compression seeds two.
 
+#include <algorithm>
 #include <cstdint>
 #include <numeric>
+#include <unordered_set>
 #include <vector>
 
 namespace carat::internal {
@@ -53,6 +55,26 @@ inline void seeded_permutation(int n, std::uint64_t seed, std::vector<int>& orde
     const auto j = static_cast<int>((static_cast<Wide>(rng.next()) * bound) >> 64);
     std::swap(order[static_cast<std::size_t>(i)], order[static_cast<std::size_t>(j)]);
   }
+}
+
+/// k distinct indices of 0..n-1 (0 <= k <= n), ascending, drawn uniformly by Floyd's algorithm
+/// (k draws, no permutation of all n) and determined by `seed` alone.
+inline std::vector<int> seeded_sample(int n, int k, std::uint64_t seed) {
+  std::vector<int> out;
+  out.reserve(static_cast<std::size_t>(k));
+  std::unordered_set<int> chosen;
+  chosen.reserve(static_cast<std::size_t>(2 * k));
+  SmallRng rng(seed);
+  __extension__ typedef unsigned __int128 Wide;
+  for (int j = n - k; j < n; ++j) {
+    const auto bound = static_cast<Wide>(static_cast<std::uint64_t>(j) + 1);
+    const auto t = static_cast<int>((static_cast<Wide>(rng.next()) * bound) >> 64);
+    const int pick = chosen.insert(t).second ? t : j;  // t taken already: j is new for sure
+    if (pick == j) chosen.insert(j);
+    out.push_back(pick);
+  }
+  std::sort(out.begin(), out.end());
+  return out;
 }
 
 /// A permutation of 0..n-1 determined by `seed` alone.

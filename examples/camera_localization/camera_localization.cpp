@@ -108,8 +108,9 @@ int main(int argc, char** argv) {
     recompressed.inner = options;
     const carat::Stopwatch stopwatch;
     const carat::RecompressedSolveSummary s = carat::solve_recompressed(problem, recompressed);
+    // Rows of the compressed problems, or of the sampled start's.
     Result r{"recompressed", s.final_cost, stopwatch.elapsed_s(), s.inner_iterations,
-             s.compressed_rows};
+             s.compressed_rows > 0 ? s.compressed_rows : s.sampled_rows};
     pose_errors(problem, ids, scene, &r);
     results.push_back(r);
   }

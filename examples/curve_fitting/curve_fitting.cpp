@@ -105,8 +105,11 @@ int main(int argc, char** argv) {
     const carat::RecompressedSolveSummary summary =
         carat::solve_recompressed(problem, recompressed);
     const double s = stopwatch.elapsed_s();
-    results.push_back({"recompressed", estimate(problem)[0], estimate(problem)[1],
-                       summary.final_cost, summary.inner_iterations, s, summary.compressed_rows});
+    results.push_back(
+        {"recompressed", estimate(problem)[0], estimate(problem)[1], summary.final_cost,
+         summary.inner_iterations, s,
+         // rows of the compressed problems, or of the sampled start's
+         summary.compressed_rows > 0 ? summary.compressed_rows : summary.sampled_rows});
   }
 
   const double optimum = results[0].full_cost;

@@ -151,8 +151,13 @@ ProblemCompressionOptions compression_options(int target_rows, int clusters, int
 RecompressedSolveSummary solve_recompressed_problem(PythonProblem& problem, const std::string& mode,
                                                     int target_rows, int clusters, int min_rows,
                                                     std::uint64_t seed, int max_recompressions,
+                                                    bool sampled_start, int sampled_rows_factor,
+                                                    double sampled_rows_share,
                                                     const py::kwargs& kwargs) {
   RecompressedSolveOptions options;
+  options.sampled_start = sampled_start;
+  options.sampled_rows_factor = sampled_rows_factor;
+  options.sampled_rows_share = sampled_rows_share;
   options.inner = solver_options(kwargs, "solve_recompressed");
   options.compression = compression_options(target_rows, clusters, min_rows, seed,
                                             options.inner.num_threads, options.compression);
@@ -251,6 +256,9 @@ void bind_problem(py::module_& m) {
       .def_property_readonly(
           "mode", [](const RecompressedSolveSummary& s) { return std::string(to_string(s.mode)); })
       .def_readonly("switched_to_compression", &RecompressedSolveSummary::switched_to_compression)
+      .def_readonly("sampled_start", &RecompressedSolveSummary::sampled_start)
+      .def_readonly("sampled_rows", &RecompressedSolveSummary::sampled_rows)
+      .def_readonly("sampled_start_cost", &RecompressedSolveSummary::sampled_start_cost)
       .def_readonly("initial_cost", &RecompressedSolveSummary::initial_cost)
       .def_readonly("final_cost", &RecompressedSolveSummary::final_cost)
       .def_readonly("final_gradient_max_norm", &RecompressedSolveSummary::final_gradient_max_norm)
@@ -458,11 +466,15 @@ carat.Covariance.)");
   def_checked(m, "solve_recompressed", &solve_recompressed_problem, py::arg("problem"),
               py::kw_only(), py::arg("mode") = "surrogate", py::arg("target_rows") = 0,
               py::arg("clusters") = 0, py::arg("min_rows") = 0, py::arg("seed") = 1,
-              py::arg("max_recompressions") = 20,
+              py::arg("max_recompressions") = 20, py::arg("sampled_start") = true,
+              py::arg("sampled_rows_factor") = 4, py::arg("sampled_rows_share") = 1.0 / 256.0,
               R"(Solves to the full problem's optimum with compressed blocks.
 
 mode: 'surrogate' (default), 'recompress', 'once' (one compression: fast, not the full optimum),
-'auto' or 'full'. Solver options as for carat.solve. Returns a carat.RecompressedSolveSummary.)");
+'auto' or 'full'. 'surrogate' first solves a uniformly sampled problem (sampled_start; per
+large block max(sampled_rows_factor x its coreset's minimum, 64, sampled_rows_share of its
+rows) rows), then the full problem from there. Solver options as for carat.solve. Returns a
+carat.RecompressedSolveSummary.)");
 }
 
 }  // namespace carat::python

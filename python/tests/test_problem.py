@@ -104,6 +104,19 @@ def test_compressed_solves_reach_the_full_optimum_and_compression_is_exact():
         s = carat.solve_recompressed(p, mode=mode, **TIGHT)
         np.testing.assert_allclose(p.value(w), full.value(v), rtol=rtol, atol=0)
         assert s.final_cost == pytest.approx(full.cost(), rel=1e-12)
+        # The surrogate starts from a sampled problem: 64 of the 600 rows.
+        assert s.sampled_start == (mode == "surrogate")
+        assert s.sampled_rows == (64 if mode == "surrogate" else 0)
+    # Without the sampled start the surrogate compresses first; the same optimum.
+    p, w = curve_problem(X, Y)
+    s = carat.solve_recompressed(p, sampled_start=False, **TIGHT)
+    assert not s.sampled_start and s.recompressions >= 1
+    np.testing.assert_allclose(p.value(w), full.value(v), rtol=1e-10, atol=0)
+    p, w = curve_problem(X, Y)
+    s = carat.solve_recompressed(p, sampled_rows_share=0.5, **TIGHT)
+    assert not s.sampled_start  # a block of at most twice its sample (300 of 600) stays whole
+    with pytest.raises(ValueError, match=r"sampled_rows_share must be in \[0, 1\], got 2"):
+        carat.solve_recompressed(p, sampled_rows_share=2.0)
     # An exact coreset reproduces the cost and gradient at the point it was built at, robust
     # losses per group included.
     p, w = curve_problem(X, Y, loss="cauchy", loss_scale=0.1)

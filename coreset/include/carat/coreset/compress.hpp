@@ -28,6 +28,14 @@ std::shared_ptr<CompressedBlock> compress(std::shared_ptr<const ResidualBlock> b
                                           ParameterPointers values,
                                           const CompressionOptions& options = {});
 
+/// The block kept at `rows` (ascending, distinct, in range) with `weights` (finite, > 0; a
+/// weight w counts its row w times): the rows' data extracted where the block can
+/// (extract_weighted_rows(), else extract_rows()), else the whole block with the row indices.
+/// What compress() and compress_random() return, for rows chosen by other means. Throws
+/// carat::Error naming the first row or weight that does not fit.
+std::shared_ptr<CompressedBlock> compress_rows(std::shared_ptr<const ResidualBlock> block,
+                                               std::vector<int> rows, std::vector<double> weights);
+
 /// Settings of compress_random().
 struct RandomSamplingOptions {
   int target_rows = 29;    ///< M rows to keep (a multiple of group_size)

@@ -61,6 +61,9 @@ class CompressedBlock final : public ResidualBlock {
   std::span<const double> weights() const { return weights_; }
 
  private:
+  /// Whether every kept row is evaluated in one call of the inner block (scratch small enough).
+  bool in_one_call(bool with_jacobian) const;
+
   std::shared_ptr<const ResidualBlock> inner_;
   std::vector<int> rows_;
   std::vector<double> weights_;  // square roots taken per evaluation: cheaper than their memory

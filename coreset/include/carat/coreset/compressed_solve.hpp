@@ -8,25 +8,35 @@
 /// can cover what takes a Gauss-Newton model several steps.
 ///
 /// solve_recompressed() uses that in one of these modes (CompressionMode):
-/// - kSurrogate (the default): compress at the current point and solve the compressed problem
-///   (the surrogate); also take one Levenberg-Marquardt step from the same compression (exact
-///   H and b there, so the full problem's step); judge both on the full cost (residual passes
-///   only) and keep the better. While the surrogate beats the step clearly, compress again at its
-///   result; once it does not (the solve has reached the region where the Gauss-Newton model is
-///   good), finish with full iterations, which converge there fast. Ends at the full optimum.
+/// - kSurrogate (the default): first a sampled start. Every block of many rows is replaced by a
+///   uniform random sample of its rows (sampled_rows_factor times its coreset's minimum, or
+///   sampled_rows_share of its rows if more), each weighted N / M: an unbiased estimate of the
+///   block's cost at every point, where a coreset is exact at one only. Blocks with a loss per
+///   row group stay whole (a row sample would split their groups). The sampled problem is solved
+///   and its result kept when it lowers the full cost (residual passes only). From there a full
+///   solve that switches to compressed solves where its Gauss-Newton model fails (kAuto's rule):
+///   each compression is solved (the surrogate) beside one Levenberg-Marquardt step from the same
+///   compression (exact H and b there, so the full problem's step), both judged on the full cost;
+///   while the surrogate beats the step clearly it compresses again at its result, else it
+///   finishes with full iterations. Ends at the full optimum. Without blocks worth sampling
+///   (sampling would keep more than a quarter of the rows), or with sampled_start off, it starts
+///   with the compressions.
 /// - kRecompress: compress again at every result until the full problem's tests hold; between
 ///   compressions only compressed blocks are evaluated (for memory rather than time). Ends at the
 ///   full optimum.
 /// - kOnce: compress once and solve (the paper's trade: fast, not the full optimum).
-/// - kAuto: a full solve that switches to kSurrogate when its Gauss-Newton model fails (a step
-///   rejected, or a poor gain ratio while far from converged: a nonlinear region, where
-///   compression pays); otherwise the full solve, at no cost over it.
+/// - kAuto: a full solve that switches to compressed solves (kSurrogate's rounds) when its
+///   Gauss-Newton model fails (a step rejected, or a poor gain ratio while far from converged: a
+///   nonlinear region, where compression pays); otherwise the full solve, at no cost over it.
 /// - kFull: no compression (the reference).
 ///
-/// When it pays, measured (docs/benchmarks.md, "Compressed solves"): solves that take many
-/// iterations from a poor start (the curve fit from (0, 0)) gain most; from a good start, a full
-/// solve converges in a few Gauss-Newton steps and each compression costs one pass over the rows
-/// plus the coreset, so kSurrogate gains less or loses (kAuto keeps the full solve there).
+/// When it pays, measured (docs/benchmarks.md, "Compressed solves"): a full solve spends most of
+/// its iterations getting near the optimum and its last two or three in the region where
+/// Gauss-Newton converges fast. The sampled start covers the first part with passes over a few
+/// hundred rows per block, so that kSurrogate takes about the full solve's last two iterations
+/// plus a few residual passes: 0.5-0.65 x the full solve from 4-5 iterations up, 0.8-0.9 x at 3.
+/// An exact compression costs one pass over the rows plus the coreset (more than a full
+/// iteration for blocks of 12 unknowns), so it pays only where the model fails for a stretch.
 
 #include <cstddef>
 #include <string>
@@ -42,10 +52,10 @@ namespace carat {
 
 /// How solve_recompressed() uses compression (see the file comment).
 enum class CompressionMode {
-  kSurrogate,   ///< compressed solves while they beat a full step, full iterations to finish
+  kSurrogate,   ///< a sampled start, then a full solve switching to compressed solves as kAuto
   kRecompress,  ///< compress again at every result until the full tests hold
   kOnce,        ///< one compression, solved: fast, not the full optimum
-  kAuto,        ///< the full solve, switching to kSurrogate in a long nonlinear stretch
+  kAuto,        ///< the full solve, switching to compressed solves in a nonlinear stretch
   kFull,        ///< no compression
 };
 
@@ -78,6 +88,13 @@ struct RecompressedSolveOptions {
   /// full step's by at least this share of that step's decrease; else finish with full
   /// iterations.
   double surrogate_gain = 0.5;
+  /// kSurrogate: start from the solution of a uniformly sampled problem (see the file comment).
+  bool sampled_start = true;
+  /// kSurrogate's sampled start: rows kept per block, at least this multiple of the block's
+  /// minimum coreset rows r(r+1)/2 + r + 2, at least compression.min_target_rows, and at least
+  /// sampled_rows_share of its rows; blocks of at most twice that many rows are kept whole.
+  int sampled_rows_factor = 4;
+  double sampled_rows_share = 1.0 / 256.0;  ///< kSurrogate: see sampled_rows_factor; in [0, 1]
   /// kAuto: from this iteration on, the full solve switches to kSurrogate when the
   /// Gauss-Newton model fails where it stands: a step rejected, or one accepted with a gain
   /// ratio below switch_gain_ratio while it lowered the cost by more than switch_decrease
@@ -108,20 +125,25 @@ struct RecompressedSolveSummary {
   TerminationType termination = TerminationType::kFailure;  ///< why it stopped
   std::string message;                                      ///< the reason in words
   CompressionMode mode = CompressionMode::kSurrogate;       ///< the mode asked for
-  /// kAuto: whether the full solve switched to compressed solves.
+  /// kAuto and kSurrogate: whether the full solve switched to compressed solves.
   bool switched_to_compression = false;
+  /// kSurrogate: whether the sampled start ran, its problem's rows, and the full cost at its
+  /// result (kept when below initial_cost).
+  bool sampled_start = false;
+  std::size_t sampled_rows = 0;           ///< rows of the sampled problem (0 when it did not run)
+  double sampled_start_cost = 0.0;        ///< full cost at the sampled problem's solution
   double initial_cost = 0.0;              ///< full cost at the start
   double final_cost = 0.0;                ///< full cost of the returned point
   double final_gradient_max_norm = -1.0;  ///< full max |gradient| there; -1 when not evaluated
   double compressed_initial_cost = 0.0;   ///< the first compressed problem's cost at its start
   double compressed_final_cost = 0.0;     ///< the last compressed problem's cost after its solve
   int recompressions = 0;                 ///< compressions done
-  int inner_iterations = 0;               ///< iterations of all compressed solves
+  int inner_iterations = 0;               ///< iterations of all compressed and sampled solves
   int full_iterations = 0;          ///< iterations of full solves (kSurrogate's finish, kAuto)
   std::size_t full_rows = 0;        ///< rows of the full problem
   std::size_t compressed_rows = 0;  ///< rows of the (last) compressed problem
-  double compression_s = 0.0;       ///< time compressing
-  double inner_solve_s = 0.0;       ///< time solving compressed problems
+  double compression_s = 0.0;       ///< time compressing (and sampling)
+  double inner_solve_s = 0.0;       ///< time solving compressed and sampled problems
   double full_evaluation_s = 0.0;   ///< time evaluating full costs
   double full_solve_s = 0.0;        ///< time in full iterations
   double total_s = 0.0;             ///< whole call

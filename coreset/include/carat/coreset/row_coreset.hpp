@@ -41,7 +41,7 @@ int default_coreset_clusters(int reduced_dim);
 /// Selects the coreset of the rows (J_r: N x r row-major, e: N). N <= M returns every row with
 /// weight 1. Throws carat::Error for M below the minimum, K < L + 2, sizes that do not match,
 /// a non-finite value (naming the row), or sums that overflow double. Per-thread scratch is
-/// kept between calls up to 2^18 rows (beyond that it is released after the call).
+/// kept between calls up to 64 MiB (larger scratch is released after the call).
 RowCoreset select_coreset_rows(
     const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>&
         J_r,
