@@ -139,6 +139,7 @@ TEST(ProblemCompressionTest, TheDefaultSurrogateStartsFromASampledProblem) {
   EXPECT_GT(s.inner_iterations, 0);
   EXPECT_NE(s.brief_report().find("sampled start on 64 rows"), std::string::npos)
       << s.brief_report();
+  EXPECT_EQ(s.message.find("not kept"), std::string::npos) << s.message;
   EXPECT_EQ(sampled.num_residual_rows(), 10000u);  // the problem's blocks are untouched
   // Sampled at least at sampled_rows_share: 1 / 16 of 10,000 rows is 625.
   Problem shared = curve_problem();
@@ -146,6 +147,21 @@ TEST(ProblemCompressionTest, TheDefaultSurrogateStartsFromASampledProblem) {
   const RecompressedSolveSummary more = solve_recompressed(shared, options);
   EXPECT_EQ(more.sampled_rows, 625u);
   EXPECT_LE(std::abs(more.final_cost - optimum), 1e-9 * optimum) << more.brief_report();
+
+  // From the full optimum the sample's solution can only raise the full cost: the full solve
+  // finds so at its first row and goes back to the start, which it keeps.
+  Problem at_optimum = curve_problem();
+  at_optimum.set_all_values(full.all_values());
+  options.sampled_rows_share = 1.0 / 256.0;
+  const RecompressedSolveSummary kept = solve_recompressed(at_optimum, options);
+  EXPECT_TRUE(kept.sampled_start);
+  EXPECT_GT(kept.sampled_start_cost, kept.initial_cost);
+  EXPECT_NE(kept.message.find(", not kept), then full solve: "), std::string::npos) << kept.message;
+  EXPECT_LE(kept.full_iterations, 1);  // from the optimum, not from the sample's 7 % above it
+  EXPECT_NEAR(kept.initial_cost, optimum, 1e-12 * optimum);
+  EXPECT_LE(kept.final_cost, kept.initial_cost);
+  EXPECT_NEAR(at_optimum.value(VariableId{0})[0], full.value(VariableId{0})[0], 1e-9);
+  EXPECT_NEAR(at_optimum.value(VariableId{0})[1], full.value(VariableId{0})[1], 1e-9);
 
   // 100 blocks of 100 rows: a sample of 64 would keep more than a quarter of the rows.
   const std::vector<Eigen::Vector2d> data = curve_data(10000, 1);
@@ -158,7 +174,6 @@ TEST(ProblemCompressionTest, TheDefaultSurrogateStartsFromASampledProblem) {
             std::vector<Eigen::Vector2d>(data.begin() + 100 * b, data.begin() + 100 * (b + 1))),
         {mc});
   }
-  options.sampled_rows_share = 1.0 / 256.0;
   const RecompressedSolveSummary whole = solve_recompressed(blocks, options);
   EXPECT_FALSE(whole.sampled_start);
   EXPECT_EQ(whole.sampled_rows, 0u);

@@ -81,6 +81,8 @@ class CompressedSolver {
 
   Problem& problem_;
   const RecompressedSolveOptions& options_;
+  /// The values before a sampled start the full solve has not judged yet (empty otherwise).
+  Values sampled_from_;
   SolverOptions inner_;
   int threads_ = 1;
   RecompressedSolveSummary summary_;
@@ -209,11 +211,15 @@ bool CompressedSolver::run_sampled_start() {
   const SolverSummary solved = solve_compressed(sampled, inner_.max_iterations);
   summary_.compressed_final_cost = compressed_final;  // for compressed problems only
   summary_.initial_cost = full_cost_at(start);
-  summary_.sampled_start_cost = solved.termination == TerminationType::kFailure
-                                    ? std::numeric_limits<double>::infinity()
-                                    : full_cost_at(values_of(sampled));
-  // Keep the sampled solution only where it lowered the full cost (the problem holds it now).
-  if (!(summary_.sampled_start_cost < summary_.initial_cost)) problem_.set_all_values(start);
+  if (solved.termination == TerminationType::kFailure) {
+    summary_.sampled_start_cost = std::numeric_limits<double>::infinity();
+    problem_.set_all_values(start);
+    return true;
+  }
+  // The full solve starts at the sampled solution; its first linearization gives the full cost
+  // there, and a start that does not lower it is abandoned for this one (no pass of its own).
+  problem_.set_all_values(values_of(sampled));
+  sampled_from_ = start;
   return true;
 }
 
@@ -222,8 +228,10 @@ RecompressedSolveSummary CompressedSolver::run_surrogate() {
   const double initial = summary_.initial_cost;
   RecompressedSolveSummary out = run_full_then_compressions();
   out.initial_cost = initial;
+  const bool kept = out.sampled_start_cost < initial;
   out.message = "sampled start (full cost " + message_number(initial) + " -> " +
-                message_number(out.sampled_start_cost) + "), then " + out.message;
+                message_number(out.sampled_start_cost) +
+                (kept ? "), then " : ", not kept), then ") + out.message;
   return out;
 }
 
@@ -364,8 +372,19 @@ RecompressedSolveSummary CompressedSolver::run_full_then_compressions() {
   SolverOptions options = inner_;
   const int switch_at = options_.switch_iteration;
   bool switch_now = false;
+  bool back_to_start = false;
+  bool judged = false;
   const IterationCallback user = inner_.iteration_callback;
   options.iteration_callback = [&](const IterationSummary& row) {
+    // From a sampled start: its full cost is the first row's; keep it only if below the start's.
+    if (row.iteration == 0 && !sampled_from_.empty()) {
+      judged = true;
+      summary_.sampled_start_cost = row.cost;
+      if (!(row.cost < summary_.initial_cost)) {
+        back_to_start = true;
+        return CallbackResult::kAbort;
+      }
+    }
     if (user && user(row) == CallbackResult::kAbort) return CallbackResult::kAbort;
     // The Gauss-Newton model fails where the solve stands (a step rejected, or accepted with a
     // gain ratio far below 1 while the cost still falls fast): a nonlinear stretch, which
@@ -380,8 +399,18 @@ RecompressedSolveSummary CompressedSolver::run_full_then_compressions() {
     }
     return CallbackResult::kContinue;
   };
+  const bool sampled = !sampled_from_.empty();
   const SolverSummary full = solve_full(options);
-  summary_.initial_cost = full.initial_cost;
+  // The sampled start raised the full cost, or could not be evaluated (the solve failed before
+  // its first row): solve from the start instead.
+  if (sampled && !judged) summary_.sampled_start_cost = std::numeric_limits<double>::infinity();
+  if (back_to_start || (sampled && !judged)) {
+    problem_.set_all_values(sampled_from_);
+    sampled_from_.clear();
+    return run_full_then_compressions();
+  }
+  sampled_from_.clear();
+  if (!sampled) summary_.initial_cost = full.initial_cost;
   // A solve that ended by itself (its last row may be a step too small to take) stays as it is.
   if (!switch_now || full.termination != TerminationType::kUserAbort) {
     summary_.final_cost = full.final_cost;

@@ -12,15 +12,16 @@
 ///   uniform random sample of its rows (sampled_rows_factor times its coreset's minimum, or
 ///   sampled_rows_share of its rows if more), each weighted N / M: an unbiased estimate of the
 ///   block's cost at every point, where a coreset is exact at one only. Blocks with a loss per
-///   row group stay whole (a row sample would split their groups). The sampled problem is solved
-///   and its result kept when it lowers the full cost (residual passes only). From there a full
-///   solve that switches to compressed solves where its Gauss-Newton model fails (kAuto's rule):
-///   each compression is solved (the surrogate) beside one Levenberg-Marquardt step from the same
-///   compression (exact H and b there, so the full problem's step), both judged on the full cost;
-///   while the surrogate beats the step clearly it compresses again at its result, else it
-///   finishes with full iterations. Ends at the full optimum. Without blocks worth sampling
-///   (sampling would keep more than a quarter of the rows), or with sampled_start off, it starts
-///   with the compressions.
+///   row group stay whole (a row sample would split their groups). The sampled problem is
+///   solved, and the full solve starts at its result, kept when its first linearization finds
+///   the full cost lowered (else the full solve starts again from the start). The full solve
+///   switches to compressed solves where its Gauss-Newton model fails (kAuto's rule): each
+///   compression is solved (the surrogate) beside one Levenberg-Marquardt step from the same
+///   compression (exact H and b there, so the full problem's step), both judged on the full
+///   cost; while the surrogate beats the step clearly it compresses again at its result, else
+///   it finishes with full iterations. Ends at the full optimum. Without blocks worth sampling
+///   (sampling would keep more than a quarter of the rows), or with sampled_start off, it
+///   starts with the compressions.
 /// - kRecompress: compress again at every result until the full problem's tests hold; between
 ///   compressions only compressed blocks are evaluated (for memory rather than time). Ends at the
 ///   full optimum.
@@ -31,12 +32,12 @@
 /// - kFull: no compression (the reference).
 ///
 /// When it pays, measured (docs/benchmarks.md, "Compressed solves"): a full solve spends most of
-/// its iterations getting near the optimum and its last two or three in the region where
-/// Gauss-Newton converges fast. The sampled start covers the first part with passes over a few
-/// hundred rows per block, so that kSurrogate takes about the full solve's last two iterations
-/// plus a few residual passes: 0.5-0.65 x the full solve from 4-5 iterations up, 0.8-0.9 x at 3.
-/// An exact compression costs one pass over the rows plus the coreset (more than a full
-/// iteration for blocks of 12 unknowns), so it pays only where the model fails for a stretch.
+/// its iterations getting near the optimum and its last two in the region where Gauss-Newton
+/// converges fast. The sampled start covers the first part with passes over a few hundred rows
+/// per block, so that kSurrogate takes about the full solve's last two iterations plus one
+/// residual pass: 0.47-0.60 x the full solve from 4-5 iterations up, 0.76-0.79 x at 3. An exact
+/// compression costs one pass over the rows plus the coreset (more than a full iteration for
+/// blocks of 12 unknowns), so it pays only where the model fails for a stretch.
 
 #include <cstddef>
 #include <string>
@@ -130,10 +131,11 @@ struct RecompressedSolveSummary {
   /// kSurrogate: whether the sampled start ran, its problem's rows, and the full cost at its
   /// result (kept when below initial_cost).
   bool sampled_start = false;
-  std::size_t sampled_rows = 0;           ///< rows of the sampled problem (0 when it did not run)
-  double sampled_start_cost = 0.0;        ///< full cost at the sampled problem's solution
-  double initial_cost = 0.0;              ///< full cost at the start
-  double final_cost = 0.0;                ///< full cost of the returned point
+  std::size_t sampled_rows = 0;  ///< rows of the sampled problem (0 when it did not run)
+  double sampled_start_cost =
+      0.0;                    ///< full cost at the sample's solution (inf: not finite, or failed)
+  double initial_cost = 0.0;  ///< full cost at the start
+  double final_cost = 0.0;    ///< full cost of the returned point
   double final_gradient_max_norm = -1.0;  ///< full max |gradient| there; -1 when not evaluated
   double compressed_initial_cost = 0.0;   ///< the first compressed problem's cost at its start
   double compressed_final_cost = 0.0;     ///< the last compressed problem's cost after its solve
