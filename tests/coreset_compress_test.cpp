@@ -13,7 +13,9 @@
 #include "carat/coreset/compress.hpp"
 #include "carat/coreset/quadratic_model.hpp"
 #include "carat/coreset/row_coreset.hpp"
+#include "carat/solver/autodiff_block.hpp"
 #include "carat/solver/jacobian_checker.hpp"
+#include "carat/solver/loss_function.hpp"
 #include "carat/solver/manifold.hpp"
 #include "coreset_test_blocks.hpp"
 #include "coreset_test_support.hpp"
@@ -283,6 +285,20 @@ TEST(CompressTest, ChosenRowsCountWithTheirWeights) {
       },
       "compress_rows: the weight of row 5 is inf; weights must be finite and > 0");
   expect_error([&] { compress_rows(nullptr, {2}, {1.0}); }, "compress_rows: block is null");
+  // A loss per row group would be split by a choice of rows.
+  const std::vector<Eigen::Vector2d> data{{0.0, 1.0}, {1.0, 2.0}, {2.0, 3.5}};
+  const auto robust = make_autodiff_block<1, VariableSize<2>>(
+                          [](const Eigen::Vector2d& d, const auto* mc, auto* r) {
+                            r[0] = mc[0] * d.x() + mc[1] - d.y();
+                            return true;
+                          },
+                          data)
+                          ->with_group_loss(std::make_shared<HuberLoss>(1.0));
+  expect_error(
+      [&] {
+        compress_rows(robust, {0, 2}, {1.5, 1.5});
+      },
+      "has a loss per row group, which a choice of rows would split");
 }
 
 TEST(CompressTest, FewRowsAndBadOptions) {

@@ -95,9 +95,11 @@ std::shared_ptr<CompressedBlock> compress(std::shared_ptr<const ResidualBlock> b
   thread_local bool in_use = false;
   const auto size = static_cast<std::size_t>(n);
   const std::size_t jacobian_size = size * static_cast<std::size_t>(r);
-  const bool reuse = size * ((static_cast<std::size_t>(r) + 1) * sizeof(double) + sizeof(int)) <=
-                         kMaxReusedBytes &&
-                     !in_use;
+  // The buffers kept only grow: reuse them while all three together stay within the limit.
+  const std::size_t kept_bytes = std::max(reused_jacobian.size(), jacobian_size) * sizeof(double) +
+                                 std::max(reused_residuals.size(), size) * sizeof(double) +
+                                 std::max(reused_indices.size(), size) * sizeof(int);
+  const bool reuse = kept_bytes <= kMaxReusedBytes && !in_use;
   struct Claim {
     bool* flag;
     ~Claim() {
@@ -150,6 +152,11 @@ std::shared_ptr<CompressedBlock> compress(std::shared_ptr<const ResidualBlock> b
 std::shared_ptr<CompressedBlock> compress_rows(std::shared_ptr<const ResidualBlock> block,
                                                std::vector<int> rows, std::vector<double> weights) {
   if (!block) throw Error("compress_rows: block is null");
+  if (block->group_loss()) {
+    throw Error("compress_rows: " + label(*block) +
+                " has a loss per row group, which a choice of rows would split; compress() "
+                "freezes it exactly");
+  }
   if (rows.empty()) throw Error("compress_rows: no rows");
   if (rows.size() != weights.size()) {
     throw Error("compress_rows: " + std::to_string(rows.size()) + " rows but " +

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <string>
 #include <utility>
@@ -83,6 +84,7 @@ class CompressedSolver {
   const RecompressedSolveOptions& options_;
   /// The values before a sampled start the full solve has not judged yet (empty otherwise).
   Values sampled_from_;
+  bool aborted_ = false;  ///< the caller's callback stopped the sampled solve
   SolverOptions inner_;
   int threads_ = 1;
   RecompressedSolveSummary summary_;
@@ -166,6 +168,8 @@ RecompressedSolveSummary CompressedSolver::run_once() {
 }
 
 bool CompressedSolver::run_sampled_start() {
+  // Blocks held outside the problem would be evaluated whole in the sampled problem too.
+  if (problem_.block_source()) return false;
   const Stopwatch stage;
   const auto blocks = problem_.blocks();
   const ProblemCompressionOptions& compression = options_.compression;
@@ -178,14 +182,17 @@ bool CompressedSolver::run_sampled_start() {
     const ResidualBlock& block = *blocks[k].block;
     const ResidualBlockId id{static_cast<std::int32_t>(k)};
     const int n = block.num_rows();
-    const int target = std::max(
-        {options_.sampled_rows_factor * minimum_coreset_rows(block.reduced_dim()),
-         compression.min_target_rows,
-         static_cast<int>(std::ceil(options_.sampled_rows_share * static_cast<double>(n)))});
+    // In 64 bits (a large factor or reduced dimension would overflow an int), at most n.
+    const std::int64_t target = std::min<std::int64_t>(
+        n, std::max({std::int64_t{options_.sampled_rows_factor} *
+                         minimum_coreset_rows(block.reduced_dim()),
+                     std::int64_t{compression.min_target_rows},
+                     static_cast<std::int64_t>(
+                         std::ceil(options_.sampled_rows_share * static_cast<double>(n)))}));
     const bool whole = (compression.select && !compression.select(id, block)) ||
                        block.group_loss() != nullptr || n <= compression.min_rows ||
-                       n / 2 <= target;
-    if (!whole) targets[k] = target;
+                       n <= 2 * target;
+    if (!whole) targets[k] = static_cast<int>(target);
     rows += static_cast<std::size_t>(whole ? n : target);
   }
   const bool any = std::any_of(targets.begin(), targets.end(), [](int t) { return t > 0; });
@@ -209,9 +216,16 @@ bool CompressedSolver::run_sampled_start() {
   const Values start = values_of(problem_);
   const double compressed_final = summary_.compressed_final_cost;
   const SolverSummary solved = solve_compressed(sampled, inner_.max_iterations);
-  summary_.compressed_final_cost = compressed_final;  // for compressed problems only
+  summary_.compressed_final_cost = compressed_final;        // for compressed problems only
+  if (solved.termination == TerminationType::kUserAbort) {  // the caller's callback said stop
+    problem_.set_all_values(start);
+    aborted_ = true;
+    return true;
+  }
   summary_.initial_cost = full_cost_at(start);
-  if (solved.termination == TerminationType::kFailure) {
+  // A failed sampled solve, or a start whose cost is not finite (the full solve reports that),
+  // leaves the start as it is.
+  if (solved.termination == TerminationType::kFailure || !std::isfinite(summary_.initial_cost)) {
     summary_.sampled_start_cost = std::numeric_limits<double>::infinity();
     problem_.set_all_values(start);
     return true;
@@ -225,6 +239,10 @@ bool CompressedSolver::run_sampled_start() {
 
 RecompressedSolveSummary CompressedSolver::run_surrogate() {
   if (!options_.sampled_start || !run_sampled_start()) return run_compressions();
+  if (aborted_) {
+    return finish(TerminationType::kUserAbort,
+                  "the iteration callback asked to stop (in the sampled start)");
+  }
   const double initial = summary_.initial_cost;
   RecompressedSolveSummary out = run_full_then_compressions();
   out.initial_cost = initial;
@@ -260,6 +278,11 @@ RecompressedSolveSummary CompressedSolver::run_compressions() {
     const SolverSummary solved = solve_compressed(work.problem, inner_.max_iterations);
     if (solved.termination == TerminationType::kFailure) {
       return finish(TerminationType::kFailure, "the compressed solve failed: " + solved.message);
+    }
+    if (solved.termination == TerminationType::kUserAbort) {
+      problem_.set_all_values(x);
+      summary_.final_cost = cost;
+      return finish(TerminationType::kUserAbort, "the iteration callback asked to stop");
     }
     const Values by_surrogate = values_of(work.problem);
     const Values by_step = values_of(stepped);
@@ -400,7 +423,14 @@ RecompressedSolveSummary CompressedSolver::run_full_then_compressions() {
     return CallbackResult::kContinue;
   };
   const bool sampled = !sampled_from_.empty();
-  const SolverSummary full = solve_full(options);
+  SolverSummary full;
+  try {
+    full = solve_full(options);
+  } catch (...) {  // leave the problem at the caller's values, not at the sampled start
+    if (sampled) problem_.set_all_values(sampled_from_);
+    sampled_from_.clear();
+    throw;
+  }
   // The sampled start raised the full cost, or could not be evaluated (the solve failed before
   // its first row): solve from the start instead.
   if (sampled && !judged) summary_.sampled_start_cost = std::numeric_limits<double>::infinity();

@@ -62,15 +62,24 @@ inline void seeded_permutation(int n, std::uint64_t seed, std::vector<int>& orde
 inline std::vector<int> seeded_sample(int n, int k, std::uint64_t seed) {
   std::vector<int> out;
   out.reserve(static_cast<std::size_t>(k));
+  // Which indices are taken: a hash set for a few, a bitmap once k is a noticeable share of n.
+  const bool dense = static_cast<long>(k) * 64 > static_cast<long>(n);
   std::unordered_set<int> chosen;
-  chosen.reserve(static_cast<std::size_t>(2 * k));
+  std::vector<bool> taken(dense ? static_cast<std::size_t>(n) : 0);
+  if (!dense) chosen.reserve(static_cast<std::size_t>(2 * k));
+  const auto take = [&](int i) {  // true if i was free
+    if (!dense) return chosen.insert(i).second;
+    if (taken[static_cast<std::size_t>(i)]) return false;
+    taken[static_cast<std::size_t>(i)] = true;
+    return true;
+  };
   SmallRng rng(seed);
   __extension__ typedef unsigned __int128 Wide;
   for (int j = n - k; j < n; ++j) {
     const auto bound = static_cast<Wide>(static_cast<std::uint64_t>(j) + 1);
     const auto t = static_cast<int>((static_cast<Wide>(rng.next()) * bound) >> 64);
-    const int pick = chosen.insert(t).second ? t : j;  // t taken already: j is new for sure
-    if (pick == j) chosen.insert(j);
+    const int pick = take(t) ? t : j;  // t taken already: j is new for sure
+    if (pick == j) take(j);
     out.push_back(pick);
   }
   std::sort(out.begin(), out.end());

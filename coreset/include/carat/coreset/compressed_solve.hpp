@@ -9,19 +9,20 @@
 ///
 /// solve_recompressed() uses that in one of these modes (CompressionMode):
 /// - kSurrogate (the default): first a sampled start. Every block of many rows is replaced by a
-///   uniform random sample of its rows (sampled_rows_factor times its coreset's minimum, or
-///   sampled_rows_share of its rows if more), each weighted N / M: an unbiased estimate of the
-///   block's cost at every point, where a coreset is exact at one only. Blocks with a loss per
-///   row group stay whole (a row sample would split their groups). The sampled problem is
-///   solved, and the full solve starts at its result, kept when its first linearization finds
-///   the full cost lowered (else the full solve starts again from the start). The full solve
-///   switches to compressed solves where its Gauss-Newton model fails (kAuto's rule): each
-///   compression is solved (the surrogate) beside one Levenberg-Marquardt step from the same
-///   compression (exact H and b there, so the full problem's step), both judged on the full
-///   cost; while the surrogate beats the step clearly it compresses again at its result, else
-///   it finishes with full iterations. Ends at the full optimum. Without blocks worth sampling
-///   (sampling would keep more than a quarter of the rows), or with sampled_start off, it
-///   starts with the compressions.
+///   uniform random sample of its rows (sampled_rows_factor times its coreset's minimum,
+///   compression.min_target_rows or sampled_rows_share of its rows, whichever is most), each
+///   weighted N / M: an unbiased estimate of the block's cost at every point, where a coreset is
+///   exact at one only. Blocks with a loss per row group stay whole (a row sample would split
+///   their groups). The sampled problem is solved, and the full solve starts at its result,
+///   kept when its first linearization finds the full cost lowered (else the full solve starts
+///   again from the start; a start of non-finite cost is never left). The full solve switches
+///   to compressed solves where its Gauss-Newton model fails (kAuto's rule): each compression is
+///   solved (the surrogate) beside one Levenberg-Marquardt step from the same compression (exact
+///   H and b there, so the full problem's step), both judged on the full cost; while the
+///   surrogate beats the step clearly it compresses again at its result, else it finishes with
+///   full iterations. Ends at the full optimum. Without blocks worth sampling (sampling would
+///   keep more than a quarter of the rows), with blocks held outside the problem
+///   (Problem::set_block_source()), or with sampled_start off, it starts with the compressions.
 /// - kRecompress: compress again at every result until the full problem's tests hold; between
 ///   compressions only compressed blocks are evaluated (for memory rather than time). Ends at the
 ///   full optimum.
@@ -75,8 +76,10 @@ struct RecompressedSolveOptions {
     defaults.min_target_rows = 64;
     return defaults;
   }();
-  /// Every solve inside: of compressed problems, and the full iterations that finish kSurrogate
-  /// and make kAuto and kFull (their stop tests are the full solve's).
+  /// Every solve inside: of sampled and compressed problems, and the full iterations that
+  /// finish kSurrogate and make kAuto and kFull (their stop tests are the full solve's). Its
+  /// iteration_callback sees the rows of each of these solves (each counting from 0; a sampled
+  /// or compressed solve's costs are its own problem's); kAbort ends solve_recompressed().
   SolverOptions inner;
   CompressionMode mode = CompressionMode::kSurrogate;  ///< how compression is used
   int max_recompressions = 20;                         ///< compressions at most
@@ -89,21 +92,22 @@ struct RecompressedSolveOptions {
   /// full step's by at least this share of that step's decrease; else finish with full
   /// iterations.
   double surrogate_gain = 0.5;
+  /// kAuto and kSurrogate's full solve: from this iteration on, the full solve switches to
+  /// compressed solves when the Gauss-Newton model fails where it stands: a step rejected, or
+  /// one accepted with a gain ratio below switch_gain_ratio while it lowered the cost by more
+  /// than switch_decrease (relatively). Where the model holds, the full solve converges in a
+  /// few steps and compression would not pay.
+  int switch_iteration = 1;
+  double switch_decrease = 1e-3;    ///< kAuto and kSurrogate: see switch_iteration
+  double switch_gain_ratio = 0.25;  ///< kAuto and kSurrogate: see switch_iteration
   /// kSurrogate: start from the solution of a uniformly sampled problem (see the file comment).
   bool sampled_start = true;
-  /// kSurrogate's sampled start: rows kept per block, at least this multiple of the block's
-  /// minimum coreset rows r(r+1)/2 + r + 2, at least compression.min_target_rows, and at least
-  /// sampled_rows_share of its rows; blocks of at most twice that many rows are kept whole.
+  /// kSurrogate's sampled start: rows kept per block, the largest of this multiple of the
+  /// block's minimum coreset rows r(r+1)/2 + r + 2, compression.min_target_rows (64 by
+  /// default) and sampled_rows_share of its rows; blocks of at most twice that many rows, and
+  /// blocks compression.select leaves out, are kept whole.
   int sampled_rows_factor = 4;
   double sampled_rows_share = 1.0 / 256.0;  ///< kSurrogate: see sampled_rows_factor; in [0, 1]
-  /// kAuto: from this iteration on, the full solve switches to kSurrogate when the
-  /// Gauss-Newton model fails where it stands: a step rejected, or one accepted with a gain
-  /// ratio below switch_gain_ratio while it lowered the cost by more than switch_decrease
-  /// (relatively). Where the model holds, the full solve converges in a few steps and
-  /// compression would not pay.
-  int switch_iteration = 1;
-  double switch_decrease = 1e-3;    ///< kAuto: see switch_iteration
-  double switch_gain_ratio = 0.25;  ///< kAuto: see switch_iteration
 
   /// True if every setting is in range; otherwise false with a message in *error.
   bool validate(std::string* error) const;
@@ -128,14 +132,8 @@ struct RecompressedSolveSummary {
   CompressionMode mode = CompressionMode::kSurrogate;       ///< the mode asked for
   /// kAuto and kSurrogate: whether the full solve switched to compressed solves.
   bool switched_to_compression = false;
-  /// kSurrogate: whether the sampled start ran, its problem's rows, and the full cost at its
-  /// result (kept when below initial_cost).
-  bool sampled_start = false;
-  std::size_t sampled_rows = 0;  ///< rows of the sampled problem (0 when it did not run)
-  double sampled_start_cost =
-      0.0;                    ///< full cost at the sample's solution (inf: not finite, or failed)
-  double initial_cost = 0.0;  ///< full cost at the start
-  double final_cost = 0.0;    ///< full cost of the returned point
+  double initial_cost = 0.0;              ///< full cost at the start
+  double final_cost = 0.0;                ///< full cost of the returned point
   double final_gradient_max_norm = -1.0;  ///< full max |gradient| there; -1 when not evaluated
   double compressed_initial_cost = 0.0;   ///< the first compressed problem's cost at its start
   double compressed_final_cost = 0.0;     ///< the last compressed problem's cost after its solve
@@ -150,6 +148,12 @@ struct RecompressedSolveSummary {
   double full_solve_s = 0.0;        ///< time in full iterations
   double total_s = 0.0;             ///< whole call
   std::vector<RecompressionRecord> records;  ///< one per compression
+  /// kSurrogate: whether the sampled start ran, its problem's rows, and the full cost at its
+  /// solution (kept when below initial_cost; infinity when the sampled solve failed or that
+  /// cost is not finite; 0 when it did not run).
+  bool sampled_start = false;
+  std::size_t sampled_rows = 0;     ///< rows of the sampled problem (0 when it did not run)
+  double sampled_start_cost = 0.0;  ///< full cost at the sample's solution (see sampled_start)
   /// One line: mode, full and compressed costs, compressions, iterations, termination, time.
   std::string brief_report() const;
 };
