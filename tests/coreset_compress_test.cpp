@@ -253,37 +253,26 @@ TEST(CompressTest, ChosenRowsCountWithTheirWeights) {
     EXPECT_LT((H_full - H_expected).norm(), 1e-10 * H_expected.norm());
     EXPECT_LT((A.transpose() * b - b_expected).norm(), 1e-10 * (1 + b_expected.norm()));
   }
-  expect_error(
-      [&] {
-        compress_rows(problem.block, {2, 5}, {1.0});
-      },
-      "compress_rows: 2 rows but 1 weights");
-  expect_error([&] { compress_rows(problem.block, {}, {}); }, "compress_rows: no rows");
-  expect_error(
-      [&] {
-        compress_rows(problem.block, {5, 2}, {1.0, 1.0});
-      },
-      "compress_rows: rows must ascend without repeats; row 2 follows 5");
-  expect_error(
-      [&] {
-        compress_rows(problem.block, {5, 5}, {1.0, 1.0});
-      },
-      "compress_rows: rows must ascend without repeats; row 5 follows 5");
-  expect_error(
-      [&] {
-        compress_rows(problem.block, {2, 40}, {1.0, 1.0});
-      },
-      "compress_rows: row 40 is out of range (the block has 40 rows)");
-  expect_error(
-      [&] {
-        compress_rows(problem.block, {2, 5}, {1.0, 0.0});
-      },
-      "compress_rows: the weight of row 5 is 0; weights must be finite and > 0");
-  expect_error(
-      [&] {
-        compress_rows(problem.block, {2, 5}, {1.0, std::numeric_limits<double>::infinity()});
-      },
-      "compress_rows: the weight of row 5 is inf; weights must be finite and > 0");
+  const struct {
+    std::vector<int> rows;
+    std::vector<double> weights;
+    const char* message;
+  } bad[] = {
+      {{2, 5}, {1.0}, "compress_rows: 2 rows but 1 weights"},
+      {{}, {}, "compress_rows: no rows"},
+      {{5, 2}, {1.0, 1.0}, "compress_rows: rows must ascend without repeats; row 2 follows 5"},
+      {{5, 5}, {1.0, 1.0}, "compress_rows: rows must ascend without repeats; row 5 follows 5"},
+      {{2, 40}, {1.0, 1.0}, "compress_rows: row 40 is out of range (the block has 40 rows)"},
+      {{2, 5},
+       {1.0, 0.0},
+       "compress_rows: the weight of row 5 is 0; weights must be finite and > 0"},
+      {{2, 5},
+       {1.0, std::numeric_limits<double>::infinity()},
+       "compress_rows: the weight of row 5 is inf; weights must be finite and > 0"},
+  };
+  for (const auto& c : bad) {
+    expect_error([&] { compress_rows(problem.block, c.rows, c.weights); }, c.message);
+  }
   expect_error([&] { compress_rows(nullptr, {2}, {1.0}); }, "compress_rows: block is null");
   // A loss per row group would be split by a choice of rows.
   const std::vector<Eigen::Vector2d> data{{0.0, 1.0}, {1.0, 2.0}, {2.0, 3.5}};
