@@ -176,6 +176,17 @@ TEST(ProblemCompressionTest, TheDefaultSurrogateStartsFromASampledProblem) {
   EXPECT_EQ(aborted.full_iterations, 0);
   EXPECT_EQ(stopped.value(VariableId{0})[0], 0.0);
   EXPECT_EQ(stopped.value(VariableId{0})[1], 0.0);
+  // And in the other compressed modes: kRecompress keeps its last accepted point (the start),
+  // after one compression, not max_recompressions of them.
+  Problem stopped_again = curve_problem();
+  stop.mode = CompressionMode::kRecompress;
+  const RecompressedSolveSummary recompress_aborted = solve_recompressed(stopped_again, stop);
+  EXPECT_EQ(recompress_aborted.termination, TerminationType::kUserAbort);
+  EXPECT_EQ(recompress_aborted.recompressions, 1);
+  EXPECT_EQ(stopped_again.value(VariableId{0})[0], 0.0);
+  stop.mode = CompressionMode::kOnce;
+  EXPECT_EQ(solve_recompressed(stopped_again, stop).message,
+            "the iteration callback asked to stop");
 
   // A block with a loss per row group stays whole beside a sampled one; the same optimum as the
   // full solve of both.

@@ -163,6 +163,9 @@ RecompressedSolveSummary CompressedSolver::run_once() {
     summary_.final_cost = full_cost_at(start);
     return finish(TerminationType::kFailure, "the compressed solve failed: " + solved.message);
   }
+  if (solved.termination == TerminationType::kUserAbort) {  // where the compressed solve stopped
+    return finish(TerminationType::kUserAbort, "the iteration callback asked to stop");
+  }
   return finish(solved.termination,
                 "one compression, solved (not the full optimum): " + solved.message);
 }
@@ -339,6 +342,9 @@ RecompressedSolveSummary CompressedSolver::run_recompress() {
     const SolverSummary solved = solve_compressed(work.problem, iterations);
     if (solved.termination == TerminationType::kFailure) {
       return done(TerminationType::kFailure, "the compressed solve failed: " + solved.message);
+    }
+    if (solved.termination == TerminationType::kUserAbort) {  // the last accepted point stays
+      return done(TerminationType::kUserAbort, "the iteration callback asked to stop");
     }
     if (summary_.recompressions >= options_.max_recompressions) {
       accepted = values_of(work.problem);
