@@ -62,8 +62,8 @@ inline void seeded_permutation(int n, std::uint64_t seed, std::vector<int>& orde
 inline std::vector<int> seeded_sample(int n, int k, std::uint64_t seed) {
   std::vector<int> out;
   out.reserve(static_cast<std::size_t>(k));
-  // Which indices are taken: a hash set for a few, a bitmap once k is a noticeable share of n.
-  const bool dense = static_cast<long>(k) * 64 > static_cast<long>(n);
+  // Which indices are taken: a bitmap (n bits) unless n is large and k only a few of them.
+  const bool dense = n <= (1 << 23) || static_cast<long>(k) * 64 > static_cast<long>(n);
   std::unordered_set<int> chosen;
   std::vector<bool> taken(dense ? static_cast<std::size_t>(n) : 0);
   if (!dense) chosen.reserve(static_cast<std::size_t>(2 * k));
