@@ -59,8 +59,9 @@ class CompressedSolver {
   Compressed compress_at(const Values& values);
   /// The full cost at `values` from residuals alone.
   double full_cost_at(const Values& values);
-  /// Solves `work` (a compressed problem) with the inner options, at most `iterations`.
-  SolverSummary solve_compressed(Problem& work, int iterations);
+  /// Solves `work` (a compressed problem, or a sampled one when not `compressed`) with the inner
+  /// options, at most `iterations`.
+  SolverSummary solve_compressed(Problem& work, int iterations, bool compressed = true);
   /// Full iterations from the problem's current values; returns the summary.
   SolverSummary solve_full(const SolverOptions& options);
   RecompressedSolveSummary finish(TerminationType type, std::string message);
@@ -113,14 +114,14 @@ double CompressedSolver::full_cost_at(const Values& values) {
   return cost;
 }
 
-SolverSummary CompressedSolver::solve_compressed(Problem& work, int iterations) {
+SolverSummary CompressedSolver::solve_compressed(Problem& work, int iterations, bool compressed) {
   SolverOptions options = inner_;
   options.max_iterations = std::min(options.max_iterations, iterations);
   const Stopwatch stage;
   SolverSummary solved = solve(options, work);
   summary_.inner_solve_s += stage.elapsed_s();
   summary_.inner_iterations += solved.num_iterations;
-  summary_.compressed_final_cost = solved.final_cost;
+  if (compressed) summary_.compressed_final_cost = solved.final_cost;
   return solved;
 }
 
@@ -181,6 +182,7 @@ bool CompressedSolver::run_sampled_start() {
   // those of too few rows to gain from it).
   std::vector<int> targets(blocks.size(), 0);
   std::size_t rows = 0;
+  bool any = false;
   for (std::size_t k = 0; k < blocks.size(); ++k) {
     const ResidualBlock& block = *blocks[k].block;
     const ResidualBlockId id{static_cast<std::int32_t>(k)};
@@ -195,10 +197,12 @@ bool CompressedSolver::run_sampled_start() {
     const bool whole = (compression.select && !compression.select(id, block)) ||
                        block.group_loss() != nullptr || n <= compression.min_rows ||
                        n <= 2 * target;
-    if (!whole) targets[k] = static_cast<int>(target);
+    if (!whole) {
+      targets[k] = static_cast<int>(target);
+      any = true;
+    }
     rows += static_cast<std::size_t>(whole ? n : target);
   }
-  const bool any = std::any_of(targets.begin(), targets.end(), [](int t) { return t > 0; });
   if (!any || rows > summary_.full_rows / 4) return false;
   Problem sampled = problem_;
   for (std::size_t k = 0; k < blocks.size(); ++k) {
@@ -217,9 +221,7 @@ bool CompressedSolver::run_sampled_start() {
   summary_.sampled_start = true;
   summary_.sampled_rows = rows;
   const Values start = values_of(problem_);
-  const double compressed_final = summary_.compressed_final_cost;
-  const SolverSummary solved = solve_compressed(sampled, inner_.max_iterations);
-  summary_.compressed_final_cost = compressed_final;        // for compressed problems only
+  const SolverSummary solved = solve_compressed(sampled, inner_.max_iterations, false);
   if (solved.termination == TerminationType::kUserAbort) {  // the caller's callback said stop
     problem_.set_all_values(start);
     aborted_ = true;

@@ -26,6 +26,11 @@ class SmallRng {
       word = z ^ (z >> 31);
     }
   }
+  /// A draw in [0, bound) (bound >= 1): the next 64 bits scaled, without a division.
+  std::uint64_t below(std::uint64_t bound) {
+    __extension__ typedef unsigned __int128 Wide;  // GCC and Clang's 128-bit integer
+    return static_cast<std::uint64_t>((static_cast<Wide>(next()) * bound) >> 64);
+  }
   /// The next 64 random bits.
   std::uint64_t next() {
     const std::uint64_t result = rotl(state_[1] * 5, 7) * 9;
@@ -49,10 +54,8 @@ inline void seeded_permutation(int n, std::uint64_t seed, std::vector<int>& orde
   order.resize(static_cast<std::size_t>(n));
   std::iota(order.begin(), order.end(), 0);
   SmallRng rng(seed);
-  __extension__ typedef unsigned __int128 Wide;  // GCC and Clang's 128-bit integer
   for (int i = n - 1; i > 0; --i) {
-    const auto bound = static_cast<Wide>(static_cast<std::uint64_t>(i) + 1);
-    const auto j = static_cast<int>((static_cast<Wide>(rng.next()) * bound) >> 64);
+    const auto j = static_cast<int>(rng.below(static_cast<std::uint64_t>(i) + 1));
     std::swap(order[static_cast<std::size_t>(i)], order[static_cast<std::size_t>(j)]);
   }
 }
@@ -74,13 +77,14 @@ inline std::vector<int> seeded_sample(int n, int k, std::uint64_t seed) {
     return true;
   };
   SmallRng rng(seed);
-  __extension__ typedef unsigned __int128 Wide;
   for (int j = n - k; j < n; ++j) {
-    const auto bound = static_cast<Wide>(static_cast<std::uint64_t>(j) + 1);
-    const auto t = static_cast<int>((static_cast<Wide>(rng.next()) * bound) >> 64);
-    const int pick = take(t) ? t : j;  // t taken already: j is new for sure
-    if (pick == j) take(j);
-    out.push_back(pick);
+    const auto t = static_cast<int>(rng.below(static_cast<std::uint64_t>(j) + 1));
+    if (take(t)) {
+      out.push_back(t);
+    } else {  // t taken already: j is new for sure (every earlier pick is below j)
+      take(j);
+      out.push_back(j);
+    }
   }
   std::sort(out.begin(), out.end());
   return out;
