@@ -3,11 +3,15 @@
 // the full optimum and re-compression reaches it, and the evaluation of full costs.
 #include <gtest/gtest.h>
 
+#include <Eigen/Cholesky>
+#include <array>
 #include <cmath>
+#include <memory>
 #include <random>
 #include <string>
 #include <vector>
 
+#include "carat/base/error.hpp"
 #include "carat/coreset/problem_compression.hpp"
 #include "carat/solver/autodiff_block.hpp"
 #include "carat/solver/evaluate.hpp"
@@ -222,6 +226,79 @@ TEST(ProblemCompressionTest, TheDefaultSurrogateStartsFromASampledProblem) {
   EXPECT_EQ(whole.sampled_rows, 0u);
   EXPECT_GE(whole.recompressions, 1);
   EXPECT_LE(std::abs(whole.final_cost - optimum), 1e-9 * optimum) << whole.brief_report();
+}
+
+/// Rows r_k = a_k . x + c_k over x in R^2, stored as [a_k, c_k]. Its exact form is the upper
+/// Cholesky factor V of the Gram matrix G of those rows (V^T V = G): three rows with the same cost
+/// [x; 1]^T G [x; 1] at every x. With `throws`, exact_form() throws instead.
+class AffineRows final : public ResidualBlock {
+ public:
+  AffineRows(Eigen::MatrixX3d rows, bool throws) : rows_(std::move(rows)), throws_(throws) {}
+  int num_rows() const override { return static_cast<int>(rows_.rows()); }
+  std::span<const int> tangent_dims() const override { return kDims; }
+  void evaluate_rows(ParameterPointers params, std::span<const int> rows, double* residuals,
+                     double* jacobian) const override {
+    for (std::size_t k = 0; k < rows.size(); ++k) {
+      const Eigen::RowVector3d row = rows_.row(rows[k]);
+      residuals[k] = row[0] * params[0][0] + row[1] * params[0][1] + row[2];
+      if (jacobian) {
+        jacobian[2 * k] = row[0];
+        jacobian[2 * k + 1] = row[1];
+      }
+    }
+  }
+  std::size_t memory_bytes() const override {
+    return static_cast<std::size_t>(rows_.size()) * sizeof(double);
+  }
+  std::shared_ptr<const ResidualBlock> exact_form(ParameterPointers) const override {
+    if (throws_) throw Error("AffineRows: no exact form");
+    const Eigen::Matrix3d G = rows_.transpose() * rows_;
+    return std::make_shared<AffineRows>(Eigen::MatrixX3d(G.llt().matrixU()), false);
+  }
+
+ private:
+  static constexpr std::array<int, 1> kDims{2};
+  Eigen::MatrixX3d rows_;
+  bool throws_;
+};
+
+// A block's exact form (here three rows for 10,000 affine ones) replaces its sample in the
+// sampled start: the sampled problem's solution is the full optimum. A form that throws leaves
+// the block to sampling, and the solve reaches the same optimum.
+TEST(ProblemCompressionTest, TheSampledStartTakesABlocksExactForm) {
+  std::mt19937_64 rng(5);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  Eigen::MatrixX3d rows(10000, 3);
+  for (Eigen::Index k = 0; k < rows.rows(); ++k) {
+    const double a0 = normal(rng), a1 = normal(rng);
+    rows.row(k) << a0, a1, -(2.0 * a0 - 3.0 * a1 + 0.1 * normal(rng));
+  }
+  const auto affine = [&](bool throws) {
+    Problem p;
+    p.add_residual_block(std::make_shared<AffineRows>(rows, throws),
+                         {p.add_euclidean(Eigen::Vector2d(0.0, 0.0))});
+    return p;
+  };
+  Problem full = affine(false);
+  solve(tight(), full);
+  const double optimum = evaluate_problem(full).cost;
+  RecompressedSolveOptions options;
+  options.inner = tight();
+  Problem exact = affine(false);
+  const RecompressedSolveSummary e = solve_recompressed(exact, options);
+  EXPECT_EQ(e.exact_form_blocks, 1);
+  EXPECT_EQ(e.sampled_rows, 3u);
+  EXPECT_NEAR(e.sampled_start_cost, optimum, 1e-9 * optimum) << e.brief_report();
+  EXPECT_NEAR(e.final_cost, optimum, 1e-9 * optimum) << e.brief_report();
+  EXPECT_NE(e.brief_report().find("sampled start on 3 rows (1 block in exact form)"),
+            std::string::npos)
+      << e.brief_report();
+  Problem throwing = affine(true);
+  const RecompressedSolveSummary t = solve_recompressed(throwing, options);
+  EXPECT_EQ(t.exact_form_blocks, 0);
+  EXPECT_EQ(t.sampled_rows, 64u);
+  EXPECT_GT(t.sampled_start_cost, optimum * (1.0 + 1e-9)) << t.brief_report();
+  EXPECT_NEAR(t.final_cost, optimum, 1e-9 * optimum) << t.brief_report();
 }
 
 TEST(ProblemCompressionTest, CompressOnceReportsTheFullCostAndKeepsTheOriginals) {

@@ -318,11 +318,24 @@ TEST(GlobalRegistrationTest, RecompressedSolveReachesTheFullOptimum) {
   EXPECT_EQ(summary.termination, TerminationType::kConvergence) << summary.brief_report();
   EXPECT_LE(std::abs(summary.final_cost - optimum), 1e-9 * optimum) << summary.brief_report();
   EXPECT_EQ(summary.compressed_rows, 64u * small_pairs().size());  // min_target_rows: 64
-  // The default mode, compressed solves then full iterations: the same optimum.
+  // The default mode: the GICP factors enter the sampled start as their lossless rows (exact
+  // everywhere), so its solution is the optimum and one full iteration confirms it.
   RegistrationProblem surrogate = small_problem(ResidualSampling::kFull);
   options.mode = CompressionMode::kSurrogate;
   const RecompressedSolveSummary s = solve_recompressed(surrogate.problem, options);
   EXPECT_LE(std::abs(s.final_cost - optimum), 1e-9 * optimum) << s.brief_report();
+  EXPECT_EQ(s.exact_form_blocks, static_cast<int>(small_pairs().size())) << s.brief_report();
+  EXPECT_LE(s.sampled_rows, 13u * small_pairs().size());
+  EXPECT_LE(std::abs(s.sampled_start_cost - optimum), 1e-9 * optimum) << s.brief_report();
+  EXPECT_EQ(s.full_iterations, 1) << s.brief_report();
+  EXPECT_NE(s.brief_report().find(" blocks in exact form)"), std::string::npos);
+  // Without exact forms the factors are sampled: the same optimum, from a start above it.
+  RegistrationProblem sampled = small_problem(ResidualSampling::kFull);
+  options.exact_forms = false;
+  const RecompressedSolveSummary u = solve_recompressed(sampled.problem, options);
+  EXPECT_LE(std::abs(u.final_cost - optimum), 1e-9 * optimum) << u.brief_report();
+  EXPECT_EQ(u.exact_form_blocks, 0);
+  EXPECT_GT(u.sampled_start_cost, optimum * (1.0 + 1e-7)) << u.brief_report();
 }
 
 // The per-iteration hook sees the iterate's poses: the start first, the result last, one call per

@@ -146,6 +146,15 @@ TEST(LosslessBlockTest, EqualsEveryRegistrationBlockAtEveryPose) {
       // Measured at most 2.2e-15 here, the 90 degree move included: rounding only.
       EXPECT_LT(difference, 1e-13) << name << " moved by " << delta.transpose();
     }
+    // The block's exact form is these rows, about the relative pose of the values it is given.
+    const Poses at_reference = poses_for(T_ref, se3::Vector6d::Zero(), 9);
+    const double* params[2] = {at_reference.i, at_reference.j};
+    const std::shared_ptr<const ResidualBlock> form = block->exact_form(params);
+    ASSERT_NE(form, nullptr) << name;
+    EXPECT_EQ(form->num_rows(), 13) << name;
+    const Poses far = poses_for(T_ref, moves().back(), 10);
+    EXPECT_LT(relative_difference(model_of(*block, far), model_of(*form, far)), 1e-13) << name;
+    EXPECT_EQ(lossless.exact_form(params), nullptr) << name;  // already its own exact form
   }
 }
 

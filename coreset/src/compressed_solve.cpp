@@ -1,5 +1,9 @@
 #include "carat/coreset/compressed_solve.hpp"
 
+#include <tbb/info.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -181,12 +185,42 @@ bool CompressedSolver::run_sampled_start() {
   // would leave, those with a loss per row group, whose groups a row sample would split, and
   // those of too few rows to gain from it).
   std::vector<int> targets(blocks.size(), 0);
+  // Blocks that state their whole cost function in fewer rows (ResidualBlock::exact_form())
+  // enter the sampled problem in that form: exact at every point, so no sample is needed.
+  std::vector<std::shared_ptr<const ResidualBlock>> exact(blocks.size());
+  const auto kept_whole = [&](std::size_t k) {
+    const ResidualBlock& block = *blocks[k].block;
+    return (compression.select &&
+            !compression.select(ResidualBlockId{static_cast<std::int32_t>(k)}, block)) ||
+           block.group_loss() != nullptr || block.num_rows() <= compression.min_rows;
+  };
+  if (options_.exact_forms) {  // one pass over each block's data: on compression's threads
+    tbb::task_arena arena(std::clamp(compression.num_threads, 1, tbb::info::default_concurrency()));
+    arena.execute([&] {
+      tbb::parallel_for(std::size_t{0}, blocks.size(), [&](std::size_t k) {
+        if (kept_whole(k)) return;
+        std::vector<const double*> params;
+        for (VariableId v : blocks[k].variables) params.push_back(problem_.value(v).data());
+        try {
+          exact[k] = blocks[k].block->exact_form(params);
+        } catch (const Error&) {  // a form that cannot be built (e.g. from non-finite data)
+          exact[k] = nullptr;     // leaves the block to sampling, and the full solve to report
+        }
+        if (exact[k] && exact[k]->num_rows() >= blocks[k].block->num_rows()) exact[k] = nullptr;
+      });
+    });
+  }
   std::size_t rows = 0;
   bool any = false;
   for (std::size_t k = 0; k < blocks.size(); ++k) {
     const ResidualBlock& block = *blocks[k].block;
-    const ResidualBlockId id{static_cast<std::int32_t>(k)};
     const int n = block.num_rows();
+    if (exact[k]) {
+      rows += static_cast<std::size_t>(exact[k]->num_rows());
+      ++summary_.exact_form_blocks;
+      any = true;
+      continue;
+    }
     // In 64 bits (a large factor or reduced dimension would overflow an int), at most n.
     const std::int64_t target = std::min<std::int64_t>(
         n, std::max({std::int64_t{options_.sampled_rows_factor} *
@@ -194,18 +228,24 @@ bool CompressedSolver::run_sampled_start() {
                      std::int64_t{compression.min_target_rows},
                      static_cast<std::int64_t>(
                          std::ceil(options_.sampled_rows_share * static_cast<double>(n)))}));
-    const bool whole = (compression.select && !compression.select(id, block)) ||
-                       block.group_loss() != nullptr || n <= compression.min_rows ||
-                       n <= 2 * target;
+    const bool whole = kept_whole(k) || n <= 2 * target;
     if (!whole) {
       targets[k] = static_cast<int>(target);
       any = true;
     }
     rows += static_cast<std::size_t>(whole ? n : target);
   }
-  if (!any || rows > summary_.full_rows / 4) return false;
+  if (!any || rows > summary_.full_rows / 4) {
+    summary_.exact_form_blocks = 0;
+    return false;
+  }
   Problem sampled = problem_;
   for (std::size_t k = 0; k < blocks.size(); ++k) {
+    if (exact[k]) {
+      sampled.replace_residual_block(ResidualBlockId{static_cast<std::int32_t>(k)},
+                                     std::move(exact[k]));
+      continue;
+    }
     if (targets[k] == 0) continue;
     // Floyd's draw of the rows, not compress_random()'s permutation of all of them.
     const int n = blocks[k].block->num_rows();
@@ -544,8 +584,13 @@ std::string RecompressedSolveSummary::brief_report() const {
          (recompressions > 0 ? " (compressed " + message_number(compressed_initial_cost) + " -> " +
                                    message_number(compressed_final_cost) + ")"
                              : std::string()) +
-         (sampled_start ? ", sampled start on " + std::to_string(sampled_rows) + " rows"
-                        : std::string()) +
+         (sampled_start
+              ? ", sampled start on " + std::to_string(sampled_rows) + " rows" +
+                    (exact_form_blocks > 0
+                         ? " (" + std::to_string(exact_form_blocks) +
+                               (exact_form_blocks == 1 ? " block" : " blocks") + " in exact form)"
+                         : std::string())
+              : std::string()) +
          ", " + std::to_string(recompressions) + " compressions, " +
          std::to_string(inner_iterations) + " compressed and " + std::to_string(full_iterations) +
          " full iterations, " + std::to_string(full_rows) + " -> " +

@@ -152,12 +152,13 @@ RecompressedSolveSummary solve_recompressed_problem(PythonProblem& problem, cons
                                                     int target_rows, int clusters, int min_rows,
                                                     std::uint64_t seed, int max_recompressions,
                                                     bool sampled_start, int sampled_rows_factor,
-                                                    double sampled_rows_share,
+                                                    double sampled_rows_share, bool exact_forms,
                                                     const py::kwargs& kwargs) {
   RecompressedSolveOptions options;
   options.sampled_start = sampled_start;
   options.sampled_rows_factor = sampled_rows_factor;
   options.sampled_rows_share = sampled_rows_share;
+  options.exact_forms = exact_forms;
   options.inner = solver_options(kwargs, "solve_recompressed");
   options.compression = compression_options(target_rows, clusters, min_rows, seed,
                                             options.inner.num_threads, options.compression);
@@ -259,6 +260,8 @@ void bind_problem(py::module_& m) {
       .def_readonly("sampled_start", &RecompressedSolveSummary::sampled_start)
       .def_readonly("sampled_rows", &RecompressedSolveSummary::sampled_rows)
       .def_readonly("sampled_start_cost", &RecompressedSolveSummary::sampled_start_cost)
+      .def_readonly("exact_form_blocks", &RecompressedSolveSummary::exact_form_blocks,
+                    "Blocks the sampled start took in their exact form (lossless GICP rows)")
       .def_readonly("initial_cost", &RecompressedSolveSummary::initial_cost)
       .def_readonly("final_cost", &RecompressedSolveSummary::final_cost)
       .def_readonly("final_gradient_max_norm", &RecompressedSolveSummary::final_gradient_max_norm)
@@ -468,12 +471,14 @@ carat.Covariance.)");
               py::arg("clusters") = 0, py::arg("min_rows") = 0, py::arg("seed") = 1,
               py::arg("max_recompressions") = 20, py::arg("sampled_start") = true,
               py::arg("sampled_rows_factor") = 4, py::arg("sampled_rows_share") = 1.0 / 256.0,
+              py::arg("exact_forms") = true,
               R"(Solves to the full problem's optimum with compressed blocks.
 
 mode: 'surrogate' (default), 'recompress', 'once' (one compression: fast, not the full optimum),
 'auto' or 'full'. 'surrogate' first solves a uniformly sampled problem (sampled_start; per
 large block max(sampled_rows_factor x its coreset's minimum, 64, sampled_rows_share of its
-rows) rows), then the full problem from there. Solver options as for carat.solve. Returns a
+rows) rows; with exact_forms, registration blocks enter as their lossless rows instead), then
+the full problem from there. Solver options as for carat.solve. Returns a
 carat.RecompressedSolveSummary.)");
 }
 

@@ -10,6 +10,7 @@
 
 #include "carat/base/error.hpp"
 #include "carat/base/multiversion.hpp"
+#include "carat/residuals/lossless_block.hpp"
 #include "carat/residuals/registration_rows.hpp"
 #include "pose_gram_sum.hpp"
 
@@ -535,6 +536,10 @@ std::unique_ptr<ResidualBlock> GicpBlock::extract_weighted_rows(
     out->rows_.push_back(r);
   }
   return out;
+}
+
+std::shared_ptr<const ResidualBlock> GicpBlock::exact_form(ParameterPointers params) const {
+  return lossless_form(*this, params);
 }
 
 PoseGram GicpBlock::pose_gram(const Eigen::Isometry3d& T_target_source_reference) const {

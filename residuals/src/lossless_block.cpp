@@ -148,4 +148,9 @@ std::shared_ptr<const LosslessRegistrationBlock> make_lossless_block(
       block.pose_gram(T_target_source_reference));
 }
 
+std::shared_ptr<const ResidualBlock> lossless_form(const AffinePoseRows& block,
+                                                   ParameterPointers params) {
+  return make_lossless_block(block, relative_pose(params));
+}
+
 }  // namespace carat

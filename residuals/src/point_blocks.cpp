@@ -3,6 +3,7 @@
 #include <string>
 
 #include "carat/base/error.hpp"
+#include "carat/residuals/lossless_block.hpp"
 #include "carat/residuals/point_to_plane_block.hpp"
 #include "carat/residuals/point_to_point_block.hpp"
 #include "carat/residuals/registration_rows.hpp"
@@ -92,6 +93,10 @@ std::unique_ptr<ResidualBlock> PointToPointBlock::extract_rows(std::span<const i
   return out;
 }
 
+std::shared_ptr<const ResidualBlock> PointToPointBlock::exact_form(ParameterPointers params) const {
+  return lossless_form(*this, params);
+}
+
 PoseGram PointToPointBlock::pose_gram(const Eigen::Isometry3d& T_target_source_reference) const {
   internal::PoseGramSum sum(
       T_target_source_reference,
@@ -175,6 +180,10 @@ std::unique_ptr<PointToPlaneBlock> PointToPlaneBlock::extract_scaled(
     out->source_.push_back(source_[pair]);
   }
   return out;
+}
+
+std::shared_ptr<const ResidualBlock> PointToPlaneBlock::exact_form(ParameterPointers params) const {
+  return lossless_form(*this, params);
 }
 
 PoseGram PointToPlaneBlock::pose_gram(const Eigen::Isometry3d& T_target_source_reference) const {

@@ -147,6 +147,10 @@ std::unique_ptr<ResidualBlock> ResidualBlock::extract_rows_without_loss(
   return nullptr;
 }
 
+std::shared_ptr<const ResidualBlock> ResidualBlock::exact_form(ParameterPointers /*params*/) const {
+  return nullptr;
+}
+
 std::unique_ptr<ResidualBlock> ResidualBlock::extract_rows(std::span<const int> /*rows*/) const {
   return nullptr;
 }

@@ -13,14 +13,16 @@
 ///   compression.min_target_rows or sampled_rows_share of its rows, whichever is most), each
 ///   weighted N / M: an unbiased estimate of the block's cost at every point, where a coreset is
 ///   exact at one only. Blocks with a loss per row group stay whole (a row sample would split
-///   their groups). The sampled problem is solved, and the full solve starts at its result,
-///   kept when its first linearization finds the full cost lowered (else the full solve starts
-///   again from the start; a start of non-finite cost is never left). The full solve switches
-///   to compressed solves where its Gauss-Newton model fails (kAuto's rule): each compression is
-///   solved (the surrogate) beside one Levenberg-Marquardt step from the same compression (exact
-///   H and b there, so the full problem's step), both judged on the full cost; while the
-///   surrogate beats the step clearly it compresses again at its result, else it finishes with
-///   full iterations. Ends at the full optimum. Without blocks worth sampling (sampling would
+///   their groups), and blocks with an exact form (ResidualBlock::exact_form(): registration
+///   blocks' lossless rows) enter in that form, so that a problem of such blocks is solved
+///   exactly in its few rows. The sampled problem is solved, and the full solve starts at its
+///   result, kept when its first linearization finds the full cost lowered (else the full solve
+///   starts again from the start; a start of non-finite cost is never left). The full solve
+///   switches to compressed solves where its Gauss-Newton model fails (kAuto's rule): each
+///   compression is solved (the surrogate) beside one Levenberg-Marquardt step from the same
+///   compression (exact H and b there, so the full problem's step), both judged on the full cost;
+///   while the surrogate beats the step clearly it compresses again at its result, else it finishes
+///   with full iterations. Ends at the full optimum. Without blocks worth sampling (sampling would
 ///   keep more than a quarter of the rows), with blocks held outside the problem
 ///   (Problem::set_block_source()), or with sampled_start off, it starts with the compressions.
 /// - kRecompress: compress again at every result until the full problem's tests hold; between
@@ -36,7 +38,8 @@
 /// its iterations getting near the optimum and its last two in the region where Gauss-Newton
 /// converges fast. The sampled start covers the first part with passes over a few hundred rows
 /// per block, so that kSurrogate takes about the full solve's last two iterations plus one
-/// residual pass: 0.47-0.59 x the full solve from 4-5 iterations up, 0.75-0.77 x at 3. An exact
+/// residual pass: 0.47-0.59 x the full solve from 4-5 iterations up, 0.76 x at 3 (0.54 x on a
+/// registration graph of exact forms, at 3, where one full iteration confirms). An exact
 /// compression costs one pass over the rows plus the coreset (more than a full iteration for
 /// blocks of 12 unknowns), so it pays only where the model fails for a stretch.
 
@@ -108,6 +111,10 @@ struct RecompressedSolveOptions {
   /// blocks compression.select leaves out, are kept whole.
   int sampled_rows_factor = 4;
   double sampled_rows_share = 1.0 / 256.0;  ///< kSurrogate: see sampled_rows_factor; in [0, 1]
+  /// kSurrogate's sampled start: a block that has an exact form (ResidualBlock::exact_form(),
+  /// e.g. registration blocks' lossless rows) enters the sampled problem in it, not sampled; a
+  /// form that throws carat::Error leaves the block to sampling.
+  bool exact_forms = true;
 
   /// True if every setting is in range; otherwise false with a message in *error.
   bool validate(std::string* error) const;
@@ -154,6 +161,7 @@ struct RecompressedSolveSummary {
   bool sampled_start = false;
   std::size_t sampled_rows = 0;     ///< rows of the sampled problem (0 when it did not run)
   double sampled_start_cost = 0.0;  ///< full cost at the sample's solution (see sampled_start)
+  int exact_form_blocks = 0;  ///< blocks in the sampled problem in their exact form (exact_forms)
   /// One line: mode, full and compressed costs, compressions, iterations, termination, time.
   std::string brief_report() const;
 };

@@ -65,4 +65,10 @@ class LosslessRegistrationBlock final : public ResidualBlock {
 std::shared_ptr<const LosslessRegistrationBlock> make_lossless_block(
     const AffinePoseRows& block, const Eigen::Isometry3d& T_target_source_reference);
 
+/// The lossless rows of a block whose rows are affine in T_ij, about the relative pose of
+/// `params` (target pose T_world_i, source pose T_world_j): what such blocks return from
+/// ResidualBlock::exact_form(). Throws carat::Error as LosslessRegistrationBlock's constructor.
+std::shared_ptr<const ResidualBlock> lossless_form(const AffinePoseRows& block,
+                                                   ParameterPointers params);
+
 }  // namespace carat

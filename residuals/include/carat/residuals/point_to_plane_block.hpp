@@ -38,6 +38,8 @@ class PointToPlaneBlock final : public ResidualBlock, public AffinePoseRows {
       std::span<const int> rows, std::span<const double> weights) const override;
   std::size_t memory_bytes() const override;
   PoseGram pose_gram(const Eigen::Isometry3d& T_target_source_reference) const override;
+  /// The lossless rows about the relative pose of `params` (lossless_form()).
+  std::shared_ptr<const ResidualBlock> exact_form(ParameterPointers params) const override;
 
  private:
   PointToPlaneBlock() = default;

@@ -35,6 +35,8 @@ class PointToPointBlock final : public ResidualBlock, public AffinePoseRows {
   std::unique_ptr<ResidualBlock> extract_rows(std::span<const int> rows) const override;
   std::size_t memory_bytes() const override;
   PoseGram pose_gram(const Eigen::Isometry3d& T_target_source_reference) const override;
+  /// The lossless rows about the relative pose of `params` (lossless_form()).
+  std::shared_ptr<const ResidualBlock> exact_form(ParameterPointers params) const override;
 
  private:
   PointToPointBlock() = default;

@@ -91,6 +91,13 @@ class ResidualBlock {
   /// sum_g rho'(s_g) s_g here, so that their c is the robust block's.
   virtual double constant_cost() const { return 0.0; }
 
+  /// The block's whole cost function in fewer rows, exact at every value of its variables (not
+  /// only at `params`, which may condition its numbers), or null when the block has none (the
+  /// default). Registration blocks return their lossless rows (lossless_block.hpp);
+  /// solve_recompressed()'s sampled start uses such a form instead of a sample of rows. It
+  /// carries no group loss; a block with one returns null.
+  virtual std::shared_ptr<const ResidualBlock> exact_form(ParameterPointers params) const;
+
  protected:
   /// Throws carat::Error ("<who>: ...") unless there is one weight per row and every weight is
   /// finite and > 0 (for extract_weighted_rows() and blocks of weighted rows).
