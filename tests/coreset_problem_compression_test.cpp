@@ -230,12 +230,15 @@ TEST(ProblemCompressionTest, TheDefaultSurrogateStartsFromASampledProblem) {
 
 /// Rows r_k = a_k . x + c_k over x in R^2, stored as [a_k, c_k]. Its exact form is the upper
 /// Cholesky factor V of the Gram matrix G of those rows (V^T V = G): three rows with the same cost
-/// [x; 1]^T G [x; 1] at every x. With `throws`, exact_form() throws instead.
+/// [x; 1]^T G [x; 1] at every x.
 class AffineRows final : public ResidualBlock {
  public:
-  AffineRows(Eigen::MatrixX3d rows, bool throws) : rows_(std::move(rows)), throws_(throws) {}
+  /// What exact_form() does: the Cholesky rows, throw, or return a block over a 3-D variable.
+  enum class Form { kCholesky, kThrows, kOtherVariables };
+  AffineRows(Eigen::MatrixX3d rows, Form form, int dim = 2)
+      : rows_(std::move(rows)), form_(form), dims_{dim} {}
   int num_rows() const override { return static_cast<int>(rows_.rows()); }
-  std::span<const int> tangent_dims() const override { return kDims; }
+  std::span<const int> tangent_dims() const override { return dims_; }
   void evaluate_rows(ParameterPointers params, std::span<const int> rows, double* residuals,
                      double* jacobian) const override {
     for (std::size_t k = 0; k < rows.size(); ++k) {
@@ -251,20 +254,22 @@ class AffineRows final : public ResidualBlock {
     return static_cast<std::size_t>(rows_.size()) * sizeof(double);
   }
   std::shared_ptr<const ResidualBlock> exact_form(ParameterPointers) const override {
-    if (throws_) throw Error("AffineRows: no exact form");
+    if (form_ == Form::kThrows) throw Error("AffineRows: no exact form");
     const Eigen::Matrix3d G = rows_.transpose() * rows_;
-    return std::make_shared<AffineRows>(Eigen::MatrixX3d(G.llt().matrixU()), false);
+    return std::make_shared<AffineRows>(Eigen::MatrixX3d(G.llt().matrixU()), Form::kCholesky,
+                                        form_ == Form::kOtherVariables ? 3 : 2);
   }
 
  private:
-  static constexpr std::array<int, 1> kDims{2};
   Eigen::MatrixX3d rows_;
-  bool throws_;
+  Form form_;
+  std::array<int, 1> dims_;
 };
 
 // A block's exact form (here three rows for 10,000 affine ones) replaces its sample in the
 // sampled start: the sampled problem's solution is the full optimum. A form that throws leaves
-// the block to sampling, and the solve reaches the same optimum.
+// the block to sampling, and the solve reaches the same optimum; a form over other variables is
+// an error naming the block.
 TEST(ProblemCompressionTest, TheSampledStartTakesABlocksExactForm) {
   std::mt19937_64 rng(5);
   std::normal_distribution<double> normal(0.0, 1.0);
@@ -273,18 +278,18 @@ TEST(ProblemCompressionTest, TheSampledStartTakesABlocksExactForm) {
     const double a0 = normal(rng), a1 = normal(rng);
     rows.row(k) << a0, a1, -(2.0 * a0 - 3.0 * a1 + 0.1 * normal(rng));
   }
-  const auto affine = [&](bool throws) {
+  const auto affine = [&](AffineRows::Form form) {
     Problem p;
-    p.add_residual_block(std::make_shared<AffineRows>(rows, throws),
+    p.add_residual_block(std::make_shared<AffineRows>(rows, form),
                          {p.add_euclidean(Eigen::Vector2d(0.0, 0.0))});
     return p;
   };
-  Problem full = affine(false);
+  Problem full = affine(AffineRows::Form::kCholesky);
   solve(tight(), full);
   const double optimum = evaluate_problem(full).cost;
   RecompressedSolveOptions options;
   options.inner = tight();
-  Problem exact = affine(false);
+  Problem exact = affine(AffineRows::Form::kCholesky);
   const RecompressedSolveSummary e = solve_recompressed(exact, options);
   EXPECT_EQ(e.exact_form_blocks, 1);
   EXPECT_EQ(e.sampled_rows, 3u);
@@ -293,12 +298,21 @@ TEST(ProblemCompressionTest, TheSampledStartTakesABlocksExactForm) {
   EXPECT_NE(e.brief_report().find("sampled start on 3 rows (1 block in exact form)"),
             std::string::npos)
       << e.brief_report();
-  Problem throwing = affine(true);
+  Problem throwing = affine(AffineRows::Form::kThrows);
   const RecompressedSolveSummary t = solve_recompressed(throwing, options);
   EXPECT_EQ(t.exact_form_blocks, 0);
   EXPECT_EQ(t.sampled_rows, 64u);
   EXPECT_GT(t.sampled_start_cost, optimum * (1.0 + 1e-9)) << t.brief_report();
   EXPECT_NEAR(t.final_cost, optimum, 1e-9 * optimum) << t.brief_report();
+  Problem wrong = affine(AffineRows::Form::kOtherVariables);
+  try {
+    solve_recompressed(wrong, options);
+    ADD_FAILURE() << "no error";
+  } catch (const Error& error) {
+    EXPECT_STREQ(error.what(),
+                 "solve_recompressed: residual block 0: its exact_form() has variables of other "
+                 "tangent sizes than the block's");
+  }
 }
 
 TEST(ProblemCompressionTest, CompressOnceReportsTheFullCostAndKeepsTheOriginals) {

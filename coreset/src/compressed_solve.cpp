@@ -195,20 +195,36 @@ bool CompressedSolver::run_sampled_start() {
            block.group_loss() != nullptr || block.num_rows() <= compression.min_rows;
   };
   if (options_.exact_forms) {  // one pass over each block's data: on compression's threads
+    std::vector<std::string> errors(blocks.size());
     tbb::task_arena arena(std::clamp(compression.num_threads, 1, tbb::info::default_concurrency()));
     arena.execute([&] {
       tbb::parallel_for(std::size_t{0}, blocks.size(), [&](std::size_t k) {
         if (kept_whole(k)) return;
+        const ResidualBlock& block = *blocks[k].block;
         std::vector<const double*> params;
         for (VariableId v : blocks[k].variables) params.push_back(problem_.value(v).data());
         try {
-          exact[k] = blocks[k].block->exact_form(params);
+          exact[k] = block.exact_form(params);
         } catch (const Error&) {  // a form that cannot be built (e.g. from non-finite data)
           exact[k] = nullptr;     // leaves the block to sampling, and the full solve to report
         }
-        if (exact[k] && exact[k]->num_rows() >= blocks[k].block->num_rows()) exact[k] = nullptr;
+        if (!exact[k]) return;
+        const auto dims = block.tangent_dims();
+        const auto form_dims = exact[k]->tangent_dims();
+        if (!std::equal(dims.begin(), dims.end(), form_dims.begin(), form_dims.end())) {
+          errors[k] = "its exact_form() has variables of other tangent sizes than the block's";
+        } else if (exact[k]->num_rows() < 1 || exact[k]->group_loss() != nullptr) {
+          errors[k] = "its exact_form() has no rows or a loss per row group";
+        }
+        if (exact[k]->num_rows() >= block.num_rows()) exact[k] = nullptr;  // nothing to gain
       });
     });
+    for (std::size_t k = 0; k < blocks.size(); ++k) {
+      if (errors[k].empty()) continue;
+      const std::string& name = blocks[k].block->name();
+      throw Error("solve_recompressed: residual block " + std::to_string(k) +
+                  (name.empty() ? std::string() : " ('" + name + "')") + ": " + errors[k]);
+    }
   }
   std::size_t rows = 0;
   bool any = false;

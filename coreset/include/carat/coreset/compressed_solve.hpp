@@ -113,7 +113,8 @@ struct RecompressedSolveOptions {
   double sampled_rows_share = 1.0 / 256.0;  ///< kSurrogate: see sampled_rows_factor; in [0, 1]
   /// kSurrogate's sampled start: a block that has an exact form (ResidualBlock::exact_form(),
   /// e.g. registration blocks' lossless rows) enters the sampled problem in it, not sampled; a
-  /// form that throws carat::Error leaves the block to sampling.
+  /// form that throws carat::Error leaves the block to sampling, and one over other tangent
+  /// sizes, without rows or with a group loss is a carat::Error naming the block.
   bool exact_forms = true;
 
   /// True if every setting is in range; otherwise false with a message in *error.
