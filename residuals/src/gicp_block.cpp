@@ -543,24 +543,30 @@ std::shared_ptr<const ResidualBlock> GicpBlock::exact_form(ParameterPointers par
 }
 
 PoseGram GicpBlock::pose_gram(const Eigen::Isometry3d& T_target_source_reference) const {
+  return pose_gram_of(points_, rows_, T_target_source_reference);
+}
+
+// Vector code for the lanes of PoseGramSum (a virtual function cannot be multiversioned).
+CARAT_MULTIVERSION PoseGram
+GicpBlock::pose_gram_of(std::span<const Point> points, std::span<const Row> rows,
+                        const Eigen::Isometry3d& T_target_source_reference) {
   const auto as_vector = [](const std::array<double, 3>& a) {
     return Eigen::Vector3d(a[0], a[1], a[2]);
   };
   const Eigen::Vector3d centre =
-      rows_.empty()
-          ? internal::mean_point(points_.size(),
-                                 [&](std::size_t k) { return as_vector(points_[k].source); })
-          : internal::mean_point(rows_.size(),
-                                 [&](std::size_t k) { return as_vector(rows_[k].source); });
+      rows.empty() ? internal::mean_point(
+                         points.size(), [&](std::size_t k) { return as_vector(points[k].source); })
+                   : internal::mean_point(rows.size(),
+                                          [&](std::size_t k) { return as_vector(rows[k].source); });
   internal::PoseGramSum sum(T_target_source_reference, centre);
-  for (const Row& row : rows_) {  // an extract: one row each, Omega = l l^T
+  for (const Row& row : rows) {  // an extract: one row each, Omega = l l^T
     const std::array<double, 3> q = sum.apply_reference(row.source);
     const std::array<double, 3>& l = row.ell;
     const double r0 = row.offset - dot3(l, q);
     sum.add({l[0] * l[0], l[0] * l[1], l[0] * l[2], l[1] * l[1], l[1] * l[2], l[2] * l[2]},
             row.source, {l[0] * r0, l[1] * r0, l[2] * r0}, r0 * r0, 1);
   }
-  for (const Point& p : points_) {  // three rows each, Omega = W^T W
+  for (const Point& p : points) {  // three rows each, Omega = W^T W
     const std::array<double, 3> q = sum.apply_reference(p.source);
     const double d0 = p.target[0] - q[0], d1 = p.target[1] - q[1], d2 = p.target[2] - q[2];
     const auto& w = p.whitening;  // W = [w0 w1 w2; 0 w3 w4; 0 0 w5]

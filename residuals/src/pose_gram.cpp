@@ -66,18 +66,27 @@ PoseGramSum::PoseGramSum(const Eigen::Isometry3d& T_target_source_reference,
 }
 
 void PoseGramSum::flush() {
-  for (int i = 0; i < 6; ++i) {
-    for (int j = 0; j < 6; ++j) total_.pp_omega[i][j] += chunk_.pp_omega[i][j];
+  for (int l = 0; l < kLanes; ++l) {
+    for (int i = 0; i < 6; ++i) {
+      for (int j = 0; j < 6; ++j) total_.pp_omega[i][j] += lanes_.pp_omega[i][j][l];
+    }
+    for (int i = 0; i < 3; ++i) {
+      for (int j = 0; j < 9; ++j) total_.p_right[i][j] += lanes_.p_right[i][j][l];
+    }
+    for (int j = 0; j < 10; ++j) total_.right[j] += lanes_.right[j][l];
   }
-  for (int i = 0; i < 3; ++i) {
-    for (int j = 0; j < 9; ++j) total_.p_right[i][j] += chunk_.p_right[i][j];
-  }
-  for (int j = 0; j < 10; ++j) total_.right[j] += chunk_.right[j];
-  chunk_ = Sums{};
-  in_chunk_ = 0;
+  lanes_ = LaneSums{};
+  groups_ = 0;
 }
 
 PoseGram PoseGramSum::finish() {
+  if (lane_ > 0) {  // the last items, beside lanes of zero items
+    for (int l = lane_; l < kLanes; ++l) {
+      for (auto& row : left_) row[l] = 0.0;
+      for (auto& row : right_) row[l] = 0.0;
+    }
+    add_lanes();
+  }
   flush();
   const Sums& T = total_;
   PoseGram out;

@@ -12,8 +12,10 @@ namespace carat::internal {
 
 /// Sums items into a PoseGram. An item is one row or the rows of one correspondence: with r0 each
 /// row at the reference pose, it brings Omega = sum l l^T over its rows (upper triangle: 00 01 02
-/// 11 12 22), its source point, w = sum l r0 and s = sum r0^2. Items are summed in chunks whose
-/// totals are added in order (partial sums of 256 items keep rounding lower than one long sum).
+/// 11 12 22), its source point, w = sum l r0 and s = sum r0^2. Items go to kLanes lanes in turn,
+/// each lane summing its own (so that the products of kLanes items are one vector operation each,
+/// with the same bits for any vector width); every 256 items the lanes' sums are added to the
+/// total in lane order (partial sums keep rounding lower than one long sum).
 class PoseGramSum {
  public:
   /// Rows about T_target_source_reference, rotation columns about `source_centre`.
@@ -21,24 +23,25 @@ class PoseGramSum {
               const Eigen::Vector3d& source_centre);
 
   /// Adds one item of `rows` rows (inline: it is the body of the blocks' hot loops).
-  void add(const std::array<double, 6>& omega, const std::array<double, 3>& source,
-           const std::array<double, 3>& w, double s, int rows) {
-    const double p[3] = {source[0] - c_[0], source[1] - c_[1], source[2] - c_[2]};
-    const double pp[6] = {p[0] * p[0], p[0] * p[1], p[0] * p[2],
-                          p[1] * p[1], p[1] * p[2], p[2] * p[2]};
-    const double right[10] = {omega[0], omega[1], omega[2], omega[3], omega[4],
-                              omega[5], w[0],     w[1],     w[2],     s};
-    // Only the products G needs: p p^T (x) Omega, p (x) [Omega, w] and [Omega, w, s] itself
-    // (73 sums).
-    for (int i = 0; i < 6; ++i) {
-      for (int j = 0; j < 6; ++j) chunk_.pp_omega[i][j] += pp[i] * right[j];
-    }
-    for (int i = 0; i < 3; ++i) {
-      for (int j = 0; j < 9; ++j) chunk_.p_right[i][j] += p[i] * right[j];
-    }
-    for (int j = 0; j < 10; ++j) chunk_.right[j] += right[j];
+  [[gnu::always_inline]] void add(const std::array<double, 6>& omega,
+                                  const std::array<double, 3>& source,
+                                  const std::array<double, 3>& w, double s, int rows) {
+    const int l = lane_;
+    const double p0 = source[0] - c_[0], p1 = source[1] - c_[1], p2 = source[2] - c_[2];
+    left_[0][l] = p0 * p0;
+    left_[1][l] = p0 * p1;
+    left_[2][l] = p0 * p2;
+    left_[3][l] = p1 * p1;
+    left_[4][l] = p1 * p2;
+    left_[5][l] = p2 * p2;
+    left_[6][l] = p0;
+    left_[7][l] = p1;
+    left_[8][l] = p2;
+    for (int j = 0; j < 6; ++j) right_[j][l] = omega[static_cast<std::size_t>(j)];
+    for (int j = 0; j < 3; ++j) right_[6 + j][l] = w[static_cast<std::size_t>(j)];
+    right_[9][l] = s;
     rows_ += static_cast<std::size_t>(rows);
-    if (++in_chunk_ == kChunk) flush();
+    if (++lane_ == kLanes) add_lanes();
   }
 
   /// The Gram matrix of every item added.
@@ -52,17 +55,46 @@ class PoseGramSum {
   }
 
  private:
-  static constexpr int kChunk = 256;
-  void flush();
-  /// Sums over items, p = source - centre, right = [Omega (6), w (3), s].
+  static constexpr int kLanes = 8;
+  static constexpr int kChunk = 256;  // items between additions of the lanes to the total
+  /// Adds the kLanes items held to the lanes' sums: only the products G needs, p p^T (x) Omega,
+  /// p (x) [Omega, w] and [Omega, w, s] itself (73 sums a lane).
+  [[gnu::always_inline]] void add_lanes() {
+    for (int i = 0; i < 6; ++i) {
+      for (int j = 0; j < 6; ++j) {
+        for (int l = 0; l < kLanes; ++l) lanes_.pp_omega[i][j][l] += left_[i][l] * right_[j][l];
+      }
+    }
+    for (int i = 0; i < 3; ++i) {
+      for (int j = 0; j < 9; ++j) {
+        for (int l = 0; l < kLanes; ++l) lanes_.p_right[i][j][l] += left_[6 + i][l] * right_[j][l];
+      }
+    }
+    for (int j = 0; j < 10; ++j) {
+      for (int l = 0; l < kLanes; ++l) lanes_.right[j][l] += right_[j][l];
+    }
+    lane_ = 0;
+    if (++groups_ == kChunk / kLanes) flush();
+  }
+  void flush();  // adds the lanes' sums to total_ in lane order and clears them
+  /// Sums over items, p = source - centre, right = [Omega (6), w (3), s], per lane.
+  struct LaneSums {
+    alignas(64) double pp_omega[6][6][kLanes] = {};  ///< (p p^T)_i Omega_j
+    alignas(64) double p_right[3][9][kLanes] = {};   ///< p_i right_j (j < 9: p s is not needed)
+    alignas(64) double right[10][kLanes] = {};       ///< right_j
+  };
+  /// The same sums over all lanes.
   struct Sums {
     double pp_omega[6][6] = {};  ///< (p p^T)_i Omega_j, p p^T as 00 01 02 11 12 22
-    double p_right[3][9] = {};   ///< p_i right_j (j < 9: p s is not needed)
+    double p_right[3][9] = {};   ///< p_i right_j
     double right[10] = {};       ///< right_j
   };
-  Sums chunk_;
+  alignas(64) double left_[9][kLanes] = {};    // per lane: p p^T (6), p (3)
+  alignas(64) double right_[10][kLanes] = {};  // per lane: Omega (6), w (3), s
+  LaneSums lanes_;
   Sums total_;
-  int in_chunk_ = 0;
+  int lane_ = 0;
+  int groups_ = 0;
   std::size_t rows_ = 0;
   double r_[9];
   double t_[3];
@@ -70,12 +102,15 @@ class PoseGramSum {
   PoseEmbedding embedding_;
 };
 
-/// The mean of `count` points given by point(k) (k < count), or zero when count is 0.
+/// The mean of every 16th of `count` points given by point(k) (k < count; k = 0, 16, 32, ...), or
+/// zero when count is 0: a centre to condition the sums, which reads 1/16 of the data.
 template <class PointOf>
 Eigen::Vector3d mean_point(std::size_t count, const PointOf& point) {
+  constexpr std::size_t kStride = 16;
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-  for (std::size_t k = 0; k < count; ++k) sum += point(k);
-  return count > 0 ? Eigen::Vector3d(sum / static_cast<double>(count)) : sum;
+  std::size_t n = 0;
+  for (std::size_t k = 0; k < count; k += kStride, ++n) sum += point(k);
+  return n > 0 ? Eigen::Vector3d(sum / static_cast<double>(n)) : sum;
 }
 
 }  // namespace carat::internal

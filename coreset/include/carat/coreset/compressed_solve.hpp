@@ -38,7 +38,7 @@
 /// its iterations getting near the optimum and its last two in the region where Gauss-Newton
 /// converges fast. The sampled start covers the first part with passes over a few hundred rows
 /// per block, so that kSurrogate takes about the full solve's last two iterations plus one
-/// residual pass: 0.47-0.59 x the full solve from 4-5 iterations up, 0.76 x at 3 (0.54 x on a
+/// residual pass: 0.45-0.59 x the full solve from 4-5 iterations up, 0.74 x at 3 (0.48 x on a
 /// registration graph of exact forms, at 3, where one full iteration confirms). An exact
 /// compression costs one pass over the rows plus the coreset (more than a full iteration for
 /// blocks of 12 unknowns), so it pays only where the model fails for a stretch.

@@ -102,6 +102,9 @@ class GicpBlock final : public ResidualBlock, public AffinePoseRows {
   GicpBlock() = default;
   /// Row `row` of this block in the single-row form.
   Row row_of(int row) const;
+  /// pose_gram() of a block holding these correspondences or rows.
+  static PoseGram pose_gram_of(std::span<const Point> points, std::span<const Row> rows,
+                               const Eigen::Isometry3d& T_target_source_reference);
   static constexpr std::array<int, 2> kDims{6, 6};
   std::vector<Point> points_;  // a full block: row 3k + c is component c of correspondence k
   std::vector<Row> rows_;      // an extract (points_ empty): row k is rows_[k]

@@ -50,7 +50,8 @@ class AffinePoseRows {
   virtual ~AffinePoseRows() = default;
 
   /// The Gram matrix of every row the block holds, about T_target_source_reference, with the
-  /// centre c at the mean of the block's source points. Deterministic (fixed summation order).
+  /// centre c at the mean of every 16th of the block's source points (it only conditions the
+  /// numbers). Deterministic (fixed summation order).
   virtual PoseGram pose_gram(const Eigen::Isometry3d& T_target_source_reference) const = 0;
 };
 
