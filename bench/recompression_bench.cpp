@@ -15,6 +15,8 @@
 // drift start); 4 camera calibration (examples/calibration: intrinsics shared by 100 views of
 // 10,000 observations, one autodiff block per view with prepare(), no loss). Counters:
 // compressed and full iterations, compressions, rows of the sampled start, cost_vs_optimum.
+// Environment: CARAT_BENCH_EXACT_FORMS=0 samples blocks that have an exact form too;
+// CARAT_BENCH_DRIFT=s scales problem 3's drift by s; CARAT_BENCH_VERBOSE=1 prints the stages.
 //
 //   ./build/bench/recompression_bench
 #include <benchmark/benchmark.h>
@@ -91,8 +93,11 @@ carat::Problem registration_problem() {
   }
   carat::DriftOptions drift;
   drift.seed = 3;
-  drift.translation_sigma = 0.005;
-  drift.rotation_sigma_deg = 0.03;
+  // CARAT_BENCH_DRIFT=s scales the drift (4: 0.02 m / 0.1 degrees per frame, 4 full iterations).
+  const char* scale = std::getenv("CARAT_BENCH_DRIFT");
+  const double s = scale && *scale ? std::atof(scale) : 1.0;
+  drift.translation_sigma = 0.005 * s;
+  drift.rotation_sigma_deg = 0.03 * s;
   const auto initial = carat::apply_drift(sequence.T_world_frame, drift);
   carat::FrameStore store(std::move(frames));
   const auto pairs = carat::build_dense_graph(store, initial);
@@ -172,6 +177,9 @@ void BM_Solve(benchmark::State& state) {
     options.mode = kModes[state.range(1)];
     if (const char* m = std::getenv("CARAT_BENCH_M")) {
       options.compression.compression.target_rows = std::atoi(m);
+    }
+    if (const char* e = std::getenv("CARAT_BENCH_EXACT_FORMS"); e && *e == '0') {
+      options.exact_forms = false;
     }
     s = carat::solve_recompressed(p, options);
   }

@@ -8,7 +8,9 @@
 #include <cmath>
 #include <memory>
 #include <random>
+#include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "carat/base/error.hpp"
@@ -233,8 +235,9 @@ TEST(ProblemCompressionTest, TheDefaultSurrogateStartsFromASampledProblem) {
 /// [x; 1]^T G [x; 1] at every x.
 class AffineRows final : public ResidualBlock {
  public:
-  /// What exact_form() does: the Cholesky rows, throw, or return a block over a 3-D variable.
-  enum class Form { kCholesky, kThrows, kOtherVariables };
+  /// What exact_form() does: the Cholesky rows, throw carat::Error or another exception, or
+  /// return a block over a 3-D variable or without rows.
+  enum class Form { kCholesky, kThrows, kThrowsOther, kOtherVariables, kNoRows };
   AffineRows(Eigen::MatrixX3d rows, Form form, int dim = 2)
       : rows_(std::move(rows)), form_(form), dims_{dim} {}
   int num_rows() const override { return static_cast<int>(rows_.rows()); }
@@ -255,6 +258,8 @@ class AffineRows final : public ResidualBlock {
   }
   std::shared_ptr<const ResidualBlock> exact_form(ParameterPointers) const override {
     if (form_ == Form::kThrows) throw Error("AffineRows: no exact form");
+    if (form_ == Form::kThrowsOther) throw std::runtime_error("out of luck");
+    if (form_ == Form::kNoRows) return std::make_shared<AffineRows>(rows_.topRows(0), form_);
     const Eigen::Matrix3d G = rows_.transpose() * rows_;
     return std::make_shared<AffineRows>(Eigen::MatrixX3d(G.llt().matrixU()), Form::kCholesky,
                                         form_ == Form::kOtherVariables ? 3 : 2);
@@ -304,15 +309,32 @@ TEST(ProblemCompressionTest, TheSampledStartTakesABlocksExactForm) {
   EXPECT_EQ(t.sampled_rows, 64u);
   EXPECT_GT(t.sampled_start_cost, optimum * (1.0 + 1e-9)) << t.brief_report();
   EXPECT_NEAR(t.final_cost, optimum, 1e-9 * optimum) << t.brief_report();
-  Problem wrong = affine(AffineRows::Form::kOtherVariables);
-  try {
-    solve_recompressed(wrong, options);
-    ADD_FAILURE() << "no error";
-  } catch (const Error& error) {
-    EXPECT_STREQ(error.what(),
-                 "solve_recompressed: residual block 0: its exact_form() has variables of other "
-                 "tangent sizes than the block's");
+  // Other exceptions, and forms the solve cannot use, are errors naming the block.
+  const std::vector<std::pair<AffineRows::Form, std::string>> errors = {
+      {AffineRows::Form::kOtherVariables,
+       "its exact_form() has variables of other tangent sizes than the block's"},
+      {AffineRows::Form::kNoRows, "its exact_form() has no rows or a loss per row group"},
+      {AffineRows::Form::kThrowsOther, "its exact_form() threw: out of luck"}};
+  for (const auto& [form, message] : errors) {
+    Problem wrong = affine(form);
+    try {
+      solve_recompressed(wrong, options);
+      ADD_FAILURE() << "no error for " << message;
+    } catch (const Error& error) {
+      EXPECT_EQ(std::string(error.what()), "solve_recompressed: residual block 0: " + message);
+    }
   }
+  // Beside 10,000 blocks that stay whole (a loss per row group), no form is built at all.
+  Problem mostly_whole = affine(AffineRows::Form::kThrowsOther);
+  const std::vector<Eigen::Vector2d> few = curve_data(2, 3);
+  for (int b = 0; b < 10000; ++b) {
+    mostly_whole.add_residual_block(make_autodiff_block<1, VariableSize<2>>(ExpResidual{}, few)
+                                        ->with_group_loss(std::make_shared<HuberLoss>(1.0)),
+                                    {VariableId{0}});
+  }
+  const RecompressedSolveSummary w = solve_recompressed(mostly_whole, options);
+  EXPECT_FALSE(w.sampled_start);
+  EXPECT_EQ(w.exact_form_blocks, 0);
 }
 
 TEST(ProblemCompressionTest, CompressOnceReportsTheFullCostAndKeepsTheOriginals) {

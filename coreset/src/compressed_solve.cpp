@@ -8,6 +8,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <exception>
 #include <limits>
 #include <string>
 #include <utility>
@@ -194,6 +195,16 @@ bool CompressedSolver::run_sampled_start() {
             !compression.select(ResidualBlockId{static_cast<std::int32_t>(k)}, block)) ||
            block.group_loss() != nullptr || block.num_rows() <= compression.min_rows;
   };
+  // Blocks that stay whole whatever their form or sample: when they alone (with one row for
+  // every other block) hold more than a quarter of the rows, no form is worth building.
+  std::size_t least_rows = 0;
+  for (std::size_t k = 0; k < blocks.size(); ++k) {
+    least_rows += kept_whole(k) ? static_cast<std::size_t>(blocks[k].block->num_rows()) : 1;
+  }
+  if (least_rows > summary_.full_rows / 4) {
+    summary_.compression_s += stage.elapsed_s();
+    return false;
+  }
   if (options_.exact_forms) {  // one pass over each block's data: on compression's threads
     std::vector<std::string> errors(blocks.size());
     tbb::task_arena arena(std::clamp(compression.num_threads, 1, tbb::info::default_concurrency()));
@@ -207,6 +218,9 @@ bool CompressedSolver::run_sampled_start() {
           exact[k] = block.exact_form(params);
         } catch (const Error&) {  // a form that cannot be built (e.g. from non-finite data)
           exact[k] = nullptr;     // leaves the block to sampling, and the full solve to report
+        } catch (const std::exception& e) {  // anything else is the block's error
+          errors[k] = std::string("its exact_form() threw: ") + e.what();
+          return;
         }
         if (!exact[k]) return;
         const auto dims = block.tangent_dims();
@@ -253,6 +267,7 @@ bool CompressedSolver::run_sampled_start() {
   }
   if (!any || rows > summary_.full_rows / 4) {
     summary_.exact_form_blocks = 0;
+    summary_.compression_s += stage.elapsed_s();
     return false;
   }
   Problem sampled = problem_;

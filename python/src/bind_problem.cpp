@@ -260,8 +260,9 @@ void bind_problem(py::module_& m) {
       .def_readonly("sampled_start", &RecompressedSolveSummary::sampled_start)
       .def_readonly("sampled_rows", &RecompressedSolveSummary::sampled_rows)
       .def_readonly("sampled_start_cost", &RecompressedSolveSummary::sampled_start_cost)
-      .def_readonly("exact_form_blocks", &RecompressedSolveSummary::exact_form_blocks,
-                    "Blocks the sampled start took in their exact form (lossless GICP rows)")
+      .def_readonly(
+          "exact_form_blocks", &RecompressedSolveSummary::exact_form_blocks,
+          "Blocks the sampled start took in their exact form (registration blocks' lossless rows)")
       .def_readonly("initial_cost", &RecompressedSolveSummary::initial_cost)
       .def_readonly("final_cost", &RecompressedSolveSummary::final_cost)
       .def_readonly("final_gradient_max_norm", &RecompressedSolveSummary::final_gradient_max_norm)

@@ -14,8 +14,9 @@ namespace carat::internal {
 /// row at the reference pose, it brings Omega = sum l l^T over its rows (upper triangle: 00 01 02
 /// 11 12 22), its source point, w = sum l r0 and s = sum r0^2. Items go to kLanes lanes in turn,
 /// each lane summing its own (so that the products of kLanes items are one vector operation each,
-/// with the same bits for any vector width); every 256 items the lanes' sums are added to the
-/// total in lane order (partial sums keep rounding lower than one long sum).
+/// with the same bits for any vector width, given no fused multiply-adds where this is inlined:
+/// the files that include it are built with -ffp-contract=off); every 256 items the lanes' sums
+/// are added to the total in lane order (partial sums keep rounding lower than one long sum).
 class PoseGramSum {
  public:
   /// Rows about T_target_source_reference, rotation columns about `source_centre`.
@@ -48,7 +49,8 @@ class PoseGramSum {
   PoseGram finish();
 
   /// T_ref mu for a source point mu (the reference pose in scalars).
-  std::array<double, 3> apply_reference(const std::array<double, 3>& mu) const {
+  [[gnu::always_inline]] std::array<double, 3> apply_reference(
+      const std::array<double, 3>& mu) const {
     return {r_[0] * mu[0] + r_[3] * mu[1] + r_[6] * mu[2] + t_[0],
             r_[1] * mu[0] + r_[4] * mu[1] + r_[7] * mu[2] + t_[1],
             r_[2] * mu[0] + r_[5] * mu[1] + r_[8] * mu[2] + t_[2]};
@@ -102,8 +104,9 @@ class PoseGramSum {
   PoseEmbedding embedding_;
 };
 
-/// The mean of every 16th of `count` points given by point(k) (k < count; k = 0, 16, 32, ...), or
-/// zero when count is 0: a centre to condition the sums, which reads 1/16 of the data.
+/// The mean of every 16th of `count` points given by point(k) (k < count; k = 0, 16, 32, ...:
+/// point 0 alone below 17 points), or zero when count is 0: a centre to condition the sums, which
+/// reads 1/16 of the data.
 template <class PointOf>
 Eigen::Vector3d mean_point(std::size_t count, const PointOf& point) {
   constexpr std::size_t kStride = 16;

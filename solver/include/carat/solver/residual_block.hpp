@@ -94,8 +94,10 @@ class ResidualBlock {
   /// The block's whole cost function in fewer rows, exact at every value of its variables (not
   /// only at `params`, which may condition its numbers), or null when the block has none (the
   /// default). Registration blocks return their lossless rows (lossless_block.hpp);
-  /// solve_recompressed()'s sampled start uses such a form instead of a sample of rows. It
-  /// carries no group loss; a block with one returns null.
+  /// solve_recompressed()'s sampled start uses such a form instead of a sample of rows, calling
+  /// this from several threads at once (on one object too, when blocks are shared); a
+  /// carat::Error from it leaves the block to sampling, any other exception fails the solve. The
+  /// form carries no group loss; a block with one returns null.
   virtual std::shared_ptr<const ResidualBlock> exact_form(ParameterPointers params) const;
 
  protected:
