@@ -189,17 +189,17 @@ bool CompressedSolver::run_sampled_start() {
   // Blocks that state their whole cost function in fewer rows (ResidualBlock::exact_form())
   // enter the sampled problem in that form: exact at every point, so no sample is needed.
   std::vector<std::shared_ptr<const ResidualBlock>> exact(blocks.size());
-  const auto kept_whole = [&](std::size_t k) {
-    const ResidualBlock& block = *blocks[k].block;
-    return (compression.select &&
-            !compression.select(ResidualBlockId{static_cast<std::int32_t>(k)}, block)) ||
-           block.group_loss() != nullptr || block.num_rows() <= compression.min_rows;
-  };
-  // Blocks that stay whole whatever their form or sample: when they alone (with one row for
-  // every other block) hold more than a quarter of the rows, no form is worth building.
+  // Blocks that stay whole whatever their form or sample (compression.select asked once, here):
+  // when they alone (with one row for every other block) hold more than a quarter of the rows,
+  // no form is worth building.
+  std::vector<char> whole_anyway(blocks.size(), 0);
   std::size_t least_rows = 0;
   for (std::size_t k = 0; k < blocks.size(); ++k) {
-    least_rows += kept_whole(k) ? static_cast<std::size_t>(blocks[k].block->num_rows()) : 1;
+    const ResidualBlock& block = *blocks[k].block;
+    whole_anyway[k] = (compression.select &&
+                       !compression.select(ResidualBlockId{static_cast<std::int32_t>(k)}, block)) ||
+                      block.group_loss() != nullptr || block.num_rows() <= compression.min_rows;
+    least_rows += whole_anyway[k] ? static_cast<std::size_t>(block.num_rows()) : 1;
   }
   if (least_rows > summary_.full_rows / 4) {
     summary_.compression_s += stage.elapsed_s();
@@ -210,7 +210,7 @@ bool CompressedSolver::run_sampled_start() {
     tbb::task_arena arena(std::clamp(compression.num_threads, 1, tbb::info::default_concurrency()));
     arena.execute([&] {
       tbb::parallel_for(std::size_t{0}, blocks.size(), [&](std::size_t k) {
-        if (kept_whole(k)) return;
+        if (whole_anyway[k]) return;
         const ResidualBlock& block = *blocks[k].block;
         std::vector<const double*> params;
         for (VariableId v : blocks[k].variables) params.push_back(problem_.value(v).data());
@@ -258,7 +258,7 @@ bool CompressedSolver::run_sampled_start() {
                      std::int64_t{compression.min_target_rows},
                      static_cast<std::int64_t>(
                          std::ceil(options_.sampled_rows_share * static_cast<double>(n)))}));
-    const bool whole = kept_whole(k) || n <= 2 * target;
+    const bool whole = whole_anyway[k] || n <= 2 * target;
     if (!whole) {
       targets[k] = static_cast<int>(target);
       any = true;
