@@ -31,6 +31,28 @@ void drop(py::object& object) {
   object = py::object();
 }
 
+/// Whether every array in `kept` is held by carat alone: referenced once (by the list), and so is
+/// each array it is a view of, down to the one that owns the numbers. Nothing else can then
+/// write them (GIL held).
+bool held_alone(const py::object& kept) {
+  for (const py::handle item : py::reinterpret_borrow<py::list>(kept)) {
+    PyObject* object = item.ptr();
+    while (true) {
+      if (Py_REFCNT(object) != 1 || !py::isinstance<py::array>(object)) return false;
+      PyObject* base = py::detail::array_proxy(object)->base;
+      if (base == nullptr) {
+        if ((py::detail::array_proxy(object)->flags & py::detail::npy_api::NPY_ARRAY_OWNDATA_) ==
+            0) {
+          return false;
+        }
+        break;
+      }
+      object = base;
+    }
+  }
+  return true;
+}
+
 }  // namespace
 
 RowsEvaluation::~RowsEvaluation() { drop(keep_); }
@@ -69,6 +91,7 @@ NumpyRows::NumpyRows(py::object function, std::string name, int group_rows, int 
     variable_start_.push_back(start);
     start += static_cast<std::size_t>(v.ambient);
   }
+  values_size_ = start;
   if (single_block_) {
     all_groups_.resize(static_cast<std::size_t>(groups_));
     std::iota(all_groups_.begin(), all_groups_.end(), 0);
@@ -286,6 +309,7 @@ void NumpyRows::call(std::span<const int> groups, const Source& source, bool jac
     arguments[j] = slot_values(static_cast<int>(j), groups, source, -1, 0.0);
   }
   const py::object result = invoke(arguments, rows, jacobians);
+  out->call_ = ++calls_;
   py::object r = result;
   py::object J = py::none();
   if (py::isinstance<py::tuple>(result) && py::len(result) == 2) {
@@ -319,6 +343,7 @@ void NumpyRows::call(std::span<const int> groups, const Source& source, bool jac
         out->jacobians_[j] = checked_jacobian(given[j], static_cast<int>(j), n, &keep);
       }
     }
+    jacobians_returned_ = !differences;
     if (differences) {
       // The residuals are copied first: the function may fill the same arrays on every call.
       std::vector<double>& center = out->owned_.emplace_back(n);
@@ -394,6 +419,7 @@ std::shared_ptr<const RowsEvaluation> NumpyRows::evaluate_groups(std::span<const
   {
     py::gil_scoped_acquire gil;
     call(groups, source, jacobians, out.get());
+    out->private_ = held_alone(out->keep_);
   }
   apply_loss(out.get());
   return out;
@@ -419,46 +445,67 @@ const double* NumpyRows::common_base(std::span<const int> block_variables,
   return reinterpret_cast<const double*>(base);
 }
 
-bool NumpyRows::cache_holds(std::span<const int> block_variables, ParameterPointers params,
-                            std::span<const int> groups, bool jacobians) const {
-  if (!cache_.evaluation || (jacobians && !cache_.jacobians)) return false;
+NumpyRows::Held NumpyRows::held(std::span<const int> block_variables, ParameterPointers params,
+                                std::span<const int> groups) const {
+  const RowsEvaluation* evaluation = cache_.evaluation.get();
+  if (evaluation == nullptr || !(evaluation->private_ || evaluation->call_ == calls_.load())) {
+    return Held::kNo;
+  }
   for (std::size_t j = 0; j < block_variables.size(); ++j) {
     const auto v = static_cast<std::size_t>(block_variables[j]);
     // The same bits (as memcmp; a few numbers, inline: this runs once per block per pass).
-    const double* held = cache_.values.data() + variable_start_[v];
+    const double* kept = cache_.values.data() + variable_start_[v];
     for (int e = 0; e < variables_[v].ambient; ++e) {
       std::uint64_t a = 0;
       std::uint64_t b = 0;
       std::memcpy(&a, params[j] + e, sizeof(a));
-      std::memcpy(&b, held + e, sizeof(b));
-      if (a != b) return false;
+      std::memcpy(&b, kept + e, sizeof(b));
+      if (a != b) return Held::kNo;
     }
   }
   for (int g : groups) {
-    if (cache_.group_position[static_cast<std::size_t>(g)] < 0) return false;
+    if (cache_.group_position[static_cast<std::size_t>(g)] < 0) return Held::kNo;
   }
-  return true;
+  return cache_.jacobians ? Held::kWithJacobians : Held::kResidualsOnly;
 }
 
-void NumpyRows::refresh_cache(std::span<const int> groups, const double* base,
-                              bool jacobians) const {
+bool NumpyRows::serves(Held state, bool jacobians) const {
+  if (state == Held::kWithJacobians) {
+    if (jacobians) cache_.linearized = true;
+    return true;
+  }
+  return state == Held::kResidualsOnly && !jacobians;
+}
+
+bool NumpyRows::ask_jacobians(Held state, bool jacobians) const {
+  if (state == Held::kResidualsOnly && jacobians) {
+    ahead_ = true;  // a linearization at the last cost pass's point
+  } else if (state == Held::kNo && !jacobians && cache_.ahead && !cache_.linearized) {
+    ahead_ = false;  // a cost pass after one with Jacobians asked ahead: a rejected step
+  }
+  if (jacobians) return true;
+  return jacobians_returned_.load() && (!pass_jacobians_flag_ || ahead_);
+}
+
+void NumpyRows::refresh_cache(std::span<const int> groups, const double* base, bool jacobians,
+                              bool asked) const {
   std::vector<int> wanted;
   {
     std::lock_guard<std::mutex> users(users_mutex_);
     std::size_t next = 0;
     for (int g = 0; g < groups_; ++g) {
-      const bool asked = next < groups.size() && groups[next] == g;
-      if (asked) ++next;
-      if (asked || users_[static_cast<std::size_t>(g)] > 0) wanted.push_back(g);
+      const bool is_asked = next < groups.size() && groups[next] == g;
+      if (is_asked) ++next;
+      if (is_asked || users_[static_cast<std::size_t>(g)] > 0) wanted.push_back(g);
     }
   }
+  cache_ = Cache{};  // its arrays freed first: the function's new ones can take their memory
   Cache fresh;
-  fresh.evaluation = evaluate_groups(wanted, Source{{}, base}, jacobians);
-  fresh.jacobians = jacobians;
-  fresh.values.resize(variable_start_.empty()
-                          ? 0
-                          : variable_start_.back() +
-                                static_cast<std::size_t>(variables_.back().ambient));
+  fresh.evaluation = evaluate_groups(wanted, Source{{}, base}, asked);
+  fresh.jacobians = asked;
+  fresh.ahead = asked && !jacobians;
+  fresh.linearized = jacobians;
+  fresh.values.resize(values_size_);
   for (std::size_t v = 0; v < variables_.size(); ++v) {
     std::copy_n(base + variables_[v].offset, variables_[v].ambient,
                 fresh.values.data() + variable_start_[v]);
@@ -470,6 +517,28 @@ void NumpyRows::refresh_cache(std::span<const int> groups, const double* base,
   std::swap(cache_, fresh);
 }
 
+std::shared_ptr<const RowsEvaluation> NumpyRows::evaluate_all(std::span<const int> block_variables,
+                                                              ParameterPointers params,
+                                                              bool jacobians) const {
+  std::lock_guard<std::mutex> lock(cache_mutex_);
+  const Held state = held(block_variables, params, {});
+  if (serves(state, jacobians)) return cache_.evaluation;
+  const bool asked = ask_jacobians(state, jacobians);
+  cache_ = Cache{};  // its arrays freed first: the function's new ones can take their memory
+  Cache fresh;
+  fresh.evaluation = evaluate_groups(all_groups_, Source{params, nullptr}, asked);
+  fresh.jacobians = asked;
+  fresh.ahead = asked && !jacobians;
+  fresh.linearized = jacobians;
+  fresh.values.resize(values_size_);
+  for (std::size_t j = 0; j < block_variables.size(); ++j) {
+    const auto v = static_cast<std::size_t>(block_variables[j]);
+    std::copy_n(params[j], variables_[v].ambient, fresh.values.data() + variable_start_[v]);
+  }
+  std::swap(cache_, fresh);
+  return cache_.evaluation;
+}
+
 std::shared_ptr<const RowsEvaluation> NumpyRows::lookup(std::span<const int> block_variables,
                                                         ParameterPointers params,
                                                         std::span<const int> groups, bool jacobians,
@@ -477,9 +546,10 @@ std::shared_ptr<const RowsEvaluation> NumpyRows::lookup(std::span<const int> blo
   positions->resize(groups.size());
   {
     std::lock_guard<std::mutex> lock(cache_mutex_);
-    const bool hit = cache_holds(block_variables, params, groups, jacobians);
+    const Held state = held(block_variables, params, groups);
+    const bool hit = serves(state, jacobians);
     const double* base = hit ? nullptr : common_base(block_variables, params);
-    if (base != nullptr) refresh_cache(groups, base, jacobians);
+    if (base != nullptr) refresh_cache(groups, base, jacobians, ask_jacobians(state, jacobians));
     if (hit || base != nullptr) {
       for (std::size_t q = 0; q < groups.size(); ++q) {
         (*positions)[q] =
@@ -503,9 +573,10 @@ std::shared_ptr<const RowsEvaluation> NumpyRows::lookup_group(std::span<const in
   const std::span<const int> groups(&group, 1);
   {
     std::lock_guard<std::mutex> lock(cache_mutex_);
-    const bool hit = cache_holds(block_variables, params, groups, jacobians);
+    const Held state = held(block_variables, params, groups);
+    const bool hit = serves(state, jacobians);
     const double* base = hit ? nullptr : common_base(block_variables, params);
-    if (base != nullptr) refresh_cache(groups, base, jacobians);
+    if (base != nullptr) refresh_cache(groups, base, jacobians, ask_jacobians(state, jacobians));
     if (hit || base != nullptr) {
       *position = static_cast<std::size_t>(cache_.group_position[static_cast<std::size_t>(group)]);
       return cache_.evaluation;

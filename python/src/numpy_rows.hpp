@@ -12,7 +12,19 @@
 /// groups with the same variables form one residual block (numpy_rows_block.hpp). When there are
 /// several such blocks, evaluating them one by one would cost a Python call per block, so the
 /// batch keeps the last evaluation of all its active groups and serves every block from it while
-/// that block's variables hold the same values (see lookup()).
+/// that block's variables hold the same values (see lookup()). A batch of one block keeps its
+/// last whole evaluation the same way (evaluate_all()).
+///
+/// Jacobians ahead: a cost pass (residuals only) whose point is then linearized costs a second
+/// call at the same values. So a cost pass also asks for the Jacobians, and keeps them for that
+/// linearization, when they come at no extra call: always for a function without the
+/// `jacobians` keyword (it computes them anyway), and for one with it while the last cost pass's
+/// point was linearized (Levenberg-Marquardt accepting its steps), until Jacobians asked ahead go
+/// unused (a rejected step). Never for Jacobians taken by differences.
+///
+/// A kept evaluation is served again only while its arrays are carat's alone (nothing else holds
+/// them, so the function cannot write them again) or no call has been made since: a function
+/// that fills the same arrays on every call is never read stale.
 ///
 /// The Python function's result is checked (a tuple (r, [J_1, ..., J_S]) or r alone; float64;
 /// r of k * n values, J_j of k * n rows by tangent_j columns; a None Jacobian is taken by
@@ -24,6 +36,7 @@
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 
+#include <atomic>
 #include <cstddef>
 #include <cstdint>
 #include <memory>
@@ -140,6 +153,8 @@ class RowsEvaluation {
   friend class NumpyRows;
   int group_rows_ = 1;
   std::size_t num_rows_ = 0;
+  std::uint64_t call_ = 0;  // which call of the function made it (NumpyRows::calls_)
+  bool private_ = false;    // its arrays are held by carat alone
   StridedRows residuals_;
   std::vector<StridedRows> jacobians_;      // one per slot, empty without Jacobians
   std::vector<double> weights_;             // per group: sqrt(rho'(s_g)); empty: no loss
@@ -185,6 +200,13 @@ class NumpyRows {
   /// Python exception kept in the CallbackErrors) when the function fails.
   std::shared_ptr<const RowsEvaluation> evaluate(std::span<const int> groups,
                                                  ParameterPointers params, bool jacobians) const;
+
+  /// For the block of a single-block batch (`block_variables`: its variable per slot): every
+  /// group at `params`, served from the last whole evaluation while the variables hold the
+  /// values it was made at (with Jacobians asked ahead, see above).
+  std::shared_ptr<const RowsEvaluation> evaluate_all(std::span<const int> block_variables,
+                                                     ParameterPointers params,
+                                                     bool jacobians) const;
 
   /// For a block of a batch of several blocks (`block_variables`: its variable per slot): an
   /// evaluation holding `groups` (ascending) at `params`, and in positions[k] the row where
@@ -232,12 +254,22 @@ class NumpyRows {
   [[noreturn]] void fail(const std::string& message) const;
   void apply_loss(RowsEvaluation* evaluation) const;
   const double* common_base(std::span<const int> block_variables, ParameterPointers params) const;
-  /// Whether the cache holds `groups` at the block's values (cache_mutex_ held).
-  bool cache_holds(std::span<const int> block_variables, ParameterPointers params,
-                   std::span<const int> groups, bool jacobians) const;
+  /// What the cache holds for a request: nothing, the residuals alone, or the Jacobians too.
+  enum class Held { kNo, kResidualsOnly, kWithJacobians };
+  /// What the cache holds of `groups` (every group when empty) at the block's values
+  /// (cache_mutex_ held).
+  Held held(std::span<const int> block_variables, ParameterPointers params,
+            std::span<const int> groups) const;
+  /// Whether a request (`jacobians` or not) for what the cache holds as `state` is served from it;
+  /// notes a linearization served (cache_mutex_ held).
+  bool serves(Held state, bool jacobians) const;
+  /// Whether an evaluation asked with `jacobians` after a cache miss of `state` asks for the
+  /// Jacobians (ahead when not asked); updates the policy (cache_mutex_ held).
+  bool ask_jacobians(Held state, bool jacobians) const;
   /// Evaluates every active group at `base` (the problem's layout) into the cache (cache_mutex_
   /// held).
-  void refresh_cache(std::span<const int> groups, const double* base, bool jacobians) const;
+  void refresh_cache(std::span<const int> groups, const double* base, bool jacobians,
+                     bool asked) const;
 
   py::object function_;
   std::string name_;
@@ -253,6 +285,8 @@ class NumpyRows {
   std::vector<int> all_groups_;
   mutable py::object all_rows_;  // 0 .. G k - 1 as a read-only int64 array, made on first use
   mutable std::vector<py::object> spare_;  // per slot: the last values array passed (GIL held)
+  mutable std::atomic<std::uint64_t> calls_{0};          // calls of the function made (GIL held)
+  mutable std::atomic<bool> jacobians_returned_{false};  // the last Jacobians came from it
 
   // lookup()'s last evaluation, the values it was made at and where each group lies in it.
   struct Cache {
@@ -260,12 +294,16 @@ class NumpyRows {
     std::vector<double> values;                // each variable at variable_start_[v]
     std::vector<std::int64_t> group_position;  // each group's index in it, -1: not held
     bool jacobians = false;
+    bool ahead = false;       // Jacobians asked on a cost pass
+    bool linearized = false;  // a request for Jacobians was served from it
   };
+  mutable bool ahead_ = true;  // cost passes ask for Jacobians (cache_mutex_ held)
   mutable std::mutex cache_mutex_;
   mutable Cache cache_;
   mutable std::mutex users_mutex_;           // never held while waiting for the GIL
   mutable std::vector<int> users_;           // per group: blocks that use it
   std::vector<std::size_t> variable_start_;  // where each variable's values lie in Cache::values
+  std::size_t values_size_ = 0;              // doubles of Cache::values
 };
 
 }  // namespace carat::python

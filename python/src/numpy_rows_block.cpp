@@ -142,7 +142,7 @@ NumpyRowsBlock::Evaluated NumpyRowsBlock::evaluate(ParameterPointers params,
   };
   const bool all_rows = !rows || in_order();
   if (batch_rows_.empty() && groups_.empty() && all_rows) {  // the whole batch, in order
-    return {rows_->evaluate(rows_->all_groups(), params, jacobians), nullptr};
+    return {rows_->evaluate_all(variables_, params, jacobians), nullptr};
   }
   // Per-thread scratch: small blocks (an observation of two rows) are evaluated by the hundred
   // thousand per pass, and allocations would cost more than reading their rows.

@@ -130,6 +130,72 @@ def test_compressed_solves_reach_the_full_optimum_and_compression_is_exact():
     assert p.num_residual_rows == 600
 
 
+def logged_curve_residual(X, Y, log):
+    """curve_residual with the `jacobians` keyword; logs (values, jacobians, rows asked)."""
+    def residual(mc, rows, jacobians=True):
+        log.append((mc.copy(), jacobians, len(rows)))
+        x, y = X[rows], Y[rows]
+        e = np.exp(mc[0] * x + mc[1])
+        return (y - e, [np.stack([-x * e, -e], axis=1)]) if jacobians else y - e
+
+    return residual
+
+
+def test_a_cost_pass_asks_for_the_jacobians_its_linearization_then_uses():
+    X, Y = curve_data()
+    reference, _ = dense_gauss_newton(X, Y, np.array([0.3, 0.1]))
+    # Near the optimum every step is accepted: each point is evaluated once, the cost pass at a
+    # step's end asking for the Jacobians that the linearization there then takes.
+    log = []
+    p, v = curve_problem(X, Y, residual=logged_curve_residual(X, Y, log))
+    p.set_value(v, np.array([0.25, 0.2]))
+    s = carat.solve(p, **TIGHT)
+    np.testing.assert_allclose(p.value(v), reference, rtol=1e-10, atol=0)
+    points = [tuple(mc) for mc, _, _ in log]
+    assert s.unsuccessful_steps == 0 and s.iterations >= 3
+    assert len(points) == len(set(points)) == s.iterations + 1
+    assert all(jacobians for _, jacobians, _ in log)
+    # From (0, 0) Levenberg-Marquardt rejects steps: after Jacobians asked ahead go unused, cost
+    # passes skip them again until a step is accepted.
+    log.clear()
+    p, v = curve_problem(X, Y, residual=logged_curve_residual(X, Y, log))
+    s = carat.solve(p, **TIGHT)
+    assert s.unsuccessful_steps >= 2
+    assert any(not jacobians for _, jacobians, _ in log)
+    # The same optimum, to the last bit, as a function without the keyword (whose Jacobians
+    # carat always keeps).
+    q, w = curve_problem(X, Y)
+    carat.solve(q, **TIGHT)
+    np.testing.assert_array_equal(p.value(v), q.value(w))
+    np.testing.assert_allclose(p.value(v), reference, rtol=1e-10, atol=0)
+
+
+def test_a_function_that_refills_its_arrays_is_never_read_stale():
+    X, Y = curve_data(n=600)
+    r_out, J_out = np.empty(len(X)), np.empty((len(X), 2))
+
+    def refilling(mc, rows):  # the same two arrays on every call
+        n = len(rows)
+        e = np.exp(mc[0] * X[rows] + mc[1])
+        np.subtract(Y[rows], e, out=r_out[:n])
+        J_out[:n, 0], J_out[:n, 1] = -X[rows] * e, -e
+        return r_out[:n], [J_out[:n]]
+
+    p, v = curve_problem(X, Y, residual=refilling)
+    q, w = curve_problem(X, Y)
+    for problem, variable in ((p, v), (q, w)):
+        problem.set_value(variable, np.array([0.2, 0.3]))
+    cost, gradient = p.cost(), p.gradient()
+    assert cost == q.cost() and np.array_equal(gradient, q.gradient())
+    report = carat.compress(p)  # evaluates the kept rows alone: the arrays' first rows change
+    assert p.cost() == pytest.approx(cost, rel=1e-10)
+    report.restore()
+    assert p.cost() == cost and np.array_equal(p.gradient(), gradient)
+    carat.solve_recompressed(p, **TIGHT)
+    carat.solve_recompressed(q, **TIGHT)
+    np.testing.assert_array_equal(p.value(v), q.value(w))
+
+
 def pose_chain(n=6, seed=5):
     """Poses on a gently turning line, noisy odometry plus two loop closures (i, j, T_i_j)."""
     rng = np.random.default_rng(seed)
