@@ -36,6 +36,10 @@ expect solve_bal_schur_fields "$(json_field "$scratch/ba_schur.json" "j['cameras
 expect solve_bal_noise_floor "$(python3 -c "import json,sys; a=json.load(open(sys.argv[1])); s=json.load(open(sys.argv[2])); print(0.8 * (s['truth_cost'] - 0.5 * (12 * 9 + 400 * 3)) < a['final_cost'] <= s['truth_cost'])" "$scratch/ba_schur.json" "$scratch/ba_sim.json")"
 check solve_bal_cholesky 0 "" -- "$CARAT" solve-bal "$scratch/ba.bal" --json --linear-solver cholesky
 expect solve_bal_same_optimum "$(python3 -c "import json,sys; a=json.load(open(sys.argv[1])); b=json.load(open(sys.argv[2])); print('schur' not in b['linear_solver'] and abs(a['final_cost'] - b['final_cost']) <= 1e-6 * b['final_cost'])" "$scratch/ba_schur.json" "$scratch/out")"
+# --camera-steps parameters: Euclidean cameras, the same optimum.
+check solve_bal_camera_parameters 0 "" -- "$CARAT" solve-bal "$scratch/ba.bal" --json --camera-steps parameters
+expect solve_bal_camera_parameters_optimum "$(python3 -c "import json,sys; a=json.load(open(sys.argv[1])); b=json.load(open(sys.argv[2])); print(a['camera_steps'] == 'centre' and b['camera_steps'] == 'parameters' and abs(a['final_cost'] - b['final_cost']) <= 1e-6 * b['final_cost'])" "$scratch/ba_schur.json" "$scratch/out")"
+check solve_bal_bad_camera_steps 2 "--camera-steps" -- "$CARAT" solve-bal "$scratch/ba.bal" --camera-steps world
 check solve_bal_resolve 0 "" -- "$CARAT" solve-bal "$scratch/ba_solved.bal" --json --max-iterations 0
 expect solve_bal_written_cost "$(python3 -c "import json,sys; a=json.load(open(sys.argv[1])); b=json.load(open(sys.argv[2])); print(abs(a['final_cost'] - b['initial_cost']) <= 1e-12 * a['final_cost'])" "$scratch/ba_schur.json" "$scratch/out")"
 check solve_bal_report 0 "" -- "$CARAT" solve-bal "$scratch/ba.bal" --threads 2 --loss huber --loss-scale 2

@@ -5,12 +5,14 @@
 #include <gtest/gtest.h>
 #include <sys/stat.h>
 
+#include <Eigen/Geometry>
 #include <cstring>
 #include <fstream>
 #include <random>
 #include <sstream>
 #include <thread>
 
+#include "carat/residuals/bal_camera_manifold.hpp"
 #include "carat/residuals/bal_problem.hpp"
 #include "carat/residuals/io/bal_io.hpp"
 #include "carat/residuals/snavely_block.hpp"
@@ -80,6 +82,31 @@ TEST_P(SnavelyBlockTest, JacobianMatchesNumericAndAutomaticDifferentiation) {
       << J_autodiff;
 }
 
+TEST_P(SnavelyBlockTest, AboutCentreJacobianIsTheParametersOneThroughTheManifold) {
+  const BalCamera camera = test_camera(GetParam().w);
+  const Eigen::Vector3d point(0.7, -1.1, 0.4);
+  const SnavelyReprojectionBlock parameters(12.5, -40.25);
+  const SnavelyReprojectionBlock about_centre(12.5, -40.25, BalCameraTangent::kAboutCentre);
+  EXPECT_EQ(about_centre.camera_tangent(), BalCameraTangent::kAboutCentre);
+  const double* params[2] = {camera.data(), point.data()};
+  const auto camera_manifold = bal_camera_manifold(), point_manifold = euclidean_manifold(3);
+  const Manifold* manifolds[2] = {camera_manifold.get(), point_manifold.get()};
+  const JacobianCheckResult numeric = check_jacobians(about_centre, manifolds, params);
+  EXPECT_TRUE(numeric.ok) << numeric.message;
+  // The same rows; the camera columns are the parameters' ones times d(x [+] d)/dd.
+  SnavelyReprojectionBlock::Jacobian J_parameters, J_centre;
+  const Eigen::Vector2d r_parameters =
+      parameters.evaluate(camera.data(), point.data(), &J_parameters);
+  const Eigen::Vector2d r_centre = about_centre.evaluate(camera.data(), point.data(), &J_centre);
+  EXPECT_EQ(r_parameters, r_centre);
+  Eigen::Matrix<double, 9, 9, Eigen::RowMajor> plus_jacobian;
+  camera_manifold->plus_jacobian(camera.data(), plus_jacobian.data());
+  const Eigen::Matrix<double, 2, 9> chained = J_parameters.leftCols<9>() * plus_jacobian;
+  EXPECT_LE((J_centre.leftCols<9>() - chained).cwiseAbs().maxCoeff(),
+            1e-12 * chained.cwiseAbs().maxCoeff());
+  EXPECT_EQ(J_centre.rightCols<3>(), J_parameters.rightCols<3>());
+}
+
 INSTANTIATE_TEST_SUITE_P(
     Rotations, SnavelyBlockTest,
     ::testing::Values(BlockCase{"Identity", Eigen::Vector3d::Zero()},
@@ -88,6 +115,51 @@ INSTANTIATE_TEST_SUITE_P(
                       BlockCase{"Moderate", Eigen::Vector3d(0.3, -0.5, 0.2)},
                       BlockCase{"NearPi", Eigen::Vector3d(1.8, 2.0, -1.4)}),
     [](const ::testing::TestParamInfo<BlockCase>& param_info) { return param_info.param.name; });
+
+TEST(BalCameraManifoldTest, StepsAboutTheCentreAndInvertsItsSteps) {
+  const BalCameraManifold manifold;
+  EXPECT_STREQ(manifold.name(), "bal_camera");
+  const BalCamera x = test_camera({0.3, -0.5, 0.2});
+  const auto centre = [](const BalCamera& camera) {
+    const Eigen::Vector3d w = camera.head<3>();
+    const double angle = w.norm();
+    const Eigen::Matrix3d R = Eigen::AngleAxisd(angle, w / angle).toRotationMatrix();
+    return Eigen::Vector3d(-R.transpose() * camera.segment<3>(3));
+  };
+  BalCamera y;
+  Eigen::Matrix<double, 9, 1> delta;
+  delta << 0.02, -0.01, 0.03, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0;
+  manifold.plus(x.data(), delta.data(), y.data());  // a rotation alone: the centre stays
+  EXPECT_LE((centre(y) - centre(x)).norm(), 1e-13);
+  EXPECT_LE((y.head<3>() - x.head<3>() - delta.head<3>()).norm(), 1e-15);
+  delta << 0.02, -0.01, 0.03, 0.4, -0.2, 0.1, 3.0, 0.01, -0.002;
+  manifold.plus(x.data(), delta.data(), y.data());
+  EXPECT_LE((centre(y) - centre(x) - delta.segment<3>(3)).norm(), 1e-13);
+  EXPECT_LE((y.tail<3>() - x.tail<3>() - delta.tail<3>()).norm(), 1e-13);
+  Eigen::Matrix<double, 9, 1> back;
+  manifold.minus(y.data(), x.data(), back.data());
+  EXPECT_LE((back - delta).cwiseAbs().maxCoeff(), 1e-13);
+  manifold.plus(x.data(), Eigen::Matrix<double, 9, 1>::Zero().eval().data(), y.data());
+  EXPECT_LE((y - x).cwiseAbs().maxCoeff(), 1e-14);
+  // plus_jacobian against central differences of plus().
+  Eigen::Matrix<double, 9, 9, Eigen::RowMajor> analytic, numeric;
+  manifold.plus_jacobian(x.data(), analytic.data());
+  for (int k = 0; k < 9; ++k) {
+    const double h = 1e-6;
+    Eigen::Matrix<double, 9, 1> step = Eigen::Matrix<double, 9, 1>::Zero();
+    BalCamera plus, minus;
+    step[k] = h;
+    manifold.plus(x.data(), step.data(), plus.data());
+    step[k] = -h;
+    manifold.plus(x.data(), step.data(), minus.data());
+    numeric.col(k) = (plus - minus) / (2.0 * h);
+  }
+  EXPECT_LE((analytic - numeric).cwiseAbs().maxCoeff(), 1e-7) << analytic << "\n\n" << numeric;
+  EXPECT_TRUE(manifold.is_valid(x.data()));
+  BalCamera bad = x;
+  bad[4] = std::nan("");
+  EXPECT_FALSE(manifold.is_valid(bad.data()));
+}
 
 TEST(SnavelyBlockTest, AccumulateIsTheGramOfTheRowsAndRowsAreHonoured) {
   const BalCamera camera = test_camera({0.1, 0.2, -0.3});

@@ -7,6 +7,7 @@
 #include <random>
 
 #include "carat/coreset/compress.hpp"
+#include "carat/residuals/bal_camera_manifold.hpp"
 #include "carat/residuals/gicp_block.hpp"
 #include "carat/residuals/lossless_block.hpp"
 #include "carat/residuals/point_to_plane_block.hpp"
@@ -249,6 +250,14 @@ const std::vector<std::pair<std::string, Factory>>& cases() {
          // A BAL camera [w, t, f, k1, k2] 10 m from a point in front of it.
          return Case{std::make_shared<SnavelyReprojectionBlock>(31.5, -12.25),
                      {euclidean_manifold(9), euclidean_manifold(3)},
+                     {{0.2, -0.4, 0.3, 0.5, -0.3, -10.0, 480.0, -0.05, 0.004}, {0.8, 1.2, -0.6}}};
+       }},
+      {"SnavelyReprojectionBlockAboutCentre",
+       [] {
+         // The same camera stepped about its centre (bal_camera_manifold()).
+         return Case{std::make_shared<SnavelyReprojectionBlock>(31.5, -12.25,
+                                                                BalCameraTangent::kAboutCentre),
+                     {bal_camera_manifold(), euclidean_manifold(3)},
                      {{0.2, -0.4, 0.3, 0.5, -0.3, -10.0, 480.0, -0.05, 0.004}, {0.8, 1.2, -0.6}}};
        }},
       {"RelativePoseAutoDiffBlock",

@@ -3,7 +3,9 @@
 // its perturbed start down to the noise floor.
 #include <gtest/gtest.h>
 
+#include <Eigen/Geometry>
 #include <cstring>
+#include <vector>
 
 #include "carat/residuals/bal_problem.hpp"
 #include "carat/sim/bal_scene.hpp"
@@ -168,6 +170,49 @@ TEST(BalSceneTest, SolvingASmallSceneReachesTheNoiseFloor) {
   update_bal_problem(problem, variables, &solved);
   EXPECT_NEAR(bal_cost(solved), summary.final_cost, 1e-9 * summary.final_cost);
   EXPECT_EQ(count_points_behind_cameras(solved), 0u);
+}
+
+/// The scene moved by `shift` (scene units): every camera centre and point.
+BalProblem shifted(BalProblem bal, const Eigen::Vector3d& shift) {
+  for (BalCamera& camera : bal.cameras) {
+    const Eigen::Vector3d w = camera.head<3>();
+    const Eigen::Matrix3d R = Eigen::AngleAxisd(w.norm(), w.normalized()).toRotationMatrix();
+    camera.segment<3>(3) -= R * shift;  // t = -R c, and c moves by shift
+  }
+  for (Eigen::Vector3d& point : bal.points) point += shift;
+  return bal;
+}
+
+/// The cost after each iteration of solve() with its defaults.
+std::vector<double> iteration_costs(const BalProblem& bal, BalCameraTangent tangent) {
+  Problem problem;
+  add_bal_problem(bal, &problem, nullptr, tangent);
+  const SolverSummary summary = solve(SolverOptions{}, problem);
+  std::vector<double> costs;
+  for (const IterationSummary& it : summary.iterations) costs.push_back(it.cost);
+  return costs;
+}
+
+TEST(BalSceneTest, CameraStepsAboutTheirCentreDoNotDependOnWhereTheWorldOriginIs) {
+  BalSimulationOptions options;
+  options.cameras = 8;
+  options.points = 300;
+  options.seed = 7;
+  const BalProblem bal = simulate_bal(options).problem;
+  const BalProblem far = shifted(bal, {1000.0, 300.0, 0.0});
+  // About the centre: the same iterations 1 km from the origin, to the shift's rounding.
+  const std::vector<double> near_centre = iteration_costs(bal, BalCameraTangent::kAboutCentre);
+  const std::vector<double> far_centre = iteration_costs(far, BalCameraTangent::kAboutCentre);
+  ASSERT_EQ(near_centre.size(), far_centre.size());
+  ASSERT_GE(near_centre.size(), 3u);
+  for (std::size_t k = 0; k < near_centre.size(); ++k) {
+    EXPECT_NEAR(far_centre[k], near_centre[k], 1e-6 * near_centre[k]) << "iteration " << k;
+  }
+  // Steps added to [w, t]: a rotation step swings the camera about the origin 1 km away, and the
+  // first step lands far above the optimum.
+  const std::vector<double> far_parameters = iteration_costs(far, BalCameraTangent::kParameters);
+  EXPECT_GT(far_parameters[1], 10.0 * far_centre[1]);
+  EXPECT_NEAR(far_parameters.back(), far_centre.back(), 1e-6 * far_centre.back());
 }
 
 TEST(BalSceneTest, LayoutNamesAndOptionErrors) {

@@ -34,6 +34,7 @@ struct SolveBalArgs {
   double trust_region_growth = SolverOptions{}.max_trust_region_growth;
   std::string lm_start = to_string(SolverOptions{}.lm_start);
   bool no_factor_reuse = false;
+  std::string camera_steps = "centre";
   CovarianceRequest covariance;
   bool json = false;
 };
@@ -52,7 +53,10 @@ int run_solve_bal(const CLI::App& command, const SolveBalArgs& args) {
 
   stage.restart();
   Problem problem;
-  const BalVariables variables = add_bal_problem(bal, &problem, make_loss(loss, args.loss_scale));
+  const BalVariables variables =
+      add_bal_problem(bal, &problem, make_loss(loss, args.loss_scale),
+                      args.camera_steps == "centre" ? BalCameraTangent::kAboutCentre
+                                                    : BalCameraTangent::kParameters);
   const double build_s = stage.elapsed_s();
 
   SolverOptions options;
@@ -109,6 +113,7 @@ int run_solve_bal(const CLI::App& command, const SolveBalArgs& args) {
     j["points"] = bal.points.size();
     j["observations"] = bal.observations.size();
     j["points_behind_cameras"] = behind;
+    j["camera_steps"] = args.camera_steps;
     j["solve_time_s"] = summary.time.total_s;
     j["time_breakdown"]["read_s"] = read_s;
     j["time_breakdown"]["build_s"] = build_s;
@@ -184,6 +189,12 @@ void register_solve_bal(CLI::App& app, CommandRegistry& registry) {
       ->capture_default_str();
   cmd->add_flag("--no-factor-reuse", args->no_factor_reuse,
                 "factorize afresh every iteration (no steps on an earlier factorization)");
+  cmd->add_option("--camera-steps", args->camera_steps,
+                  "how a camera steps: centre (rotation about its centre, and the centre; fewer "
+                  "iterations far from the world origin) or parameters (added to its nine "
+                  "numbers, as Ceres's bundle_adjuster); the covariances are in these tangents")
+      ->check(CLI::IsMember({"centre", "parameters"}))
+      ->capture_default_str();
   add_covariance_options(cmd, &args->covariance, "every camera (by its index)", "pseudo-inverse");
   cmd->add_flag("--json", args->json, "print one JSON object instead of the report");
   registry.add(cmd, [args, cmd] { return run_solve_bal(*cmd, *args); });

@@ -3,7 +3,10 @@
 // Ceres gets its standard setup for BAL (as in its bundle_adjuster example): one 9-parameter
 // block per camera and one 3-parameter block per point, the reprojection error with automatic
 // differentiation, LM, SPARSE_SCHUR (SuiteSparse; the elimination ordering Ceres picks), 1 thread,
-// default tolerances and iteration limit. Its time is Solve()'s own total. carat's time is the
+// default tolerances and iteration limit. The cameras step as carat's do (the same layout): about
+// their centre (--camera-steps centre, the default: carat's BalCameraManifold, given to Ceres as a
+// ceres::Manifold) or added to their nine numbers (--camera-steps parameters, bundle_adjuster's
+// own choice). Its time is Solve()'s own total. carat's time is the
 // whole `carat solve-bal FILE --json` process, reading the file included (defaults, 1 thread);
 // beside it, solve() alone in a child process with a user's own templated Snavely functor (one
 // AutoDiffBlock per observation, Ceres's layout: carat_autodiff) and with carat's hand-written
@@ -11,21 +14,24 @@
 // Each Ceres solve runs in a child process, once with the BLAS Debian's Ceres links and once
 // with the system's (carat's) BLAS.
 //
-// Usage: bal_compare [--quick] [--keep DIR]
+// Usage: bal_compare [--quick] [--keep DIR] [--camera-steps centre|parameters]
 //   --quick: only the smallest problem. --keep: write the generated BAL files into DIR.
 // Prints one JSON object per problem.
 #include <ceres/ceres.h>
 #include <ceres/rotation.h>
 
+#include <Eigen/LU>
 #include <cstdio>
 #include <filesystem>
 #include <nlohmann/json.hpp>
+#include <span>
 #include <string>
 #include <vector>
 
 #include "../synthetic_bal_cases.hpp"
 #include "carat/base/blas_kernels.hpp"
 #include "carat/base/stopwatch.hpp"
+#include "carat/residuals/bal_camera_manifold.hpp"
 #include "carat/residuals/bal_problem.hpp"
 #include "carat/residuals/io/bal_io.hpp"
 #include "carat/sim/bal_scene.hpp"
@@ -34,6 +40,39 @@
 #include "carat/solver/solve.hpp"
 
 namespace {
+
+/// Whether cameras step about their centre (else added to their parameters), in every solver.
+bool g_about_centre = true;
+
+/// carat's BalCameraManifold as a ceres::Manifold: the same steps for Ceres.
+class CameraAboutCentre final : public ceres::Manifold {
+ public:
+  int AmbientSize() const override { return 9; }
+  int TangentSize() const override { return 9; }
+  bool Plus(const double* x, const double* delta, double* x_plus_delta) const override {
+    manifold_.plus(x, delta, x_plus_delta);
+    return true;
+  }
+  bool PlusJacobian(const double* x, double* jacobian) const override {
+    manifold_.plus_jacobian(x, jacobian);
+    return true;
+  }
+  bool Minus(const double* y, const double* x, double* y_minus_x) const override {
+    manifold_.minus(y, x, y_minus_x);
+    return true;
+  }
+  bool MinusJacobian(const double* x, double* jacobian) const override {
+    // d (y [-] x) / dy at y = x: the inverse of plus()'s Jacobian.
+    Eigen::Matrix<double, 9, 9, Eigen::RowMajor> plus;
+    manifold_.plus_jacobian(x, plus.data());
+    Eigen::Map<Eigen::Matrix<double, 9, 9, Eigen::RowMajor>> out(jacobian);
+    out = plus.inverse();
+    return true;
+  }
+
+ private:
+  carat::BalCameraManifold manifold_;
+};
 
 /// The BAL reprojection error: P = R(w) X + t, p = -P.xy / P.z, image = f (1 + k1 r^2 + k2 r^4) p.
 struct ReprojectionError {
@@ -63,6 +102,9 @@ nlohmann::json run_ceres(const std::string& file) {
         new ReprojectionError{o.x, o.y});
     problem.AddResidualBlock(cost, nullptr, bal.cameras[static_cast<std::size_t>(o.camera)].data(),
                              bal.points[static_cast<std::size_t>(o.point)].data());
+  }
+  if (g_about_centre) {
+    for (auto& camera : bal.cameras) problem.SetManifold(camera.data(), new CameraAboutCentre);
   }
   ceres::Solver::Options options;
   options.linear_solver_type = ceres::SPARSE_SCHUR;
@@ -113,7 +155,9 @@ nlohmann::json run_carat(const std::string& file, bool autodiff) {
   if (autodiff) {
     std::vector<carat::VariableId> cameras, points;
     for (const auto& c : bal.cameras) {
-      cameras.push_back(problem.add_euclidean(Eigen::Map<const Eigen::VectorXd>(c.data(), 9)));
+      cameras.push_back(problem.add_variable(
+          g_about_centre ? carat::bal_camera_manifold() : carat::euclidean_manifold(9),
+          std::span<const double>(c.data(), 9)));
     }
     for (const auto& p : bal.points) {
       points.push_back(problem.add_euclidean(p));
@@ -126,7 +170,9 @@ nlohmann::json run_carat(const std::string& file, bool autodiff) {
           {cameras[static_cast<std::size_t>(o.camera)], points[static_cast<std::size_t>(o.point)]});
     }
   } else {
-    carat::add_bal_problem(bal, &problem);
+    carat::add_bal_problem(bal, &problem, nullptr,
+                           g_about_centre ? carat::BalCameraTangent::kAboutCentre
+                                          : carat::BalCameraTangent::kParameters);
   }
   carat::SolverOptions options;
   options.num_threads = 1;
@@ -170,11 +216,15 @@ int main(int argc, char** argv) {
       quick = true;
     } else if (arg == "--keep" && i + 1 < argc) {
       keep = argv[++i];
+    } else if (arg == "--camera-steps" && i + 1 < argc &&
+               (std::string(argv[i + 1]) == "centre" || std::string(argv[i + 1]) == "parameters")) {
+      g_about_centre = std::string(argv[++i]) == "centre";
     } else if (arg == "--solver" && i + 2 < argc) {
       solver = argv[++i];
       file = argv[++i];
     } else {
-      std::fprintf(stderr, "usage: bal_compare [--quick] [--keep DIR]\n");
+      std::fprintf(
+          stderr, "usage: bal_compare [--quick] [--keep DIR] [--camera-steps centre|parameters]\n");
       return 2;
     }
   }
@@ -189,7 +239,9 @@ int main(int argc, char** argv) {
       keep.empty() ? std::filesystem::temp_directory_path() / "carat_bal_compare"
                    : std::filesystem::path(keep);
   std::filesystem::create_directories(folder);
-  const std::string self = std::filesystem::read_symlink("/proc/self/exe").string();
+  const std::string steps = g_about_centre ? "centre" : "parameters";
+  const std::string self =
+      std::filesystem::read_symlink("/proc/self/exe").string() + "' --camera-steps '" + steps;
   const std::string system_blas = "libblas.so.3";  // see ceres_compare.cpp
   int exit_code = 0;
   for (const SyntheticBalCase& c : synthetic_bal_cases(quick)) {
@@ -200,6 +252,7 @@ int main(int argc, char** argv) {
 
     nlohmann::json j;
     j["problem"] = c.name;
+    j["camera_steps"] = steps;
     j["cameras"] = options.cameras;
     j["points"] = options.points;
     j["observations"] = scene.problem.observations.size();
@@ -216,8 +269,9 @@ int main(int argc, char** argv) {
         run("'" + self + "' --solver carat-autodiff '" + path + "'", &child_s, &autodiff_status);
     const std::string shipped_out =
         run("'" + self + "' --solver carat-shipped '" + path + "'", &child_s, &shipped_status);
-    const std::string carat_out =
-        run("'" + std::string(CARAT_CLI) + "' solve-bal '" + path + "' --json", &wall_s, &status);
+    const std::string carat_out = run(
+        "'" + std::string(CARAT_CLI) + "' solve-bal '" + path + "' --json --camera-steps " + steps,
+        &wall_s, &status);
     if (status != 0 || autodiff_status != 0 || shipped_status != 0 || ceres_out.empty() ||
         ceres_blas_out.empty() || carat_out.empty() || autodiff_out.empty() ||
         shipped_out.empty()) {

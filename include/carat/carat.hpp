@@ -54,6 +54,7 @@
 #include <carat/registration/scan_opening.hpp>
 #include <carat/registration/trajectory_error.hpp>
 #include <carat/registration/voxel_grid.hpp>
+#include <carat/residuals/bal_camera_manifold.hpp>
 #include <carat/residuals/bal_problem.hpp>
 #include <carat/residuals/block_serialization.hpp>
 #include <carat/residuals/gicp_block.hpp>

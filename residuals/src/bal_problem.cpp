@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "carat/base/error.hpp"
+#include "carat/residuals/bal_camera_manifold.hpp"
 #include "carat/residuals/snavely_block.hpp"
 #include "carat/residuals/snavely_camera.hpp"
 #include "carat/solver/manifold.hpp"
@@ -55,13 +56,16 @@ void check_bal_problem(const BalProblem& problem, const char* name) {
 }
 
 BalVariables add_bal_problem(const BalProblem& bal, Problem* problem,
-                             std::shared_ptr<const LossFunction> loss) {
+                             std::shared_ptr<const LossFunction> loss,
+                             BalCameraTangent camera_tangent) {
   if (problem == nullptr) throw Error("add_bal_problem: no problem given");
   check_bal_problem(bal);
   BalVariables out;
   out.cameras.reserve(bal.cameras.size());
   out.points.reserve(bal.points.size());
-  const auto camera_manifold = euclidean_manifold(kBalCameraSize);
+  const auto camera_manifold = camera_tangent == BalCameraTangent::kAboutCentre
+                                   ? bal_camera_manifold()
+                                   : euclidean_manifold(kBalCameraSize);
   const auto point_manifold = euclidean_manifold(3);
   for (const BalCamera& camera : bal.cameras) {
     out.cameras.push_back(
@@ -74,10 +78,11 @@ BalVariables add_bal_problem(const BalProblem& bal, Problem* problem,
     out.points.push_back(id);
   }
   for (const BalObservation& o : bal.observations) {
-    problem->add_residual_block(std::make_shared<SnavelyReprojectionBlock>(o.x, o.y),
-                                {out.cameras[static_cast<std::size_t>(o.camera)],
-                                 out.points[static_cast<std::size_t>(o.point)]},
-                                loss);
+    problem->add_residual_block(
+        std::make_shared<SnavelyReprojectionBlock>(o.x, o.y, camera_tangent),
+        {out.cameras[static_cast<std::size_t>(o.camera)],
+         out.points[static_cast<std::size_t>(o.point)]},
+        loss);
   }
   return out;
 }

@@ -3,23 +3,15 @@
 #include <cmath>
 #include <string>
 
+#include "angle_axis_terms.hpp"
 #include "carat/base/error.hpp"
 #include "carat/residuals/snavely_camera.hpp"
 
 namespace carat {
-namespace {
 
-/// [v]x, the cross-product matrix.
-Eigen::Matrix3d cross_matrix(const Eigen::Vector3d& v) {
-  Eigen::Matrix3d m;
-  m << 0.0, -v.z(), v.y(), v.z(), 0.0, -v.x(), -v.y(), v.x(), 0.0;
-  return m;
-}
-
-}  // namespace
-
-SnavelyReprojectionBlock::SnavelyReprojectionBlock(double observed_x, double observed_y)
-    : observed_(observed_x, observed_y) {
+SnavelyReprojectionBlock::SnavelyReprojectionBlock(double observed_x, double observed_y,
+                                                   BalCameraTangent camera_tangent)
+    : observed_(observed_x, observed_y), camera_tangent_(camera_tangent) {
   if (!std::isfinite(observed_x) || !std::isfinite(observed_y)) {
     throw Error("SnavelyReprojectionBlock: observation (" + message_number(observed_x) + ", " +
                 message_number(observed_y) + ") is not finite");
@@ -33,25 +25,8 @@ Eigen::Vector2d SnavelyReprojectionBlock::evaluate(const double* camera, const d
   const Eigen::Map<const Eigen::Vector3d> X(point);
   const double f = camera[6], k1 = camera[7], k2 = camera[8];
 
-  // R = I + a W + b W^2 and the right Jacobian J_r = I - b W + c W^2 of SO(3), with
-  // a = sin(theta)/theta, b = (1 - cos(theta))/theta^2, c = (theta - sin(theta))/theta^3
-  // (Taylor series below 1e-3 rad, as lie::angle_axis_rotate()).
-  const double theta2 = w.squaredNorm();
-  double a, b, c;
-  if (theta2 > 1e-6) {
-    const double theta = std::sqrt(theta2);
-    const double s = std::sin(theta);
-    a = s / theta;
-    b = (1.0 - std::cos(theta)) / theta2;
-    c = (theta - s) / (theta2 * theta);
-  } else {
-    a = 1.0 - theta2 / 6.0;
-    b = 0.5 - theta2 / 24.0;
-    c = 1.0 / 6.0 - theta2 / 120.0;
-  }
-  const Eigen::Matrix3d W = cross_matrix(w);
-  const Eigen::Matrix3d W2 = W * W;
-  const Eigen::Matrix3d R = Eigen::Matrix3d::Identity() + a * W + b * W2;
+  const internal::AngleAxisTerms terms = internal::angle_axis_terms(w);
+  const Eigen::Matrix3d& R = terms.R;
   const Eigen::Vector3d P = R * X + t;
 
   const double inverse_z = 1.0 / P.z();
@@ -69,10 +44,18 @@ Eigen::Vector2d SnavelyReprojectionBlock::evaluate(const double* camera, const d
   d_p_d_P *= -inverse_z;
   const Eigen::Matrix<double, 2, 3> d_image_d_P = d_image_d_p * d_p_d_P;
   const Eigen::Matrix<double, 2, 3> d_image_d_X = d_image_d_P * R;
-  // d (R(w) X) / d w = -R [X]x J_r(w).
-  const Eigen::Matrix3d J_r = Eigen::Matrix3d::Identity() - b * W + c * W2;
-  jacobian->block<2, 3>(0, 0).noalias() = -(d_image_d_X * cross_matrix(X)) * J_r;
-  jacobian->block<2, 3>(0, 3) = d_image_d_P;
+  if (camera_tangent_ == BalCameraTangent::kParameters) {
+    // d (R(w) X) / d w = -R [X]x J_r(w).
+    jacobian->block<2, 3>(0, 0).noalias() = -(d_image_d_X * internal::cross_matrix(X)) * terms.J_r;
+    jacobian->block<2, 3>(0, 3) = d_image_d_P;
+  } else {
+    // P = R(w) (X - c) with the centre c held while w steps: d P / d dw = -R [X - c]x J_r(w),
+    // where X - c = R^T P; d P / d dc = -R.
+    const Eigen::Vector3d from_centre = R.transpose() * P;
+    jacobian->block<2, 3>(0, 0).noalias() =
+        -(d_image_d_X * internal::cross_matrix(from_centre)) * terms.J_r;
+    jacobian->block<2, 3>(0, 3) = -d_image_d_X;
+  }
   jacobian->col(6) = distortion * p;
   jacobian->col(7) = (f * r2) * p;
   jacobian->col(8) = (f * r2 * r2) * p;

@@ -9,6 +9,7 @@
 #include <memory>
 #include <vector>
 
+#include "carat/residuals/snavely_camera.hpp"
 #include "carat/solver/loss_function.hpp"
 #include "carat/solver/problem.hpp"
 #include "carat/solver/variable_id.hpp"
@@ -40,15 +41,19 @@ void check_bal_problem(const BalProblem& problem, const char* name = "BAL proble
 
 /// The variables add_bal_problem() created, by camera and point index.
 struct BalVariables {
-  std::vector<VariableId> cameras;  ///< one Euclidean(9) variable per camera
+  std::vector<VariableId> cameras;  ///< one 9-parameter variable per camera (see add_bal_problem)
   std::vector<VariableId> points;   ///< one Euclidean(3) variable per point, marked eliminable
 };
 
-/// Adds one Euclidean variable per camera and per point (points marked eliminable, for the Schur
-/// complement) and one SnavelyReprojectionBlock per observation, with `loss` (null: plain least
-/// squares), to `problem`. Throws carat::Error if `bal` fails check_bal_problem().
+/// Adds one variable per camera and per point (points Euclidean and marked eliminable, for the
+/// Schur complement) and one SnavelyReprojectionBlock per observation, with `loss` (null: plain
+/// least squares), to `problem`. Cameras step in `camera_tangent`: by default about their centre
+/// (bal_camera_manifold(); Gauss-Newton needs fewer iterations where the scene lies far from
+/// the world origin), or kParameters for Euclidean(9) variables. The cost function and its
+/// optimum are the same either way. Throws carat::Error if `bal` fails check_bal_problem().
 BalVariables add_bal_problem(const BalProblem& bal, Problem* problem,
-                             std::shared_ptr<const LossFunction> loss = nullptr);
+                             std::shared_ptr<const LossFunction> loss = nullptr,
+                             BalCameraTangent camera_tangent = BalCameraTangent::kAboutCentre);
 
 /// Copies the current camera and point values of `problem` back into `bal` (observations are left
 /// as they are). Throws carat::Error if the sizes of `variables` and `bal` differ.

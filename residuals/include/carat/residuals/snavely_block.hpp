@@ -1,13 +1,15 @@
 #pragma once
 
 /// Reprojection error of one BAL observation (see snavely_camera.hpp for the camera model): two
-/// rows r = f d p - observed (pixels) over a camera (Euclidean, 9 parameters) and a point
-/// (Euclidean, 3, scene units). The Jacobian is analytic. The block's cost is 1/2 |r|^2.
+/// rows r = f d p - observed (pixels) over a camera (9 parameters: Euclidean, or
+/// bal_camera_manifold() stepped about its centre) and a point (Euclidean, 3, scene units). The
+/// Jacobian is analytic. The block's cost is 1/2 |r|^2.
 
 #include <Eigen/Core>
 #include <array>
 #include <span>
 
+#include "carat/residuals/snavely_camera.hpp"
 #include "carat/solver/residual_block.hpp"
 
 namespace carat {
@@ -15,12 +17,16 @@ namespace carat {
 /// Two rows (x, y) of the BAL reprojection error of one observation; variables: camera, point.
 class SnavelyReprojectionBlock final : public ResidualBlock {
  public:
-  /// Jacobian of both rows: columns 0-8 the camera [w, t, f, k1, k2], 9-11 the point.
+  /// Jacobian of both rows: columns 0-8 the camera's tangent ([w, t, f, k1, k2] with
+  /// kParameters, [dw, dc, df, dk1, dk2] with kAboutCentre), 9-11 the point.
   using Jacobian = Eigen::Matrix<double, 2, 12, Eigen::RowMajor>;
 
   /// The observation (observed_x, observed_y) in pixels, relative to the image centre as in the
-  /// BAL files. Throws carat::Error if either is not finite.
-  SnavelyReprojectionBlock(double observed_x, double observed_y);
+  /// BAL files, for a camera variable stepping in `camera_tangent` (kParameters: a Euclidean(9)
+  /// variable; kAboutCentre: one on bal_camera_manifold()). Throws carat::Error if either
+  /// coordinate is not finite.
+  SnavelyReprojectionBlock(double observed_x, double observed_y,
+                           BalCameraTangent camera_tangent = BalCameraTangent::kParameters);
 
   int num_rows() const override { return 2; }
   std::span<const int> tangent_dims() const override { return kDims; }
@@ -37,10 +43,13 @@ class SnavelyReprojectionBlock final : public ResidualBlock {
 
   /// The observation, pixels.
   const Eigen::Vector2d& observed() const { return observed_; }
+  /// The tangent of the camera variable the Jacobian is taken in.
+  BalCameraTangent camera_tangent() const { return camera_tangent_; }
 
  private:
   static constexpr std::array<int, 2> kDims{9, 3};
   Eigen::Vector2d observed_;
+  BalCameraTangent camera_tangent_ = BalCameraTangent::kParameters;
 };
 
 }  // namespace carat

@@ -16,6 +16,12 @@ namespace carat {
 /// Number of parameters of one BAL camera.
 inline constexpr int kBalCameraSize = 9;
 
+/// The tangent a BAL camera variable steps in: kParameters adds steps to the nine numbers
+/// (euclidean(9)); kAboutCentre steps the rotation about the camera centre and the centre itself
+/// (bal_camera_manifold(), bal_camera_manifold.hpp). A block's camera Jacobian is in its
+/// variable's tangent, so the two must match.
+enum class BalCameraTangent { kParameters, kAboutCentre };
+
 /// The point `camera` (9 parameters, see above) takes to the camera frame: P = R(w) X + t.
 template <typename T>
 void snavely_camera_point(const T* camera, const T* point, T* P) {
