@@ -25,7 +25,7 @@ inline Eigen::Matrix3d cross_matrix(const Eigen::Vector3d& v) {
 }
 
 /// The terms of the rotation w (radians).
-inline AngleAxisTerms angle_axis_terms(const Eigen::Vector3d& w) {
+[[gnu::always_inline]] inline AngleAxisTerms angle_axis_terms(const Eigen::Vector3d& w) {
   const double theta2 = w.squaredNorm();
   double a, b, c;
   if (theta2 > 1e-6) {
