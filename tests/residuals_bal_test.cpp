@@ -437,6 +437,26 @@ TEST(BalProblemTest, CostDirectAndThroughTheProblemAgreeAndSolvedValuesComeBack)
   EXPECT_NEAR(problem.evaluate_cost(), bal_cost(updated), 1e-12 * bal_cost(updated));
 }
 
+TEST(BalProblemTest, CamerasStepAboutTheirCentreUnlessParametersAreAsked) {
+  const BalProblem bal = small_problem();
+  for (const BalCameraTangent tangent :
+       {BalCameraTangent::kAboutCentre, BalCameraTangent::kParameters}) {
+    Problem problem;
+    const BalVariables variables = tangent == BalCameraTangent::kAboutCentre
+                                       ? add_bal_problem(bal, &problem)
+                                       : add_bal_problem(bal, &problem, nullptr, tangent);
+    const std::string expected =
+        tangent == BalCameraTangent::kAboutCentre ? "bal_camera" : "euclidean";
+    for (const VariableId camera : variables.cameras) {
+      EXPECT_EQ(problem.manifold(camera).name(), expected);
+    }
+    EXPECT_EQ(problem.manifold(variables.points[0]).name(), std::string("euclidean"));
+    // Every block's Jacobian matches differences through its variables' manifolds.
+    const ProblemCheckReport check = check_problem(problem);
+    EXPECT_TRUE(check.ok) << check.summary();
+  }
+}
+
 TEST(BalProblemTest, CountsPointsBehindTheirCameras) {
   BalProblem bal = small_problem();
   EXPECT_EQ(count_points_behind_cameras(bal), 0u);

@@ -240,8 +240,9 @@ int main(int argc, char** argv) {
                    : std::filesystem::path(keep);
   std::filesystem::create_directories(folder);
   const std::string steps = g_about_centre ? "centre" : "parameters";
+  // This program in a child process, with the same camera steps.
   const std::string self =
-      std::filesystem::read_symlink("/proc/self/exe").string() + "' --camera-steps '" + steps;
+      "'" + std::filesystem::read_symlink("/proc/self/exe").string() + "' --camera-steps " + steps;
   const std::string system_blas = "libblas.so.3";  // see ceres_compare.cpp
   int exit_code = 0;
   for (const SyntheticBalCase& c : synthetic_bal_cases(quick)) {
@@ -258,17 +259,16 @@ int main(int argc, char** argv) {
     j["observations"] = scene.problem.observations.size();
     double wall_s = 0.0;
     int status = 0;
-    const std::string ceres_out =
-        run("'" + self + "' --solver ceres '" + path + "'", &wall_s, &status);
+    const std::string ceres_out = run(self + " --solver ceres '" + path + "'", &wall_s, &status);
     const std::string ceres_blas_out =
-        run("LD_PRELOAD='" + system_blas + "' '" + self + "' --solver ceres '" + path + "'",
-            &wall_s, &status);
+        run("LD_PRELOAD='" + system_blas + "' " + self + " --solver ceres '" + path + "'", &wall_s,
+            &status);
     int autodiff_status = 0, shipped_status = 0;
     double child_s = 0.0;
     const std::string autodiff_out =
-        run("'" + self + "' --solver carat-autodiff '" + path + "'", &child_s, &autodiff_status);
+        run(self + " --solver carat-autodiff '" + path + "'", &child_s, &autodiff_status);
     const std::string shipped_out =
-        run("'" + self + "' --solver carat-shipped '" + path + "'", &child_s, &shipped_status);
+        run(self + " --solver carat-shipped '" + path + "'", &child_s, &shipped_status);
     const std::string carat_out = run(
         "'" + std::string(CARAT_CLI) + "' solve-bal '" + path + "' --json --camera-steps " + steps,
         &wall_s, &status);

@@ -221,6 +221,7 @@ py::array_t<int> PythonProblem::add_rows(const py::object& function, const py::h
   auto batch = std::make_shared<const NumpyRows>(
       function, label, group, groups, slots, batch_variables,
       loss_per == "group" ? robust : nullptr, errors_, takes_jacobians_flag(function));
+  batches_.push_back(batch);
   const std::shared_ptr<const LossFunction> block_loss = loss_per == "block" ? robust : nullptr;
   py::array_t<int> ids(static_cast<py::ssize_t>(num_blocks));
   std::vector<VariableId> variable_ids(num_slots);

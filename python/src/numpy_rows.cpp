@@ -276,7 +276,7 @@ StridedRows NumpyRows::checked_jacobian(const py::handle& J, int slot, std::size
                            static_cast<std::size_t>(k));
 }
 
-void NumpyRows::call(std::span<const int> groups, const Source& source, bool jacobians,
+void NumpyRows::call(std::span<const int> groups, const Source& source, bool jacobians, bool ahead,
                      RowsEvaluation* out) const {
   if (errors_->failed()) {
     throw Error(name_ + ": not evaluated after an earlier error of a residual function");
@@ -309,7 +309,6 @@ void NumpyRows::call(std::span<const int> groups, const Source& source, bool jac
     arguments[j] = slot_values(static_cast<int>(j), groups, source, -1, 0.0);
   }
   const py::object result = invoke(arguments, rows, jacobians);
-  out->call_ = ++calls_;
   py::object r = result;
   py::object J = py::none();
   if (py::isinstance<py::tuple>(result) && py::len(result) == 2) {
@@ -344,12 +343,27 @@ void NumpyRows::call(std::span<const int> groups, const Source& source, bool jac
       }
     }
     jacobians_returned_ = !differences;
-    if (differences) {
-      // The residuals are copied first: the function may fill the same arrays on every call.
+    if (differences && ahead) {  // not worth two calls per direction: the residuals alone
+      out->jacobians_.clear();
+    } else if (differences) {
+      // The residuals and the Jacobians given are copied first: the function may fill the same
+      // arrays on every call.
       std::vector<double>& center = out->owned_.emplace_back(n);
       for (std::size_t i = 0; i < n; ++i) center[i] = out->residuals_.at(i);
       out->residuals_ =
           StridedRows::make(reinterpret_cast<const char*>(center.data()), sizeof(double), 0, 0, 1);
+      for (std::size_t j = 0; j < num_slots; ++j) {
+        if (given[j].is_none()) continue;
+        const auto t = static_cast<std::size_t>(slots_[j].tangent);
+        StridedRows& view = out->jacobians_[j];
+        std::vector<double>& columns = out->owned_.emplace_back(n * t);
+        for (std::size_t i = 0; i < n; ++i) {
+          for (std::size_t c = 0; c < t; ++c) columns[i * t + c] = view.at(i, static_cast<int>(c));
+        }
+        view = StridedRows::make(reinterpret_cast<const char*>(columns.data()),
+                                 static_cast<std::ptrdiff_t>(t * sizeof(double)), 0, sizeof(double),
+                                 1);
+      }
       for (std::size_t j = 0; j < num_slots; ++j) {
         if (!given[j].is_none()) continue;
         const RowsSlot& s = slots_[j];
@@ -410,16 +424,39 @@ void NumpyRows::apply_loss(RowsEvaluation* evaluation) const {
   }
 }
 
+void NumpyRows::own_arrays(RowsEvaluation* evaluation) const {
+  const std::size_t n = evaluation->num_rows_;
+  std::vector<double>& residuals = evaluation->owned_.emplace_back(n);
+  for (std::size_t i = 0; i < n; ++i) residuals[i] = evaluation->residuals_.at(i);
+  evaluation->residuals_ =
+      StridedRows::make(reinterpret_cast<const char*>(residuals.data()), sizeof(double), 0, 0, 1);
+  for (std::size_t j = 0; j < evaluation->jacobians_.size(); ++j) {
+    const auto t = static_cast<std::size_t>(dims_[j]);
+    StridedRows& view = evaluation->jacobians_[j];
+    std::vector<double>& columns = evaluation->owned_.emplace_back(n * t);
+    for (std::size_t i = 0; i < n; ++i) {
+      const char* row = view.row(i);
+      for (std::size_t c = 0; c < t; ++c)
+        columns[i * t + c] = view.in_row(row, static_cast<int>(c));
+    }
+    view = StridedRows::make(reinterpret_cast<const char*>(columns.data()),
+                             static_cast<std::ptrdiff_t>(t * sizeof(double)), 0, sizeof(double), 1);
+  }
+  evaluation->keep_ = py::object();
+}
+
 std::shared_ptr<const RowsEvaluation> NumpyRows::evaluate_groups(std::span<const int> groups,
                                                                  const Source& source,
-                                                                 bool jacobians) const {
+                                                                 bool jacobians, bool ahead) const {
   auto out = std::make_shared<RowsEvaluation>();
   out->group_rows_ = group_rows_;
   out->num_rows_ = groups.size() * static_cast<std::size_t>(group_rows_);
   {
     py::gil_scoped_acquire gil;
-    call(groups, source, jacobians, out.get());
-    out->private_ = held_alone(out->keep_);
+    call(groups, source, jacobians, ahead, out.get());
+    // Arrays something else holds (a buffer the function fills on every call, a view of one)
+    // could be written again before carat reads them, by the next call or by the user: copied.
+    if (!held_alone(out->keep_)) own_arrays(out.get());
   }
   apply_loss(out.get());
   return out;
@@ -448,7 +485,7 @@ const double* NumpyRows::common_base(std::span<const int> block_variables,
 NumpyRows::Held NumpyRows::held(std::span<const int> block_variables, ParameterPointers params,
                                 std::span<const int> groups) const {
   const RowsEvaluation* evaluation = cache_.evaluation.get();
-  if (evaluation == nullptr || !(evaluation->private_ || evaluation->call_ == calls_.load())) {
+  if (evaluation == nullptr || (!groups.empty() && cache_.group_position.empty())) {
     return Held::kNo;
   }
   for (std::size_t j = 0; j < block_variables.size(); ++j) {
@@ -501,9 +538,9 @@ void NumpyRows::refresh_cache(std::span<const int> groups, const double* base, b
   }
   cache_ = Cache{};  // its arrays freed first: the function's new ones can take their memory
   Cache fresh;
-  fresh.evaluation = evaluate_groups(wanted, Source{{}, base}, asked);
-  fresh.jacobians = asked;
-  fresh.ahead = asked && !jacobians;
+  fresh.evaluation = evaluate_groups(wanted, Source{{}, base}, asked, asked && !jacobians);
+  fresh.jacobians = fresh.evaluation->has_jacobians();
+  fresh.ahead = fresh.jacobians && !jacobians;
   fresh.linearized = jacobians;
   fresh.values.resize(values_size_);
   for (std::size_t v = 0; v < variables_.size(); ++v) {
@@ -526,9 +563,10 @@ std::shared_ptr<const RowsEvaluation> NumpyRows::evaluate_all(std::span<const in
   const bool asked = ask_jacobians(state, jacobians);
   cache_ = Cache{};  // its arrays freed first: the function's new ones can take their memory
   Cache fresh;
-  fresh.evaluation = evaluate_groups(all_groups_, Source{params, nullptr}, asked);
-  fresh.jacobians = asked;
-  fresh.ahead = asked && !jacobians;
+  fresh.evaluation =
+      evaluate_groups(all_groups_, Source{params, nullptr}, asked, asked && !jacobians);
+  fresh.jacobians = fresh.evaluation->has_jacobians();
+  fresh.ahead = fresh.jacobians && !jacobians;
   fresh.linearized = jacobians;
   fresh.values.resize(values_size_);
   for (std::size_t j = 0; j < block_variables.size(); ++j) {
@@ -584,6 +622,11 @@ std::shared_ptr<const RowsEvaluation> NumpyRows::lookup_group(std::span<const in
   }
   *position = 0;
   return evaluate_groups(groups, Source{params, nullptr}, jacobians);
+}
+
+void NumpyRows::forget() const {
+  std::lock_guard<std::mutex> lock(cache_mutex_);
+  cache_ = Cache{};
 }
 
 void NumpyRows::acquire(std::span<const int> groups) const {

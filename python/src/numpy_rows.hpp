@@ -16,15 +16,16 @@
 /// last whole evaluation the same way (evaluate_all()).
 ///
 /// Jacobians ahead: a cost pass (residuals only) whose point is then linearized costs a second
-/// call at the same values. So a cost pass also asks for the Jacobians, and keeps them for that
-/// linearization, when they come at no extra call: always for a function without the
-/// `jacobians` keyword (it computes them anyway), and for one with it while the last cost pass's
-/// point was linearized (Levenberg-Marquardt accepting its steps), until Jacobians asked ahead go
-/// unused (a rejected step). Never for Jacobians taken by differences.
+/// call at the same values. So once the function has returned its Jacobians (not taken by
+/// differences), a cost pass also asks for them and keeps them for that linearization: always
+/// for a function without the `jacobians` keyword (it computes them anyway), and for one with it
+/// while the last cost pass's point was linearized (Levenberg-Marquardt accepting its steps),
+/// until Jacobians asked ahead go unused (a rejected step). A cost pass never takes differences.
 ///
-/// A kept evaluation is served again only while its arrays are carat's alone (nothing else holds
-/// them, so the function cannot write them again) or no call has been made since: a function
-/// that fills the same arrays on every call is never read stale.
+/// Every evaluation reads arrays carat alone holds: returned arrays that anything else still
+/// references (a buffer the function fills on every call, a view of one) are copied right after
+/// the call. The kept evaluations are dropped when a call into carat begins and ends
+/// (PythonProblem), since the data a function reads may change in between.
 ///
 /// The Python function's result is checked (a tuple (r, [J_1, ..., J_S]) or r alone; float64;
 /// r of k * n values, J_j of k * n rows by tangent_j columns; a None Jacobian is taken by
@@ -153,8 +154,6 @@ class RowsEvaluation {
   friend class NumpyRows;
   int group_rows_ = 1;
   std::size_t num_rows_ = 0;
-  std::uint64_t call_ = 0;  // which call of the function made it (NumpyRows::calls_)
-  bool private_ = false;    // its arrays are held by carat alone
   StridedRows residuals_;
   std::vector<StridedRows> jacobians_;      // one per slot, empty without Jacobians
   std::vector<double> weights_;             // per group: sqrt(rho'(s_g)); empty: no loss
@@ -226,6 +225,10 @@ class NumpyRows {
                                                      ParameterPointers params, int group,
                                                      bool jacobians, std::size_t* position) const;
 
+  /// Drops the kept evaluation (its arrays with it), so that the next request calls the
+  /// function (GIL held; no evaluation running).
+  void forget() const;
+
   /// Marks `groups` as used by one more block (lookup() evaluates the groups some block uses).
   void acquire(std::span<const int> groups) const;
   /// Undoes acquire().
@@ -239,10 +242,13 @@ class NumpyRows {
     const double* base = nullptr;
   };
   const double* value(const Source& source, int slot, int group) const;
+  /// Evaluates `groups` at `source`; `ahead`: Jacobians asked beyond need (none taken by
+  /// differences then).
   std::shared_ptr<const RowsEvaluation> evaluate_groups(std::span<const int> groups,
-                                                        const Source& source, bool jacobians) const;
-  /// With the GIL: the arguments, the call, the checks, differences where needed.
-  void call(std::span<const int> groups, const Source& source, bool jacobians,
+                                                        const Source& source, bool jacobians,
+                                                        bool ahead = false) const;
+  /// With the GIL: the arguments, the call, the checks, differences where needed (not `ahead`).
+  void call(std::span<const int> groups, const Source& source, bool jacobians, bool ahead,
             RowsEvaluation* out) const;
   py::object invoke(const std::vector<py::object>& arguments, const py::object& rows,
                     bool jacobians) const;
@@ -253,6 +259,9 @@ class NumpyRows {
                                py::list* keep) const;
   [[noreturn]] void fail(const std::string& message) const;
   void apply_loss(RowsEvaluation* evaluation) const;
+  /// With the GIL: copies the evaluation's residuals and Jacobians into arrays of its own and
+  /// drops the Python ones.
+  void own_arrays(RowsEvaluation* evaluation) const;
   const double* common_base(std::span<const int> block_variables, ParameterPointers params) const;
   /// What the cache holds for a request: nothing, the residuals alone, or the Jacobians too.
   enum class Held { kNo, kResidualsOnly, kWithJacobians };
@@ -285,7 +294,6 @@ class NumpyRows {
   std::vector<int> all_groups_;
   mutable py::object all_rows_;  // 0 .. G k - 1 as a read-only int64 array, made on first use
   mutable std::vector<py::object> spare_;  // per slot: the last values array passed (GIL held)
-  mutable std::atomic<std::uint64_t> calls_{0};          // calls of the function made (GIL held)
   mutable std::atomic<bool> jacobians_returned_{false};  // the last Jacobians came from it
 
   // lookup()'s last evaluation, the values it was made at and where each group lies in it.

@@ -59,6 +59,18 @@ PythonProblem::Guard::Guard(PythonProblem& p) : problem(p) {
         "thread); wait for it");
   }
   problem.busy_ = true;
+  problem.forget_evaluations();
+}
+
+PythonProblem::Guard::~Guard() {
+  problem.forget_evaluations();
+  problem.busy_ = false;
+}
+
+void PythonProblem::forget_evaluations() {
+  for (const std::weak_ptr<const NumpyRows>& batch : batches_) {
+    if (const std::shared_ptr<const NumpyRows> rows = batch.lock()) rows->forget();
+  }
 }
 
 void PythonProblem::check_free() const {

@@ -19,6 +19,7 @@
 #include "carat/solver/loss_function.hpp"
 #include "carat/solver/problem.hpp"
 #include "interrupt.hpp"
+#include "numpy_rows.hpp"
 #include "variable_values.hpp"
 
 namespace carat::python {
@@ -117,9 +118,12 @@ class PythonProblem {
   bool callback_failed() const { return errors_->failed(); }
 
  private:
+  /// The one running call: marks the problem busy, and forgets every batch's kept evaluation
+  /// when the call begins and ends (the data a residual function reads may change between
+  /// calls; an evaluation kept after a call would also hold its arrays).
   struct Guard {
     explicit Guard(PythonProblem& p);
-    ~Guard() { problem.busy_ = false; }
+    ~Guard();
     PythonProblem& problem;
   };
   friend struct Guard;
@@ -132,8 +136,12 @@ class PythonProblem {
   /// Throws ValueError unless the problem is free (no call into carat is running).
   void check_free() const;
 
+  /// Forgets every batch's kept evaluation (GIL held).
+  void forget_evaluations();
+
   Problem problem_;
   std::shared_ptr<CallbackErrors> errors_ = std::make_shared<CallbackErrors>();
+  std::vector<std::weak_ptr<const NumpyRows>> batches_;  // of add_rows(), for forget_evaluations()
   bool busy_ = false;
 };
 

@@ -170,17 +170,22 @@ def test_a_cost_pass_asks_for_the_jacobians_its_linearization_then_uses():
     np.testing.assert_allclose(p.value(v), reference, rtol=1e-10, atol=0)
 
 
-def test_a_function_that_refills_its_arrays_is_never_read_stale():
-    X, Y = curve_data(n=600)
-    r_out, J_out = np.empty(len(X)), np.empty((len(X), 2))
-
-    def refilling(mc, rows):  # the same two arrays on every call
+def refilling_curve_residual(X, Y, r_out, J_out):
+    """curve_residual writing into the same two arrays on every call (views of them returned)."""
+    def residual(mc, rows):
         n = len(rows)
         e = np.exp(mc[0] * X[rows] + mc[1])
         np.subtract(Y[rows], e, out=r_out[:n])
         J_out[:n, 0], J_out[:n, 1] = -X[rows] * e, -e
         return r_out[:n], [J_out[:n]]
 
+    return residual
+
+
+def test_a_function_that_refills_its_arrays_is_never_read_stale():
+    X, Y = curve_data(n=600)
+    r_out, J_out = np.empty(len(X)), np.empty((len(X), 2))
+    refilling = refilling_curve_residual(X, Y, r_out, J_out)
     p, v = curve_problem(X, Y, residual=refilling)
     q, w = curve_problem(X, Y)
     for problem, variable in ((p, v), (q, w)):
@@ -191,9 +196,65 @@ def test_a_function_that_refills_its_arrays_is_never_read_stale():
     assert p.cost() == pytest.approx(cost, rel=1e-10)
     report.restore()
     assert p.cost() == cost and np.array_equal(p.gradient(), gradient)
+    refilling(np.array([1.0, -1.0]), np.arange(len(X)))  # the user calls it, at other values
+    assert p.cost() == cost
     carat.solve_recompressed(p, **TIGHT)
     carat.solve_recompressed(q, **TIGHT)
     np.testing.assert_array_equal(p.value(v), q.value(w))
+    # The same function (the same two arrays) for both halves of the rows, in two add_rows()
+    # calls of one problem: each half reads its own numbers.
+    half = len(X) // 2
+    two = carat.Problem()
+    u = two.add_euclidean(np.zeros(2))
+    two.add_rows(lambda mc, rows: refilling(mc, rows), [u], rows=half)
+    two.add_rows(lambda mc, rows: refilling(mc, rows + half), [u], rows=len(X) - half)
+    for problem, variable in ((two, u), (q, w)):
+        problem.set_value(variable, np.array([0.2, 0.3]))
+    assert two.cost() == pytest.approx(q.cost(), rel=1e-12)
+    np.testing.assert_allclose(two.gradient(), q.gradient(), rtol=1e-12)
+    carat.solve(two, **TIGHT)
+    carat.solve(q, **TIGHT)
+    np.testing.assert_allclose(two.value(u), q.value(w), rtol=1e-12)
+
+
+def test_rows_of_many_blocks_from_refilled_arrays_reach_the_same_solution():
+    # One variable per group (a block each), two rows per group: x_g - a_g and 2 (x_g - b_g)^2.
+    rng = np.random.default_rng(4)
+    groups = 50
+    a, b = rng.normal(size=groups), rng.normal(size=groups)
+    buffers = np.empty((2 * groups,)), np.empty((2 * groups, 1))
+
+    def rows_of(x, rows, out=None):
+        g = rows[::2] // 2
+        r = np.empty(len(rows)) if out is None else out[0][:len(rows)]
+        J = np.empty((len(rows), 1)) if out is None else out[1][:len(rows)]
+        d = x[:, 0] - b[g]
+        r[0::2], r[1::2] = x[:, 0] - a[g], 2.0 * d * d
+        J[0::2, 0], J[1::2, 0] = 1.0, 4.0 * d
+        return r, [J]
+
+    solutions = []
+    for out in (None, buffers):
+        p = carat.Problem()
+        ids = p.add_euclidean(np.zeros((groups, 1)))
+        p.add_rows(lambda x, rows, out=out: rows_of(x, rows, out), [ids], rows=2 * groups,
+                   group=2)
+        s = carat.solve(p, **TIGHT)
+        assert s.termination == "CONVERGENCE"
+        solutions.append(p.value(ids))
+    np.testing.assert_array_equal(solutions[0], solutions[1])
+
+
+def test_data_changed_between_calls_is_read_afresh():
+    X, Y = curve_data()
+    p, v = curve_problem(X, Y)
+    carat.solve(p, **TIGHT)
+    Y[:] = np.exp(0.5 * X - 0.2)  # the data the function reads, changed in place
+    r = Y - np.exp(p.value(v)[0] * X + p.value(v)[1])
+    assert p.cost() == pytest.approx(0.5 * r @ r, rel=1e-12)
+    s = carat.solve(p, **TIGHT)
+    assert s.termination == "CONVERGENCE" and s.final_cost < 1e-20
+    np.testing.assert_allclose(p.value(v), [0.5, -0.2], rtol=1e-9)
 
 
 def pose_chain(n=6, seed=5):

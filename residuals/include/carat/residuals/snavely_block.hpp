@@ -23,8 +23,9 @@ class SnavelyReprojectionBlock final : public ResidualBlock {
 
   /// The observation (observed_x, observed_y) in pixels, relative to the image centre as in the
   /// BAL files, for a camera variable stepping in `camera_tangent` (kParameters: a Euclidean(9)
-  /// variable; kAboutCentre: one on bal_camera_manifold()). Throws carat::Error if either
-  /// coordinate is not finite.
+  /// variable; kAboutCentre: one on bal_camera_manifold()). A tangent that does not match the
+  /// variable's manifold gives wrong Jacobians silently (SolverOptions::check_blocks finds
+  /// them). Throws carat::Error if either coordinate is not finite.
   SnavelyReprojectionBlock(double observed_x, double observed_y,
                            BalCameraTangent camera_tangent = BalCameraTangent::kParameters);
 

@@ -20,7 +20,10 @@ inline constexpr int kBalCameraSize = 9;
 /// (euclidean(9)); kAboutCentre steps the rotation about the camera centre and the centre itself
 /// (bal_camera_manifold(), bal_camera_manifold.hpp). A block's camera Jacobian is in its
 /// variable's tangent, so the two must match.
-enum class BalCameraTangent { kParameters, kAboutCentre };
+enum class BalCameraTangent {
+  kParameters,   ///< [w, t, f, k1, k2]: steps added to the nine numbers
+  kAboutCentre,  ///< [dw, dc, df, dk1, dk2]: w + dw with the centre held, the centre + dc
+};
 
 /// The point `camera` (9 parameters, see above) takes to the camera frame: P = R(w) X + t.
 template <typename T>
