@@ -53,6 +53,22 @@ bool held_alone(const py::object& kept) {
   return true;
 }
 
+/// Copies `rows` rows of `columns` numbers from `view` into a new array of `owned` and points
+/// `view` at it (row after row, contiguous).
+void copy_into(StridedRows* view, std::size_t rows, std::size_t columns,
+               std::vector<std::vector<double>>* owned) {
+  std::vector<double>& copy = owned->emplace_back(rows * columns);
+  for (std::size_t i = 0; i < rows; ++i) {
+    const char* row = view->row(i);
+    for (std::size_t c = 0; c < columns; ++c) {
+      copy[i * columns + c] = view->in_row(row, static_cast<int>(c));
+    }
+  }
+  *view = StridedRows::make(reinterpret_cast<const char*>(copy.data()),
+                            static_cast<std::ptrdiff_t>(columns * sizeof(double)), 0,
+                            sizeof(double), 1);
+}
+
 }  // namespace
 
 RowsEvaluation::~RowsEvaluation() { drop(keep_); }
@@ -348,21 +364,11 @@ void NumpyRows::call(std::span<const int> groups, const Source& source, bool jac
     } else if (differences) {
       // The residuals and the Jacobians given are copied first: the function may fill the same
       // arrays on every call.
-      std::vector<double>& center = out->owned_.emplace_back(n);
-      for (std::size_t i = 0; i < n; ++i) center[i] = out->residuals_.at(i);
-      out->residuals_ =
-          StridedRows::make(reinterpret_cast<const char*>(center.data()), sizeof(double), 0, 0, 1);
+      copy_into(&out->residuals_, n, 1, &out->owned_);
       for (std::size_t j = 0; j < num_slots; ++j) {
         if (given[j].is_none()) continue;
-        const auto t = static_cast<std::size_t>(slots_[j].tangent);
-        StridedRows& view = out->jacobians_[j];
-        std::vector<double>& columns = out->owned_.emplace_back(n * t);
-        for (std::size_t i = 0; i < n; ++i) {
-          for (std::size_t c = 0; c < t; ++c) columns[i * t + c] = view.at(i, static_cast<int>(c));
-        }
-        view = StridedRows::make(reinterpret_cast<const char*>(columns.data()),
-                                 static_cast<std::ptrdiff_t>(t * sizeof(double)), 0, sizeof(double),
-                                 1);
+        copy_into(&out->jacobians_[j], n, static_cast<std::size_t>(slots_[j].tangent),
+                  &out->owned_);
       }
       for (std::size_t j = 0; j < num_slots; ++j) {
         if (!given[j].is_none()) continue;
@@ -426,21 +432,10 @@ void NumpyRows::apply_loss(RowsEvaluation* evaluation) const {
 
 void NumpyRows::own_arrays(RowsEvaluation* evaluation) const {
   const std::size_t n = evaluation->num_rows_;
-  std::vector<double>& residuals = evaluation->owned_.emplace_back(n);
-  for (std::size_t i = 0; i < n; ++i) residuals[i] = evaluation->residuals_.at(i);
-  evaluation->residuals_ =
-      StridedRows::make(reinterpret_cast<const char*>(residuals.data()), sizeof(double), 0, 0, 1);
+  copy_into(&evaluation->residuals_, n, 1, &evaluation->owned_);
   for (std::size_t j = 0; j < evaluation->jacobians_.size(); ++j) {
-    const auto t = static_cast<std::size_t>(dims_[j]);
-    StridedRows& view = evaluation->jacobians_[j];
-    std::vector<double>& columns = evaluation->owned_.emplace_back(n * t);
-    for (std::size_t i = 0; i < n; ++i) {
-      const char* row = view.row(i);
-      for (std::size_t c = 0; c < t; ++c)
-        columns[i * t + c] = view.in_row(row, static_cast<int>(c));
-    }
-    view = StridedRows::make(reinterpret_cast<const char*>(columns.data()),
-                             static_cast<std::ptrdiff_t>(t * sizeof(double)), 0, sizeof(double), 1);
+    copy_into(&evaluation->jacobians_[j], n, static_cast<std::size_t>(dims_[j]),
+              &evaluation->owned_);
   }
   evaluation->keep_ = py::object();
 }
