@@ -6,6 +6,8 @@
 #include <sys/stat.h>
 
 #include <Eigen/Geometry>
+#include <array>
+#include <cmath>
 #include <cstring>
 #include <fstream>
 #include <random>
@@ -207,6 +209,31 @@ TEST(SnavelyBlockTest, ResidualIsTheProjectionMinusTheObservation) {
   EXPECT_TRUE(in_front_of_camera(camera.data(), point.data()));
   EXPECT_EQ(test::error_of([] { SnavelyReprojectionBlock(std::nan(""), 1.0); }),
             "SnavelyReprojectionBlock: observation (nan, 1) is not finite");
+}
+
+TEST(SnavelyBlockTest, ACameraChangedInPlaceIsEvaluatedAtItsNewValues) {
+  // The block keeps each thread's last rotations per camera address; a camera whose values
+  // change in place (as a solver's buffer does between iterations) must be evaluated afresh.
+  const SnavelyReprojectionBlock block(3.0, -2.0, BalCameraTangent::kAboutCentre);
+  const Eigen::Vector3d point(0.4, -0.3, 1.2);
+  BalCamera in_place = test_camera({0.01, -0.02, 0.03});
+  SnavelyReprojectionBlock::Jacobian J_before, J_after, J_fresh;
+  const Eigen::Vector2d before = block.evaluate(in_place.data(), point.data(), &J_before);
+  for (int k = 0; k < 3; ++k) {  // each angle-axis coordinate alone, by one ulp and by a lot
+    for (const double changed : {std::nextafter(in_place[k], 1.0), in_place[k] + 0.3}) {
+      const double kept = in_place[k];
+      in_place[k] = changed;
+      const BalCamera elsewhere = in_place;  // the same values at another address
+      const Eigen::Vector2d after = block.evaluate(in_place.data(), point.data(), &J_after);
+      const Eigen::Vector2d fresh = block.evaluate(elsewhere.data(), point.data(), &J_fresh);
+      EXPECT_EQ(after, fresh) << "coordinate " << k;
+      EXPECT_EQ(J_after, J_fresh) << "coordinate " << k;
+      EXPECT_EQ(block.squared_norm(std::array<const double*, 2>{in_place.data(), point.data()}),
+                fresh.squaredNorm());
+      in_place[k] = kept;
+    }
+  }
+  EXPECT_EQ(block.evaluate(in_place.data(), point.data(), nullptr), before);
 }
 
 /// A small valid problem: 2 cameras, 2 points, 3 observations.

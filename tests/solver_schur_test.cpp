@@ -195,6 +195,49 @@ void expect_same_step(int num_cameras, int num_points) {
   }
 }
 
+/// The step for the right-hand side factorize() reduced on its way (the solver's -gradient)
+/// and for one it did not expect: the same bits, for each kernel.
+template <int kCamera>
+void expect_same_bits_reduced_before_or_after(int num_cameras, int num_points) {
+  BundleProblem<kCamera> ba = make_bundle<kCamera>(num_cameras, num_points, 4, 11, true);
+  ba.problem.set_constant(ba.cameras[0]);
+  internal::BlockEvaluator evaluator(ba.problem);
+  std::vector<double> values(ba.problem.all_values().begin(), ba.problem.all_values().end());
+  evaluator.bind(0, values.data());
+  internal::BlockLinearizations blocks;
+  evaluator.allocate(&blocks);
+  std::string error;
+  ASSERT_TRUE(evaluator.linearize(0, &blocks, &error)) << error;
+  std::vector<char> eliminate(static_cast<std::size_t>(ba.problem.num_variables()), 0);
+  for (VariableId p : ba.points) eliminate[static_cast<std::size_t>(p.index)] = 1;
+  internal::SchurSystem schur(ba.problem, eliminate, Ordering::kAuto);
+  Eigen::VectorXd gradient;
+  schur.assemble(blocks, &gradient);
+  const Eigen::VectorXd rhs = -gradient;
+  const Eigen::VectorXd damping = 1e-3 * schur.diagonal();
+  Eigen::VectorXd reduced_on_the_way, reduced_after, other;
+  ASSERT_TRUE(schur.factorize(damping));  // assemble() expected -gradient
+  schur.solve(rhs, &reduced_on_the_way);
+  schur.expect_rhs(Eigen::VectorXd());
+  ASSERT_TRUE(schur.factorize(damping));
+  schur.solve(rhs, &reduced_after);
+  ASSERT_EQ(reduced_on_the_way.size(), reduced_after.size());
+  for (Eigen::Index k = 0; k < rhs.size(); ++k)
+    ASSERT_EQ(reduced_on_the_way[k], reduced_after[k]) << "entry " << k;
+  // An expected right-hand side does not stand in for another one.
+  schur.expect_rhs(rhs);
+  ASSERT_TRUE(schur.factorize(damping));
+  const Eigen::VectorXd half = 0.5 * rhs;
+  schur.solve(half, &other);
+  EXPECT_LE((other - 0.5 * reduced_after).norm(), 1e-12 * reduced_after.norm());
+}
+
+TEST(SchurSystemTest, ReducingTheRightHandSideWhileFormingTheSystemGivesTheSameBits) {
+  expect_same_bits_reduced_before_or_after<9>(40, 300);
+  expect_same_bits_reduced_before_or_after<6>(12, 200);
+  expect_same_bits_reduced_before_or_after<7>(8, 120);
+}
+
 TEST(SchurSystemTest, StepEqualsWholeSystemStepWithNineParameterCameras) {
   expect_same_step<9>(8, 120);
 }

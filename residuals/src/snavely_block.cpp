@@ -1,6 +1,9 @@
 #include "carat/residuals/snavely_block.hpp"
 
+#include <array>
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 #include <string>
 
 #include "angle_axis_terms.hpp"
@@ -8,6 +11,40 @@
 #include "carat/residuals/snavely_camera.hpp"
 
 namespace carat {
+namespace {
+
+/// The angle-axis terms of the cameras this thread evaluated last. A camera's rotation is the
+/// same for each of its many observations in a pass, so it is computed once per pass and
+/// camera rather than once per observation. A slot is keyed by the camera's address and
+/// checked against its three angle-axis values bit for bit: a hit gives exactly the terms that
+/// computing them would.
+class TermsCache {
+ public:
+  /// The terms of the camera at `camera` (its first three values, w).
+  [[gnu::always_inline]] const internal::AngleAxisTerms& terms(const double* camera) {
+    Slot& slot = slots_[(reinterpret_cast<std::uintptr_t>(camera) / sizeof(double)) % kSlots];
+    if (slot.camera != camera || std::memcmp(slot.w, camera, sizeof(slot.w)) != 0) {
+      slot.terms = internal::angle_axis_terms(Eigen::Map<const Eigen::Vector3d>(camera));
+      std::memcpy(slot.w, camera, sizeof(slot.w));
+      slot.camera = camera;
+    }
+    return slot.terms;
+  }
+
+ private:
+  /// Slots (cameras stored 9 doubles apart fall in distinct slots, 128 cameras in a row).
+  static constexpr std::size_t kSlots = 128;
+  struct Slot {
+    const double* camera = nullptr;
+    double w[3] = {0.0, 0.0, 0.0};
+    internal::AngleAxisTerms terms;
+  };
+  std::array<Slot, kSlots> slots_;
+};
+
+thread_local TermsCache t_terms_cache;
+
+}  // namespace
 
 SnavelyReprojectionBlock::SnavelyReprojectionBlock(double observed_x, double observed_y,
                                                    BalCameraTangent camera_tangent)
@@ -20,12 +57,11 @@ SnavelyReprojectionBlock::SnavelyReprojectionBlock(double observed_x, double obs
 
 Eigen::Vector2d SnavelyReprojectionBlock::evaluate(const double* camera, const double* point,
                                                    Jacobian* jacobian) const {
-  const Eigen::Map<const Eigen::Vector3d> w(camera);
   const Eigen::Map<const Eigen::Vector3d> t(camera + 3);
   const Eigen::Map<const Eigen::Vector3d> X(point);
   const double f = camera[6], k1 = camera[7], k2 = camera[8];
 
-  const internal::AngleAxisTerms terms = internal::angle_axis_terms(w);
+  const internal::AngleAxisTerms& terms = t_terms_cache.terms(camera);
   const Eigen::Matrix3d& R = terms.R;
   const Eigen::Vector3d P = R * X + t;
 
@@ -97,12 +133,8 @@ double SnavelyReprojectionBlock::accumulate(ParameterPointers params,
 }
 
 double SnavelyReprojectionBlock::squared_norm(ParameterPointers params) const {
-  // The cost alone: the projection without the rotation matrix the Jacobian needs.
-  double image[2];
-  snavely_project(params[0], params[1], image);
-  const double rx = image[0] - observed_.x();
-  const double ry = image[1] - observed_.y();
-  return rx * rx + ry * ry;
+  // The residual as linearizations form it, with the camera's rotation from the thread's cache.
+  return evaluate(params[0], params[1], nullptr).squaredNorm();
 }
 
 }  // namespace carat

@@ -33,6 +33,10 @@ class SchurEliminator {
   /// Eliminates the points from H + diag(damping) and factorizes S; false if a V + damping or
   /// S is not positive definite.
   bool factorize(const Eigen::VectorXd& damping);
+  /// The right-hand side the next solve() will likely be given (the solver's -gradient): each
+  /// factorize() then reduces it while it reads W for S, and solve() with exactly these values
+  /// skips its own pass over W (same result either way).
+  void expect_rhs(const Eigen::VectorXd& rhs);
   /// x = (H + diag(damping))^-1 rhs with the last successful factorize() (which reads the
   /// values it was made from: W is not copied).
   void solve(const Eigen::VectorXd& rhs, Eigen::VectorXd* x);
@@ -57,7 +61,11 @@ class SchurEliminator {
   template <int DC, int DP>
   bool eliminate_points(const Eigen::VectorXd& damping);
   template <int DC, int DP>
-  void form_reduced_system(const Eigen::VectorXd& damping);
+  bool eliminate(const Eigen::VectorXd& damping);
+  template <int DC, int DP>
+  void point_rhs(const double* rhs);
+  template <int DC, int DP>
+  void run_groups(const Eigen::VectorXd* damping, const double* rhs, double* reduced_rhs);
   template <int DC, int DP>
   void reduce_rhs(const Eigen::VectorXd& rhs, double* reduced);
   template <int DC, int DP>
@@ -66,9 +74,12 @@ class SchurEliminator {
   const SchurStructure& s_;
   const SchurValues& h_;
   // L^-1 per point (V + damping = L L^T; Y = W L^-T is formed where needed, not stored), on
-  // huge pages (see huge_pages.hpp); z: V^-1 rhs of the points in the last solve.
+  // huge pages (see huge_pages.hpp); u: L^-1 rhs of the points in the last reduction.
   HugeVector<double> l_inverse_;
-  std::vector<double> z_;
+  std::vector<double> u_;
+  std::vector<double> expected_rhs_;   // expect_rhs()'s values (empty: none)
+  std::vector<double> fused_reduced_;  // expected_rhs_ reduced by the last factorize()
+  bool fused_ready_ = false;
   std::vector<double> reduced_;              // S's values (CHOLMOD's matrix is a header on them)
   std::unique_ptr<CholmodSession> cholmod_;  // S over the structure's colptr, rows and reduced_
   std::vector<double> x_cameras_;            // the reduced solve's solution

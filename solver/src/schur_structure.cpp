@@ -1,5 +1,7 @@
 #include "schur_structure.hpp"
 
+#include <tbb/task_arena.h>
+
 #include <algorithm>
 #include <cstdint>
 #include <string>
@@ -12,20 +14,25 @@ namespace {
 
 std::size_t at(int k) { return static_cast<std::size_t>(k); }
 
-/// Groups of kGroupCameras consecutive cameras for forming S: the points each group sees
-/// (ascending) and the values of its stacked columns of S blocks.
+/// Groups of consecutive cameras for forming S: at most kMaxGroupCameras each, and at least two
+/// groups a thread of the calling arena where the cameras allow groups of 8; the points each
+/// group sees (ascending) and the values of its stacked columns of S blocks.
 void build_groups(SchurStructure& s) {
   const std::size_t nc = s.num_cameras();
   const std::size_t np = s.num_points();
-  const std::size_t num_groups =
-      (nc + SchurStructure::kGroupCameras - 1) / SchurStructure::kGroupCameras;
+  const auto threads =
+      static_cast<std::size_t>(std::max(1, tbb::this_task_arena::max_concurrency()));
+  s.group_cameras = threads == 1 ? SchurStructure::kMaxGroupCameras
+                                 : std::clamp<std::size_t>((nc + 2 * threads - 1) / (2 * threads),
+                                                           8, SchurStructure::kMaxGroupCameras);
+  const std::size_t num_groups = (nc + s.group_cameras - 1) / s.group_cameras;
   s.group_points_begin.assign(num_groups + 1, 0);
   std::vector<std::size_t> seen(np, num_groups);  // group that last listed point p
   for (std::size_t group = 0; group < num_groups; ++group) {
     const std::size_t first = s.group_points.size();
     std::size_t values = 0;
-    for (std::size_t j = group * SchurStructure::kGroupCameras;
-         j < std::min(nc, (group + 1) * SchurStructure::kGroupCameras); ++j) {
+    for (std::size_t j = group * s.group_cameras; j < std::min(nc, (group + 1) * s.group_cameras);
+         ++j) {
       for (std::size_t k = s.cam_edge_begin[j]; k < s.cam_edge_begin[j + 1]; ++k) {
         const auto p = at(s.edge_pt[s.cam_edges[k]]);
         if (seen[p] != group) {

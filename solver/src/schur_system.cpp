@@ -31,12 +31,17 @@ SchurSystem::~SchurSystem() = default;
 
 void SchurSystem::assemble(const BlockLinearizations& blocks, Eigen::VectorXd* gradient) {
   linearization_.assemble(blocks, gradient);
+  eliminator_.expect_rhs(-*gradient);
 }
 
 LinearizeReport SchurSystem::linearize(const BlockEvaluator& evaluator, int which,
                                        Eigen::VectorXd* gradient) {
-  if (!structure_.fused) return LinearSystem::linearize(evaluator, which, gradient);
-  return linearization_.linearize(evaluator, which, gradient);
+  const LinearizeReport report = structure_.fused
+                                     ? linearization_.linearize(evaluator, which, gradient)
+                                     : LinearSystem::linearize(evaluator, which, gradient);
+  // The solver's next right-hand side is -gradient: factorize() reduces it on its pass over W.
+  eliminator_.expect_rhs(-*gradient);
+  return report;
 }
 
 Eigen::VectorXd SchurSystem::diagonal() const {
