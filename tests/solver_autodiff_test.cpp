@@ -210,5 +210,40 @@ TEST(AutoDiffBlockTest, FunctorsThatRefuseAndSizesThatDoNotMatch) {
             "freedom)");
 }
 
+/// R^2 whose steps are scaled by 2: the same sizes as euclidean(2), another tangent.
+class DoubledSteps final : public Manifold {
+ public:
+  int ambient_size() const override { return 2; }
+  int tangent_size() const override { return 2; }
+  void plus(const double* x, const double* delta, double* out) const override {
+    for (int k = 0; k < 2; ++k) out[k] = x[k] + 2.0 * delta[k];
+  }
+  void minus(const double* y, const double* x, double* delta) const override {
+    for (int k = 0; k < 2; ++k) delta[k] = 0.5 * (y[k] - x[k]);
+  }
+  bool is_valid(const double* x) const override { return std::isfinite(x[0] + x[1]); }
+  const char* name() const override { return "doubled"; }
+};
+
+TEST(AutoDiffBlockTest, ABlockDifferentiatingThroughAnotherManifoldThanItsVariableIsRefused) {
+  // Its Jacobian columns would be in another tangent than the solver's steps: the solve would
+  // run on a wrong model. The variable's own manifold, given to the block, is accepted.
+  const std::vector<Eigen::Vector2d> data{{0.5, 1.0}, {1.0, 2.0}};
+  Problem problem;
+  const auto doubled = std::make_shared<const DoubledSteps>();
+  const VariableId mc = problem.add_variable(doubled, std::vector<double>{0.1, 0.2});
+  const auto euclidean_block =
+      make_autodiff_block<1, VariableSize<2>>(ExpResidual{}, data, {}, "curve");
+  EXPECT_EQ(test::error_of([&] { problem.add_residual_block(euclidean_block, {mc}); }),
+            "Problem::add_residual_block (block 0): variable 0 steps on doubled but block 'curve' "
+            "takes its Jacobian through euclidean; give the block the variable's manifold (the "
+            "manifolds argument of make_autodiff_block / make_numeric_diff_block)");
+  problem.add_residual_block(
+      make_autodiff_block<1, VariableSize<2>>(ExpResidual{}, data, {doubled}, "curve"), {mc});
+  const VariableId other = problem.add_euclidean(Eigen::Vector2d(0.1, 0.2));
+  problem.add_residual_block(euclidean_block, {other});  // a second euclidean(2) instance
+  EXPECT_EQ(problem.num_residual_blocks(), 2);
+}
+
 }  // namespace
 }  // namespace carat

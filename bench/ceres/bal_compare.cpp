@@ -154,10 +154,10 @@ nlohmann::json run_carat(const std::string& file, bool autodiff) {
   carat::Problem problem;
   if (autodiff) {
     std::vector<carat::VariableId> cameras, points;
+    const std::shared_ptr<const carat::Manifold> camera_manifold =
+        g_about_centre ? carat::bal_camera_manifold() : carat::euclidean_manifold(9);
     for (const auto& c : bal.cameras) {
-      cameras.push_back(problem.add_variable(
-          g_about_centre ? carat::bal_camera_manifold() : carat::euclidean_manifold(9),
-          std::span<const double>(c.data(), 9)));
+      cameras.push_back(problem.add_variable(camera_manifold, std::span<const double>(c.data(), 9)));
     }
     for (const auto& p : bal.points) {
       points.push_back(problem.add_euclidean(p));
@@ -166,7 +166,8 @@ nlohmann::json run_carat(const std::string& file, bool autodiff) {
     for (const auto& o : bal.observations) {
       problem.add_residual_block(
           carat::make_autodiff_block<2, carat::VariableSize<9>, carat::VariableSize<3>>(
-              UserSnavely{}, std::vector<Eigen::Vector2d>{Eigen::Vector2d(o.x, o.y)}),
+              UserSnavely{}, std::vector<Eigen::Vector2d>{Eigen::Vector2d(o.x, o.y)},
+              {camera_manifold, nullptr}),
           {cameras[static_cast<std::size_t>(o.camera)], points[static_cast<std::size_t>(o.point)]});
     }
   } else {

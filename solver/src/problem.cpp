@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <string>
+#include <typeinfo>
 
 #include "carat/base/error.hpp"
 #include "carat/solver/se2.hpp"
@@ -129,6 +130,18 @@ ResidualBlockId Problem::add_residual_block(std::shared_ptr<const ResidualBlock>
         throw Error(where() + "variable " + std::to_string(variables[i].index) +
                     " is listed twice");
       }
+    }
+    // A block that takes its Jacobian through a manifold of its own must take it through the
+    // variable's: its columns are then in the tangent the solver steps in.
+    const Manifold* assumed = block->jacobian_manifold(static_cast<int>(i));
+    const Manifold& own = *manifolds_[static_cast<std::size_t>(variables[i].index)];
+    if (assumed != nullptr && assumed != &own &&
+        (typeid(*assumed) != typeid(own) || assumed->ambient_size() != own.ambient_size())) {
+      throw Error(where() + "variable " + std::to_string(variables[i].index) + " steps on " +
+                  own.name() + " but block '" + block->name() +
+                  "' takes its Jacobian through " + assumed->name() +
+                  "; give the block the variable's manifold (the manifolds argument of "
+                  "make_autodiff_block / make_numeric_diff_block)");
     }
   }
   const int r = block->reduced_dim();

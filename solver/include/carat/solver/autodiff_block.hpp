@@ -163,6 +163,12 @@ class AutoDiffBlock final : public GroupedRowsBlock<Data, kGroupRows> {
         [&](const Data& datum, double* e, double* J) { return differentiate(view, datum, e, J); });
   }
 
+  const Manifold* jacobian_manifold(int i) const override {
+    return i >= 0 && static_cast<std::size_t>(i) < manifolds_.size()
+               ? manifolds_[static_cast<std::size_t>(i)].get()
+               : nullptr;
+  }
+
   double squared_norm(ParameterPointers params) const override {
     check_count(params);
     const auto view = prepared(pointers(params));

@@ -39,6 +39,12 @@ class NumericDiffBlock final : public GroupedRowsBlock<Data, kGroupRows> {
                          std::make_shared<const std::vector<Data>>(std::move(data)),
                          std::move(manifolds), std::move(name), {}) {}
 
+  const Manifold* jacobian_manifold(int i) const override {
+    return i >= 0 && static_cast<std::size_t>(i) < manifolds_.size()
+               ? manifolds_[static_cast<std::size_t>(i)].get()
+               : nullptr;
+  }
+
  private:
   static constexpr std::array<int, sizeof...(Variables)> kAmbient{Variables::ambient...};
   static constexpr std::array<int, sizeof...(Variables)> kTangent{Variables::tangent...};

@@ -19,6 +19,7 @@
 namespace carat {
 
 class LossFunction;
+class Manifold;
 
 /// Pointers to the ambient storage of a block's variables, in the block's variable order.
 using ParameterPointers = std::span<const double* const>;
@@ -53,6 +54,12 @@ class ResidualBlock {
   /// The default evaluates rows in chunks; blocks override it with a faster direct path.
   virtual double accumulate(ParameterPointers params, Eigen::Ref<Eigen::MatrixXd> H_r,
                             Eigen::Ref<Eigen::VectorXd> b_r) const;
+
+  /// The manifold whose tangent the Jacobian columns of variable i are taken in, where the block
+  /// fixes one (an autodiff or numeric-difference block: its manifolds argument, or the default
+  /// for the variable's sizes); null (the default): the variable's own. Problem::
+  /// add_residual_block() refuses a variable that steps on another manifold.
+  virtual const Manifold* jacobian_manifold(int /*i*/) const { return nullptr; }
 
   /// r^T r over all rows (the default evaluates residuals in chunks).
   virtual double squared_norm(ParameterPointers params) const;
