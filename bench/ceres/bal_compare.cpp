@@ -157,7 +157,8 @@ nlohmann::json run_carat(const std::string& file, bool autodiff) {
     const std::shared_ptr<const carat::Manifold> camera_manifold =
         g_about_centre ? carat::bal_camera_manifold() : carat::euclidean_manifold(9);
     for (const auto& c : bal.cameras) {
-      cameras.push_back(problem.add_variable(camera_manifold, std::span<const double>(c.data(), 9)));
+      cameras.push_back(
+          problem.add_variable(camera_manifold, std::span<const double>(c.data(), 9)));
     }
     for (const auto& p : bal.points) {
       points.push_back(problem.add_euclidean(p));

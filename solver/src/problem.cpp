@@ -138,8 +138,8 @@ ResidualBlockId Problem::add_residual_block(std::shared_ptr<const ResidualBlock>
     if (assumed != nullptr && assumed != &own &&
         (typeid(*assumed) != typeid(own) || assumed->ambient_size() != own.ambient_size())) {
       throw Error(where() + "variable " + std::to_string(variables[i].index) + " steps on " +
-                  own.name() + " but block '" + block->name() +
-                  "' takes its Jacobian through " + assumed->name() +
+                  own.name() + " but block '" + block->name() + "' takes its Jacobian through " +
+                  assumed->name() +
                   "; give the block the variable's manifold (the manifolds argument of "
                   "make_autodiff_block / make_numeric_diff_block)");
     }
