@@ -120,21 +120,29 @@ BundleProblem<kCamera> make_bundle(int num_cameras, int num_points, int views, u
   return out;
 }
 
-/// The step of both systems for one damping, in variable order.
+/// The blocks of `ba` (camera 0 held) linearized at its values, and its points marked for
+/// elimination.
 template <int kCamera>
-void expect_same_step(int num_cameras, int num_points) {
-  BundleProblem<kCamera> ba = make_bundle<kCamera>(num_cameras, num_points, 4, 7, true);
+void linearize_bundle(BundleProblem<kCamera>& ba, internal::BlockLinearizations* blocks,
+                      std::vector<char>* eliminate) {
   ba.problem.set_constant(ba.cameras[0]);
   internal::BlockEvaluator evaluator(ba.problem);
   std::vector<double> values(ba.problem.all_values().begin(), ba.problem.all_values().end());
   evaluator.bind(0, values.data());
-  internal::BlockLinearizations blocks;
-  evaluator.allocate(&blocks);
+  evaluator.allocate(blocks);
   std::string error;
-  ASSERT_TRUE(evaluator.linearize(0, &blocks, &error)) << error;
+  ASSERT_TRUE(evaluator.linearize(0, blocks, &error)) << error;
+  eliminate->assign(static_cast<std::size_t>(ba.problem.num_variables()), 0);
+  for (VariableId p : ba.points) (*eliminate)[static_cast<std::size_t>(p.index)] = 1;
+}
 
-  std::vector<char> eliminate(static_cast<std::size_t>(ba.problem.num_variables()), 0);
-  for (VariableId p : ba.points) eliminate[static_cast<std::size_t>(p.index)] = 1;
+/// The step of both systems for one damping, in variable order.
+template <int kCamera>
+void expect_same_step(int num_cameras, int num_points) {
+  BundleProblem<kCamera> ba = make_bundle<kCamera>(num_cameras, num_points, 4, 7, true);
+  internal::BlockLinearizations blocks;
+  std::vector<char> eliminate;
+  ASSERT_NO_FATAL_FAILURE(linearize_bundle(ba, &blocks, &eliminate));
   internal::SchurSystem schur(ba.problem, eliminate, Ordering::kAuto);
   internal::SparseSystem full(ba.problem, Ordering::kAuto);
   ASSERT_EQ(schur.size(), full.size());
@@ -200,16 +208,9 @@ void expect_same_step(int num_cameras, int num_points) {
 template <int kCamera>
 void expect_same_bits_reduced_before_or_after(int num_cameras, int num_points) {
   BundleProblem<kCamera> ba = make_bundle<kCamera>(num_cameras, num_points, 4, 11, true);
-  ba.problem.set_constant(ba.cameras[0]);
-  internal::BlockEvaluator evaluator(ba.problem);
-  std::vector<double> values(ba.problem.all_values().begin(), ba.problem.all_values().end());
-  evaluator.bind(0, values.data());
   internal::BlockLinearizations blocks;
-  evaluator.allocate(&blocks);
-  std::string error;
-  ASSERT_TRUE(evaluator.linearize(0, &blocks, &error)) << error;
-  std::vector<char> eliminate(static_cast<std::size_t>(ba.problem.num_variables()), 0);
-  for (VariableId p : ba.points) eliminate[static_cast<std::size_t>(p.index)] = 1;
+  std::vector<char> eliminate;
+  ASSERT_NO_FATAL_FAILURE(linearize_bundle(ba, &blocks, &eliminate));
   internal::SchurSystem schur(ba.problem, eliminate, Ordering::kAuto);
   Eigen::VectorXd gradient;
   schur.assemble(blocks, &gradient);
