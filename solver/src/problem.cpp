@@ -12,6 +12,35 @@
 #include "carat/solver/subset_manifold.hpp"
 
 namespace carat {
+namespace {
+
+/// Whether a block differentiating through `assumed` takes its Jacobian in the tangent that
+/// `own` steps in: the same object, or one of the same kind (type and sizes; for held
+/// coordinates, the same ones held on the same kind of base).
+bool same_tangent(const Manifold& assumed, const Manifold& own) {
+  if (&assumed == &own) return true;
+  if (typeid(assumed) != typeid(own) || assumed.ambient_size() != own.ambient_size() ||
+      assumed.tangent_size() != own.tangent_size()) {
+    return false;
+  }
+  const auto* a = dynamic_cast<const SubsetManifold*>(&assumed);
+  const auto* b = dynamic_cast<const SubsetManifold*>(&own);
+  if (a == nullptr || b == nullptr) return true;
+  return a->constant_coordinates() == b->constant_coordinates() &&
+         same_tangent(a->base(), b->base());
+}
+
+/// A manifold's name, with the coordinates it holds.
+std::string describe(const Manifold& manifold) {
+  std::string out = manifold.name();
+  if (const auto* subset = dynamic_cast<const SubsetManifold*>(&manifold)) {
+    out += " holding";
+    for (const int c : subset->constant_coordinates()) out += " " + std::to_string(c);
+  }
+  return out;
+}
+
+}  // namespace
 
 VariableId Problem::add_variable(std::shared_ptr<const Manifold> manifold,
                                  std::span<const double> initial) {
@@ -135,11 +164,10 @@ ResidualBlockId Problem::add_residual_block(std::shared_ptr<const ResidualBlock>
     // variable's: its columns are then in the tangent the solver steps in.
     const Manifold* assumed = block->jacobian_manifold(static_cast<int>(i));
     const Manifold& own = *manifolds_[static_cast<std::size_t>(variables[i].index)];
-    if (assumed != nullptr && assumed != &own &&
-        (typeid(*assumed) != typeid(own) || assumed->ambient_size() != own.ambient_size())) {
+    if (assumed != nullptr && !same_tangent(*assumed, own)) {
       throw Error(where() + "variable " + std::to_string(variables[i].index) + " steps on " +
-                  own.name() + " but block '" + block->name() + "' takes its Jacobian through " +
-                  assumed->name() +
+                  describe(own) + " but block '" + block->name() + "' takes its Jacobian through " +
+                  describe(*assumed) +
                   "; give the block the variable's manifold (the manifolds argument of "
                   "make_autodiff_block / make_numeric_diff_block)");
     }

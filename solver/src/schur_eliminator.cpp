@@ -465,9 +465,9 @@ bool SchurEliminator::factorize(const Eigen::VectorXd& damping) {
   }
   seconds_ += t0.elapsed_s();
   if (!ok) return false;
-  fused_ready_ = fuse;
-  if (s_.ns == 0) return true;
-  return cholmod_->factorize();
+  if (s_.ns > 0 && !cholmod_->factorize()) return false;
+  fused_ready_ = fuse;  // only with a factorization to solve with
+  return true;
 }
 
 void SchurEliminator::expect_rhs(const Eigen::VectorXd& rhs) {
