@@ -16,11 +16,13 @@
 #include "../solver/src/block_evaluator.hpp"
 #include "../solver/src/sparse_system.hpp"
 #include "carat/base/error.hpp"
+#include "carat/solver/autodiff_block.hpp"
 #include "carat/solver/block_source.hpp"
 #include "carat/solver/evaluate.hpp"
 #include "carat/solver/loss_function.hpp"
 #include "carat/solver/problem.hpp"
 #include "carat/solver/solver_options.hpp"
+#include "curve_fit_problem.hpp"
 #include "solver_test_blocks.hpp"
 #include "test_support.hpp"
 
@@ -188,6 +190,38 @@ TEST(SolveTest, RosenbrockFromTheClassicStart) {
   EXPECT_NEAR(problem.value(x)[1], 1.0, 1e-8);
   EXPECT_LT(summary.final_cost, 1e-16);
   EXPECT_GT(summary.num_successful_steps, 3);
+}
+
+TEST(SolveTest, EvaluationCallbackSaysWhatEachPassIsForAndWhenTheSolveLikelyEnds) {
+  Problem problem;
+  const VariableId mc = problem.add_euclidean(Eigen::Vector2d(0.0, 0.0));
+  problem.add_residual_block(
+      make_autodiff_block<1, VariableSize<2>>(test::ExpResidual{}, test::curve_data(200, 3)),
+      {mc});
+  std::vector<EvaluationHint> hints;
+  SolverOptions options;
+  options.evaluation_callback = [&](const EvaluationHint& hint) { hints.push_back(hint); };
+  const SolverSummary summary = solve(options, problem);
+  ASSERT_EQ(summary.termination, TerminationType::kConvergence) << summary.full_report();
+  ASSERT_NE(summary.message.find("function tolerance"), std::string::npos) << summary.message;
+  ASSERT_GE(hints.size(), 3u);
+  EXPECT_TRUE(hints.front().jacobians);  // the start is linearized
+  int linearizations = 0, cost_passes = 0, final_passes = 0;
+  for (const EvaluationHint& hint : hints) {
+    linearizations += hint.jacobians;
+    cost_passes += !hint.jacobians;
+    final_passes += !hint.jacobians && hint.likely_final;
+    EXPECT_FALSE(hint.jacobians && hint.likely_final);
+  }
+  // The step that met the tolerance was announced, and only the one after which the solve
+  // ended; it was not linearized, every other accepted step was.
+  EXPECT_FALSE(hints.back().jacobians);
+  EXPECT_TRUE(hints.back().likely_final);
+  EXPECT_EQ(final_passes, 1);
+  // At least one cost pass an iteration (a step on a reused factorization that is refused
+  // is followed by a fresh one in the same iteration).
+  EXPECT_GE(cost_passes, static_cast<int>(summary.iterations.size()) - 1);
+  EXPECT_EQ(linearizations, summary.num_successful_steps);  // the start's, less the last step's
 }
 
 TEST(SolveTest, IterationCallbackSeesEveryRowAndCanAbort) {

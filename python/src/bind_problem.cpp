@@ -130,6 +130,7 @@ SolverSummary solve_problem(PythonProblem& problem, const py::kwargs& kwargs) {
   SolverOptions options = solver_options(kwargs, "solve");
   SolverSummary summary = problem.run([&](Problem& p, InterruptCheck& check) {
     options.iteration_callback = stop_on_error(problem, check);
+    options.evaluation_callback = problem.evaluation_hints();
     return solve(options, p);
   });
   if (summary.termination == TerminationType::kFailure) throw Error("solve: " + summary.message);
@@ -179,6 +180,7 @@ RecompressedSolveSummary solve_recompressed_problem(PythonProblem& problem, cons
   if (!options.validate(&error)) throw py::value_error("solve_recompressed(): " + error);
   RecompressedSolveSummary summary = problem.run([&](Problem& p, InterruptCheck& check) {
     options.inner.iteration_callback = stop_on_error(problem, check);
+    options.inner.evaluation_callback = problem.evaluation_hints();
     return solve_recompressed(p, options);
   });
   if (summary.termination == TerminationType::kFailure) {

@@ -516,6 +516,9 @@ bool NumpyRows::ask_jacobians(Held state, bool jacobians) const {
     ahead_ = false;  // a cost pass after one with Jacobians asked ahead: a rejected step
   }
   if (jacobians) return true;
+  // No linearization is likely to follow: a function that computes its Jacobians only when
+  // asked is not asked (one without the `jacobians` keyword computes them all the same).
+  if (pass_jacobians_flag_ && likely_final_.load()) return false;
   return jacobians_returned_.load() && (!pass_jacobians_flag_ || ahead_);
 }
 
@@ -621,6 +624,7 @@ std::shared_ptr<const RowsEvaluation> NumpyRows::lookup_group(std::span<const in
 
 void NumpyRows::forget() const {
   std::lock_guard<std::mutex> lock(cache_mutex_);
+  likely_final_.store(false);
   cache_ = Cache{};
 }
 

@@ -229,6 +229,11 @@ class NumpyRows {
   /// function (GIL held; no evaluation running).
   void forget() const;
 
+  /// Whether the next cost pass is likely the solve's last (EvaluationHint::likely_final): it
+  /// then asks a function with the `jacobians` keyword for no Jacobians ahead, which no
+  /// linearization would use.
+  void hint_final(bool likely_final) const { likely_final_.store(likely_final); }
+
   /// Marks `groups` as used by one more block (lookup() evaluates the groups some block uses).
   void acquire(std::span<const int> groups) const;
   /// Undoes acquire().
@@ -295,6 +300,7 @@ class NumpyRows {
   mutable py::object all_rows_;  // 0 .. G k - 1 as a read-only int64 array, made on first use
   mutable std::vector<py::object> spare_;  // per slot: the last values array passed (GIL held)
   mutable std::atomic<bool> jacobians_returned_{false};  // the last Jacobians came from it
+  mutable std::atomic<bool> likely_final_{false};        // hint_final()
 
   // lookup()'s last evaluation, the values it was made at and where each group lies in it.
   struct Cache {

@@ -67,6 +67,15 @@ PythonProblem::Guard::~Guard() {
   problem.busy_ = false;
 }
 
+EvaluationCallback PythonProblem::evaluation_hints() const {
+  return [this](const EvaluationHint& hint) {
+    for (const std::weak_ptr<const NumpyRows>& batch : batches_) {
+      if (const std::shared_ptr<const NumpyRows> rows = batch.lock())
+        rows->hint_final(!hint.jacobians && hint.likely_final);
+    }
+  };
+}
+
 void PythonProblem::forget_evaluations() {
   for (const std::weak_ptr<const NumpyRows>& batch : batches_) {
     if (const std::shared_ptr<const NumpyRows> rows = batch.lock()) rows->forget();

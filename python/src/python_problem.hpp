@@ -117,6 +117,10 @@ class PythonProblem {
   /// Whether a residual function has raised during the running call (any thread).
   bool callback_failed() const { return errors_->failed(); }
 
+  /// Tells every batch of add_rows() what each pass of a solve is for (SolverOptions::
+  /// evaluation_callback): a cost pass the solve will likely end after asks no Jacobians ahead.
+  EvaluationCallback evaluation_hints() const;
+
  private:
   /// The one running call: marks the problem busy, and forgets every batch's kept evaluation
   /// when the call begins and ends (the data a residual function reads may change between

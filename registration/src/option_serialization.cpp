@@ -13,7 +13,7 @@ namespace {
 static_assert(field_count<ReadOptions>() == 2, "option_serialization: write the new field");
 static_assert(field_count<PreprocessOptions>() == 4, "option_serialization: write the new field");
 static_assert(field_count<OpenScansOptions>() == 5, "option_serialization: write the new field");
-static_assert(field_count<SolverOptions>() == 25, "option_serialization: write the new field");
+static_assert(field_count<SolverOptions>() == 26, "option_serialization: write the new field");
 static_assert(field_count<GlobalRegistrationOptions>() == 14,
               "option_serialization: write the new field");
 static_assert(field_count<DenseGraphOptions>() == 5, "option_serialization: write the new field");
@@ -86,7 +86,7 @@ void write_options(ByteWriter& out, const SolverOptions& options) {
   out.put(options.factor_reuse_ratio);
   out.put(options.num_threads);
   put_bool(out, options.record_iterations);
-  // iteration_callback stays in its process.
+  // iteration_callback and evaluation_callback stay in their process.
   put_bool(out, options.update_state_every_iteration);
   put_bool(out, options.check_blocks);
 }

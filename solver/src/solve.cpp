@@ -81,6 +81,7 @@ bool Solver::abort_if_requested() {
 }
 
 bool Solver::linearize() {
+  if (options_.evaluation_callback) options_.evaluation_callback({true, false});
   internal::LinearizeReport report = system_->linearize(*evaluator_, current_, &gradient_);
   summary_.time.linearize_s += report.time.linearize_s;
   summary_.time.assembly_s += report.time.assembly_s;
@@ -189,6 +190,15 @@ double Solver::trial_cost() {
       problem_.manifold(id).minus(buffers_[trial].data() + at, buffers_[current_].data() + at,
                                   delta_.data() + t);
     }
+  }
+  if (options_.evaluation_callback) {
+    // The step ends the solve if it meets the function tolerance (take_step()): likely so when
+    // the model predicts that much; or when no iteration follows.
+    const bool last = summary_.num_iterations >= options_.max_iterations;
+    const bool small =
+        !projected_ && internal::damped_model_decrease(gradient_, delta_, damping_) <=
+                           options_.function_tolerance * cost_;
+    options_.evaluation_callback({false, last || small});
   }
   const Stopwatch t0;
   const double cost = evaluator_->cost(trial);

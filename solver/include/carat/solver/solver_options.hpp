@@ -83,6 +83,18 @@ enum class CallbackResult {
 /// Called after every iteration with its row (iteration 0 is the initial evaluation).
 using IterationCallback = std::function<CallbackResult(const IterationSummary&)>;
 
+/// What a pass over the residual blocks is for (see SolverOptions::evaluation_callback).
+struct EvaluationHint {
+  bool jacobians = false;  ///< the pass linearizes (else it evaluates the cost alone)
+  /// A cost pass at a trial point after which the solve will likely end without linearizing
+  /// there: the model's predicted decrease already meets function_tolerance, or the iteration is
+  /// the last permitted. A hint: the solve may go on all the same.
+  bool likely_final = false;
+};
+
+/// Called before each pass over the residual blocks (as Ceres's EvaluationCallback).
+using EvaluationCallback = std::function<void(const EvaluationHint&)>;
+
 /// What solve() does and when it stops.
 struct SolverOptions {
   Method method = Method::kLevenbergMarquardt;       ///< nonlinear method
@@ -123,6 +135,10 @@ struct SolverOptions {
   /// problem keeps the values it had before the solve (or the iterate last written for a
   /// callback). Empty: none.
   IterationCallback iteration_callback;
+  /// Called before each pass over the residual blocks, on the thread that called solve(), with
+  /// what the pass is for: blocks that evaluate ahead (carat's Python rows ask a function for
+  /// its Jacobians with its residuals) can skip work the solve will not use. Empty: none.
+  EvaluationCallback evaluation_callback;
   /// During each iteration_callback call the problem's variables hold the current iterate (the
   /// last accepted one), as Ceres's update_state_every_iteration; else only after the solve.
   bool update_state_every_iteration = false;
