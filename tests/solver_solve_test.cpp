@@ -196,8 +196,7 @@ TEST(SolveTest, EvaluationCallbackSaysWhatEachPassIsForAndWhenTheSolveLikelyEnds
   Problem problem;
   const VariableId mc = problem.add_euclidean(Eigen::Vector2d(0.0, 0.0));
   problem.add_residual_block(
-      make_autodiff_block<1, VariableSize<2>>(test::ExpResidual{}, test::curve_data(200, 3)),
-      {mc});
+      make_autodiff_block<1, VariableSize<2>>(test::ExpResidual{}, test::curve_data(200, 3)), {mc});
   std::vector<EvaluationHint> hints;
   SolverOptions options;
   options.evaluation_callback = [&](const EvaluationHint& hint) { hints.push_back(hint); };
