@@ -211,16 +211,6 @@ TEST(AutoDiffBlockTest, FunctorsThatRefuseAndSizesThatDoNotMatch) {
             "freedom)");
 }
 
-/// y = exp(m x + c) with (m, c) the last two of three numbers.
-struct LastTwo {
-  template <typename T>
-  bool operator()(const Eigen::Vector2d& xy, const T* v, T* residual) const {
-    using std::exp;
-    residual[0] = T(xy.y()) - exp(v[1] * xy.x() + v[2]);
-    return true;
-  }
-};
-
 /// R^2 whose steps are scaled by 2: the same sizes as euclidean(2), another tangent.
 class DoubledSteps final : public Manifold {
  public:
@@ -256,17 +246,17 @@ TEST(AutoDiffBlockTest, ABlockDifferentiatingThroughAnotherManifoldThanItsVariab
   EXPECT_EQ(problem.num_residual_blocks(), 2);
   // Held coordinates: the same ones on another instance pass, others do not.
   const VariableId held =
-      problem.add_variable(std::make_shared<const SubsetManifold>(3, std::vector<int>{0}),
-                           std::vector<double>{0.0, 0.1, 0.2});
+      problem.add_variable(std::make_shared<const SubsetManifold>(2, std::vector<int>{0}),
+                           std::vector<double>{0.3, 0.1});
   const auto holding = [&](int coordinate) {
-    return make_autodiff_block<1, VariableSize<3, 2>>(
-        LastTwo{}, data, {std::make_shared<const SubsetManifold>(3, std::vector<int>{coordinate})},
-        "last two");
+    return make_autodiff_block<1, VariableSize<2, 1>>(
+        ExpResidual{}, data,
+        {std::make_shared<const SubsetManifold>(2, std::vector<int>{coordinate})}, "held curve");
   };
   problem.add_residual_block(holding(0), {held});
   EXPECT_EQ(test::error_of([&] { problem.add_residual_block(holding(1), {held}); }),
             "Problem::add_residual_block (block 3): variable 2 steps on subset(euclidean) holding "
-            "0 but block 'last two' takes its Jacobian through subset(euclidean) holding 1; give "
+            "0 but block 'held curve' takes its Jacobian through subset(euclidean) holding 1; give "
             "the block the variable's manifold (the manifolds argument of make_autodiff_block / "
             "make_numeric_diff_block)");
 }
