@@ -361,11 +361,28 @@ struct CameraFramePoint {
   }
 };
 
+/// The difference of a point's positions in two cameras' frames: one block over two cameras and
+/// the point.
+struct TwoCameraFramePoint {
+  template <typename T>
+  bool operator()(const Eigen::Vector3d& observed, const T* a, const T* b, const T* point,
+                  T* residual) const {
+    T in_a[3], in_b[3];
+    const Eigen::Vector3d zero = Eigen::Vector3d::Zero();
+    CameraFramePoint{}(zero, a, point, in_a);
+    CameraFramePoint{}(zero, b, point, in_b);
+    for (int k = 0; k < 3; ++k) residual[k] = in_a[k] - in_b[k] - observed[k];
+    return true;
+  }
+};
+
 /// Three-row blocks (each an edge's only contribution, scattered from its Jacobian rows) over
 /// kCamera-parameter cameras (6: pose only): the Schur path reaches the whole system's optimum over
-/// several linearizations (each writes W afresh).
+/// several linearizations (each writes W afresh). With `two_camera_blocks`, every fifth point is
+/// also seen by a block over two cameras and itself (no longer the fused layout, found only
+/// after many blocks).
 template <int kCamera>
-void expect_three_row_blocks_reach_the_whole_system_optimum() {
+void expect_three_row_blocks_reach_the_whole_system_optimum(bool two_camera_blocks = false) {
   std::mt19937 rng(5);
   std::normal_distribution<double> noise(0.0, 1.0);
   Problem problems[2];
@@ -399,6 +416,19 @@ void expect_three_row_blocks_reach_the_whole_system_optimum() {
                                        CameraFramePoint{}, std::vector<Eigen::Vector3d>{observed}),
                                    {cameras[static_cast<std::size_t>(c)], points.back()});
       }
+      if (two_camera_blocks && p % 5 == 4) {
+        const auto a = static_cast<std::size_t>(p % 8);
+        const auto b = static_cast<std::size_t>((p + 1) % 8);
+        Eigen::Vector3d r;
+        TwoCameraFramePoint{}(Eigen::Vector3d::Zero(), truth[a].data(), truth[b].data(),
+                              point.data(), r.data());
+        const Eigen::Vector3d observed =
+            r + 0.01 * Eigen::Vector3d(noise(rng), noise(rng), noise(rng));
+        problem.add_residual_block(
+            make_autodiff_block<3, VariableSize<kCamera>, VariableSize<kCamera>, VariableSize<3>>(
+                TwoCameraFramePoint{}, std::vector<Eigen::Vector3d>{observed}),
+            {cameras[a], cameras[b], points.back()});
+      }
     }
   }
   const SolverSummary a = solve(tight_options(LinearSolver::kSchur), problems[0]);
@@ -413,6 +443,10 @@ void expect_three_row_blocks_reach_the_whole_system_optimum() {
 
 TEST(SchurSolveTest, ThreeRowBlocksReachTheWholeSystemOptimum) {
   expect_three_row_blocks_reach_the_whole_system_optimum<6>();
+}
+
+TEST(SchurSolveTest, BlocksOverTwoCamerasAndAPointReachTheWholeSystemOptimum) {
+  expect_three_row_blocks_reach_the_whole_system_optimum<6>(true);
 }
 
 TEST(SchurSolveTest, ReachesTheWholeSystemOptimumWithARobustLoss) {

@@ -477,17 +477,18 @@ const double* NumpyRows::common_base(std::span<const int> block_variables,
   return reinterpret_cast<const double*>(base);
 }
 
-NumpyRows::Held NumpyRows::held(std::span<const int> block_variables, ParameterPointers params,
-                                std::span<const int> groups) const {
+template <class SlotOf>
+NumpyRows::Held NumpyRows::held_where(std::size_t num_slots, SlotOf slot_of,
+                                      ParameterPointers params, std::span<const int> groups) const {
   const RowsEvaluation* evaluation = cache_.evaluation.get();
   if (evaluation == nullptr || (!groups.empty() && cache_.group_position.empty())) {
     return Held::kNo;
   }
-  for (std::size_t j = 0; j < block_variables.size(); ++j) {
-    const auto v = static_cast<std::size_t>(block_variables[j]);
+  for (std::size_t j = 0; j < num_slots; ++j) {
+    const HeldSlot slot = slot_of(j);
     // The same bits (as memcmp; a few numbers, inline: this runs once per block per pass).
-    const double* kept = cache_.values.data() + variable_start_[v];
-    for (int e = 0; e < variables_[v].ambient; ++e) {
+    const double* kept = cache_.values.data() + slot.start;
+    for (int e = 0; e < slot.ambient; ++e) {
       std::uint64_t a = 0;
       std::uint64_t b = 0;
       std::memcpy(&a, params[j] + e, sizeof(a));
@@ -499,6 +500,33 @@ NumpyRows::Held NumpyRows::held(std::span<const int> block_variables, ParameterP
     if (cache_.group_position[static_cast<std::size_t>(g)] < 0) return Held::kNo;
   }
   return cache_.jacobians ? Held::kWithJacobians : Held::kResidualsOnly;
+}
+
+std::vector<NumpyRows::HeldSlot> NumpyRows::held_slots(std::span<const int> block_variables) const {
+  std::vector<HeldSlot> slots;
+  slots.reserve(block_variables.size());
+  for (int v : block_variables) {
+    const auto at = static_cast<std::size_t>(v);
+    slots.push_back({variable_start_[at], variables_[at].ambient});
+  }
+  return slots;
+}
+
+NumpyRows::Held NumpyRows::held_at(std::span<const HeldSlot> slots, ParameterPointers params,
+                                   std::span<const int> groups) const {
+  return held_where(
+      slots.size(), [&](std::size_t j) { return slots[j]; }, params, groups);
+}
+
+NumpyRows::Held NumpyRows::held(std::span<const int> block_variables, ParameterPointers params,
+                                std::span<const int> groups) const {
+  return held_where(
+      block_variables.size(),
+      [&](std::size_t j) {
+        const auto v = static_cast<std::size_t>(block_variables[j]);
+        return HeldSlot{variable_start_[v], variables_[v].ambient};
+      },
+      params, groups);
 }
 
 bool NumpyRows::serves(Held state, bool jacobians) const {
@@ -602,24 +630,18 @@ std::shared_ptr<const RowsEvaluation> NumpyRows::lookup(std::span<const int> blo
   return evaluate_groups(groups, Source{params, nullptr}, jacobians);
 }
 
-std::shared_ptr<const RowsEvaluation> NumpyRows::lookup_group(std::span<const int> block_variables,
-                                                              ParameterPointers params, int group,
-                                                              bool jacobians,
-                                                              std::size_t* position) const {
+const RowsEvaluation* NumpyRows::kept_group(std::span<const HeldSlot> slots,
+                                            std::span<const int> block_variables,
+                                            ParameterPointers params, int group, bool jacobians,
+                                            std::size_t* w) const {
   const std::span<const int> groups(&group, 1);
-  {
-    std::lock_guard<std::mutex> lock(cache_mutex_);
-    const Held state = held(block_variables, params, groups);
-    const bool hit = serves(state, jacobians);
-    const double* base = hit ? nullptr : common_base(block_variables, params);
-    if (base != nullptr) refresh_cache(groups, base, jacobians, ask_jacobians(state, jacobians));
-    if (hit || base != nullptr) {
-      *position = static_cast<std::size_t>(cache_.group_position[static_cast<std::size_t>(group)]);
-      return cache_.evaluation;
-    }
-  }
-  *position = 0;
-  return evaluate_groups(groups, Source{params, nullptr}, jacobians);
+  const Held state = held_at(slots, params, groups);
+  const bool hit = serves(state, jacobians);
+  const double* base = hit ? nullptr : common_base(block_variables, params);
+  if (base != nullptr) refresh_cache(groups, base, jacobians, ask_jacobians(state, jacobians));
+  if (!hit && base == nullptr) return nullptr;
+  *w = static_cast<std::size_t>(cache_.group_position[static_cast<std::size_t>(group)]);
+  return cache_.evaluation.get();
 }
 
 void NumpyRows::forget() const {

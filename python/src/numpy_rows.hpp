@@ -219,11 +219,37 @@ class NumpyRows {
                                                std::span<const int> groups, bool jacobians,
                                                std::vector<std::size_t>* positions) const;
 
-  /// lookup() for a block of one group: the evaluation holding group `group` at `params`, and in
-  /// *position which group of it that is (its rows start at *position * group_rows()).
-  std::shared_ptr<const RowsEvaluation> lookup_group(std::span<const int> block_variables,
-                                                     ParameterPointers params, int group,
-                                                     bool jacobians, std::size_t* position) const;
+  /// Where a block's variable lies among the kept values: read once per block and pass, so it
+  /// is kept in the block (no look-up through the batch's tables).
+  struct HeldSlot {
+    std::size_t start = 0;  ///< first double among the kept values
+    int ambient = 0;        ///< doubles stored
+  };
+  /// The kept-values layout of a block's variables (`block_variables`: its variable per slot).
+  std::vector<HeldSlot> held_slots(std::span<const int> block_variables) const;
+
+  /// lookup() for a block of one group (`slots`: held_slots() of its variables, which are
+  /// `block_variables`): calls read(evaluation, w) with an evaluation holding group `group` at
+  /// `params` as its w-th group (its rows start at w * group_rows()). The evaluation is valid only
+  /// during the call, which holds the batch's lock when served from the kept evaluation (`read`
+  /// only reads numbers).
+  template <class Read>
+  void read_group(std::span<const HeldSlot> slots, std::span<const int> block_variables,
+                  ParameterPointers params, int group, bool jacobians, Read&& read) const {
+    {
+      std::lock_guard<std::mutex> lock(cache_mutex_);
+      std::size_t w = 0;
+      if (const RowsEvaluation* kept =
+              kept_group(slots, block_variables, params, group, jacobians, &w)) {
+        read(*kept, w);
+        return;
+      }
+    }
+    const std::span<const int> groups(&group, 1);
+    const std::shared_ptr<const RowsEvaluation> own =
+        evaluate_groups(groups, Source{params, nullptr}, jacobians);
+    read(*own, std::size_t{0});
+  }
 
   /// Drops the kept evaluation (its arrays with it), so that the next request calls the
   /// function (GIL held; no evaluation running).
@@ -274,6 +300,20 @@ class NumpyRows {
   /// (cache_mutex_ held).
   Held held(std::span<const int> block_variables, ParameterPointers params,
             std::span<const int> groups) const;
+  /// held() for the variables whose places among the kept values slot_of(j) gives, j <
+  /// num_slots (defined and used in numpy_rows.cpp).
+  template <class SlotOf>
+  Held held_where(std::size_t num_slots, SlotOf slot_of, ParameterPointers params,
+                  std::span<const int> groups) const;
+  /// held() for a block whose variables lie at `slots` among the kept values.
+  Held held_at(std::span<const HeldSlot> slots, ParameterPointers params,
+               std::span<const int> groups) const;
+  /// read_group()'s look-up (cache_mutex_ held): the kept evaluation, refreshed first when the
+  /// block's values lie in the problem's layout and it does not serve them, and in *w the
+  /// group's place in it; null when `params` lie elsewhere.
+  const RowsEvaluation* kept_group(std::span<const HeldSlot> slots,
+                                   std::span<const int> block_variables, ParameterPointers params,
+                                   int group, bool jacobians, std::size_t* w) const;
   /// Whether a request (`jacobians` or not) for what the cache holds as `state` is served from it;
   /// notes a linearization served (cache_mutex_ held).
   bool serves(Held state, bool jacobians) const;

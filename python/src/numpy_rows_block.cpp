@@ -80,6 +80,16 @@ NumpyRowsBlock::NumpyRowsBlock(std::shared_ptr<const NumpyRows> rows, std::vecto
     groups_.erase(std::unique(groups_.begin(), groups_.end()), groups_.end());
   }
   one_group_ = batch_rows_.empty() && groups_.size() == 1 && !rows_->single_block();
+  if (one_group_) {
+    group_ = groups_.front();
+    std::vector<NumpyRows::HeldSlot> held = rows_->held_slots(variables_);
+    if (held.size() <= kInlineSlots) {
+      std::copy(held.begin(), held.end(), held_.begin());
+      num_held_ = held.size();
+    } else {
+      many_held_ = std::move(held);
+    }
+  }
   rows_->acquire(groups_);
 }
 
@@ -206,25 +216,28 @@ NumpyRowsBlock::Evaluated NumpyRowsBlock::evaluate(ParameterPointers params,
 void NumpyRowsBlock::evaluate_rows(ParameterPointers params, std::span<const int> rows,
                                    double* residuals, double* jacobian) const {
   if (within_group(rows)) {  // an observation's rows: read straight from the batch's evaluation
-    std::size_t w = 0;
-    const std::shared_ptr<const RowsEvaluation> values =
-        rows_->lookup_group(variables_, params, groups_.front(), jacobian != nullptr, &w);
     const auto k = static_cast<std::size_t>(rows_->group_rows());
-    const double weight = weighted() ? values->group_weight(w) : 1.0;
-    const StridedRows& r = values->residual_view();
-    for (std::size_t q = 0; q < rows.size(); ++q) {
-      residuals[q] = weight * r.in_row(r.group_row(w, static_cast<std::size_t>(rows[q]), k), 0);
-    }
-    if (jacobian == nullptr) return;
-    const std::span<const int> dims = rows_->tangent_dims();
-    double* out = jacobian;
-    for (std::size_t q = 0; q < rows.size(); ++q) {
-      for (std::size_t j = 0; j < dims.size(); ++j) {
-        const StridedRows& view = values->jacobian_view(static_cast<int>(j));
-        const char* start = view.group_row(w, static_cast<std::size_t>(rows[q]), k);
-        for (int c = 0; c < dims[j]; ++c) *out++ = weight * view.in_row(start, c);
-      }
-    }
+    const bool weighted_rows = weighted();
+    rows_->read_group(
+        held_slots(), variables_, params, group_, jacobian != nullptr,
+        [&](const RowsEvaluation& values, std::size_t w) {
+          const double weight = weighted_rows ? values.group_weight(w) : 1.0;
+          const StridedRows& r = values.residual_view();
+          for (std::size_t q = 0; q < rows.size(); ++q) {
+            residuals[q] =
+                weight * r.in_row(r.group_row(w, static_cast<std::size_t>(rows[q]), k), 0);
+          }
+          if (jacobian == nullptr) return;
+          const std::span<const int> dims = rows_->tangent_dims();
+          double* out = jacobian;
+          for (std::size_t q = 0; q < rows.size(); ++q) {
+            for (std::size_t j = 0; j < dims.size(); ++j) {
+              const StridedRows& view = values.jacobian_view(static_cast<int>(j));
+              const char* start = view.group_row(w, static_cast<std::size_t>(rows[q]), k);
+              for (int c = 0; c < dims[j]; ++c) *out++ = weight * view.in_row(start, c);
+            }
+          }
+        });
     return;
   }
   const Evaluated e = evaluate(params, rows, jacobian != nullptr);
@@ -379,20 +392,21 @@ double NumpyRowsBlock::accumulate(ParameterPointers params, Eigen::Ref<Eigen::Ma
 
 double NumpyRowsBlock::squared_norm(ParameterPointers params) const {
   if (one_group_) {
-    std::size_t w = 0;
-    const std::shared_ptr<const RowsEvaluation> values =
-        rows_->lookup_group(variables_, params, groups_.front(), false, &w);
     const auto k = static_cast<std::size_t>(rows_->group_rows());
+    const bool weighted_rows = weighted();
     double cost = 0.0;
-    for (std::size_t c = 0; c < k; ++c) {
-      if (weighted()) {
-        cost += values->cost_share(w * k + c);
-      } else {
-        const StridedRows& r = values->residual_view();
-        const double value = r.in_row(r.group_row(w, c, k), 0);
-        cost += value * value;
-      }
-    }
+    rows_->read_group(held_slots(), variables_, params, group_, false,
+                      [&](const RowsEvaluation& values, std::size_t w) {
+                        const StridedRows& r = values.residual_view();
+                        for (std::size_t c = 0; c < k; ++c) {
+                          if (weighted_rows) {
+                            cost += values.cost_share(w * k + c);
+                          } else {
+                            const double value = r.in_row(r.group_row(w, c, k), 0);
+                            cost += value * value;
+                          }
+                        }
+                      });
     return cost;
   }
   const Evaluated e = evaluate(params, std::nullopt, false);

@@ -8,6 +8,7 @@
 /// that an exact coreset reproduces the robust H, b and c.
 
 #include <Eigen/Core>
+#include <array>
 #include <memory>
 #include <optional>
 #include <span>
@@ -69,8 +70,21 @@ class NumpyRowsBlock final : public ResidualBlock {
   std::vector<int> groups_;      // the batch groups the rows belong to, ascending
   std::vector<int> batch_rows_;  // block row -> batch row; empty: groups_' rows in order (or
                                  // every row of the batch when groups_ is empty too)
+  /// Where the variables lie among the batch's kept values (one_group_ blocks).
+  std::span<const NumpyRows::HeldSlot> held_slots() const {
+    return many_held_.empty() ? std::span<const NumpyRows::HeldSlot>(held_.data(), num_held_)
+                              : std::span<const NumpyRows::HeldSlot>(many_held_);
+  }
+
   bool with_loss_ = true;
   bool one_group_ = false;  // one whole group of a batch of several blocks (an observation)
+  int group_ = -1;          // that group (one_group_)
+  // held_slots(): in the block for a few variables (read once per block and pass), else in
+  // many_held_.
+  static constexpr std::size_t kInlineSlots = 4;
+  std::array<NumpyRows::HeldSlot, kInlineSlots> held_{};
+  std::size_t num_held_ = 0;
+  std::vector<NumpyRows::HeldSlot> many_held_;
 };
 
 }  // namespace carat::python

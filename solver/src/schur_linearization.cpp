@@ -40,11 +40,19 @@ void SchurLinearization::plan_direct_blocks(const Problem& problem) {
       direct_cam_local_[s_.edge_contrib_source[q]] = s_.edge_contribs[q].row_local;
     }
   }
+  // Read in block order (the blocks' storage in turn), then listed in point order.
+  std::vector<int> rows_of(blocks.size(), 0);
+  std::vector<char> direct_of(blocks.size(), 0);
+  for (std::size_t i = 0; i < blocks.size(); ++i) {
+    const auto& entry = blocks[i];
+    rows_of[i] = entry.block->num_rows();
+    direct_of[i] =
+        !entry.loss && rows_of[i] <= kDirectRows && entry.block->reduced_dim() == s_.block_dims[i];
+  }
   for (std::size_t q = 0; q < s_.pt_contribs.size(); ++q) {
-    const auto& entry = blocks[static_cast<std::size_t>(s_.pt_contribs[q].first)];
-    direct_rows_[q] = entry.block->num_rows();
-    direct_[q] = !entry.loss && entry.block->num_rows() <= kDirectRows &&
-                 entry.block->reduced_dim() == s_.block_dim(s_.pt_contribs[q].first);
+    const auto i = static_cast<std::size_t>(s_.pt_contribs[q].first);
+    direct_rows_[q] = rows_of[i];
+    direct_[q] = direct_of[i];
   }
   edge_assigned_.assign(s_.edge_cam.size(), 0);
   for (std::size_t e = 0; e < s_.edge_cam.size(); ++e) {

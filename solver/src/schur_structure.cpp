@@ -14,6 +14,13 @@ namespace {
 
 std::size_t at(int k) { return static_cast<std::size_t>(k); }
 
+/// Throws the error of block `block` connecting eliminable variables `first` and `second`.
+[[noreturn]] void refuse_shared_block(std::size_t block, int first, int second) {
+  throw Error("Schur complement: residual block " + std::to_string(block) +
+              " connects two eliminable variables (" + std::to_string(first) + " and " +
+              std::to_string(second) + "); the eliminated variables must not share a block");
+}
+
 /// Groups of consecutive cameras for forming S: at most kMaxGroupCameras each, and at least two
 /// groups a thread of the calling arena where the cameras allow groups of 8; the points each
 /// group sees (ascending) and the values of its stacked columns of S blocks.
@@ -94,50 +101,57 @@ void build_pattern(SchurStructure& s) {
 }  // namespace
 
 void check_eliminable_group(const Problem& problem, const std::vector<char>& eliminate) {
+  std::vector<char> eliminated(eliminate.size(), 0);
+  for (std::size_t v = 0; v < eliminate.size(); ++v) {
+    eliminated[v] = eliminate[v] && !problem.is_constant(VariableId{static_cast<int>(v)});
+  }
   const auto blocks = problem.blocks();
   for (std::size_t bi = 0; bi < blocks.size(); ++bi) {
     int first = -1;
     for (VariableId v : blocks[bi].variables) {
-      if (!eliminate[at(v.index)] || problem.is_constant(v)) continue;
-      if (first >= 0) {
-        throw Error("Schur complement: residual block " + std::to_string(bi) +
-                    " connects two eliminable variables (" + std::to_string(first) + " and " +
-                    std::to_string(v.index) + "); the eliminated variables must not share a block");
-      }
+      if (!eliminated[at(v.index)]) continue;
+      if (first >= 0) refuse_shared_block(bi, first, v.index);
       first = v.index;
     }
   }
 }
 
 SchurStructure::SchurStructure(const Problem& problem, const std::vector<char>& eliminate) {
-  check_eliminable_group(problem, eliminate);
   const int num_vars = problem.num_variables();
   var_offset.assign(at(num_vars), -1);
-  std::vector<int> cam_of(at(num_vars), -1), pt_of(at(num_vars), -1), dim(at(num_vars), 0);
+  // Per variable, in one record (a block's variables are read at random): its camera or point
+  // index (-1: neither) and its tangent size.
+  struct Role {
+    int cam = -1;
+    int pt = -1;
+    int dim = 0;
+  };
+  std::vector<Role> role(at(num_vars));
   for (int v = 0; v < num_vars; ++v) {
     const VariableId id{v};
-    dim[at(v)] = problem.manifold(id).tangent_size();
+    const int d = problem.manifold(id).tangent_size();
+    role[at(v)].dim = d;
     if (problem.is_constant(id)) continue;
     if (eliminate[at(v)]) {
-      pt_of[at(v)] = static_cast<int>(pt_dim.size());
-      pt_dim.push_back(dim[at(v)]);
+      role[at(v)].pt = static_cast<int>(pt_dim.size());
+      pt_dim.push_back(d);
     } else {
-      cam_of[at(v)] = static_cast<int>(cam_dim.size());
+      role[at(v)].cam = static_cast<int>(cam_dim.size());
       cam_offset.push_back(ns);
-      cam_dim.push_back(dim[at(v)]);
+      cam_dim.push_back(d);
       var_offset[at(v)] = ns;
-      ns += dim[at(v)];
+      ns += d;
     }
   }
   n = ns;
   for (int v = 0; v < num_vars; ++v) {
-    const int p = pt_of[at(v)];
-    if (p < 0) continue;
+    if (role[at(v)].pt < 0) continue;
+    const int d = role[at(v)].dim;
     var_offset[at(v)] = n;
     pt_offset.push_back(n);
     pt_v_offset.push_back(v_size);
-    n += dim[at(v)];
-    v_size += at(dim[at(v)]) * at(dim[at(v)]);
+    n += d;
+    v_size += at(d) * at(d);
   }
   const std::size_t nc = cam_dim.size();
   const std::size_t np = pt_dim.size();
@@ -164,56 +178,64 @@ SchurStructure::SchurStructure(const Problem& problem, const std::vector<char>& 
   std::vector<RawEdge> raw_edges;
   std::vector<std::tuple<int, std::int32_t, std::int16_t>> raw_pt, raw_cam;
   const auto blocks = problem.blocks();
-  raw_cam.reserve(blocks.size());
-  raw_edges.reserve(blocks.size());
-  raw_pt.reserve(blocks.size());
   std::vector<std::pair<int, int>> cams;  // (camera, local) of one block
-  std::vector<char> block_has_point(blocks.size(), 0);
-  for (const auto& entry : blocks) block_dims.push_back(entry.block->tangent_dim());
-  fused = true;
-  for (std::size_t bi = 0; bi < blocks.size(); ++bi) {
-    cams.clear();
-    int point = -1;
-    int point_local = 0;
-    int local = 0;
-    for (VariableId v : blocks[bi].variables) {
-      const int c = cam_of[at(v.index)];
-      const int p = pt_of[at(v.index)];
-      if (c >= 0) cams.emplace_back(c, local);
-      if (p >= 0) {  // the only one (check_eliminable_group())
-        point = p;
-        point_local = local;
-      }
-      local += dim[at(v.index)];
-    }
-    const auto block = static_cast<std::int32_t>(bi);
-    for (const auto& [ca, la] : cams) {
-      raw_cam.emplace_back(ca, block, static_cast<std::int16_t>(la));
-      for (const auto& [cb, lb] : cams) {
-        if (ca < cb) continue;
-        raw_pairs.push_back(
-            {cb, ca, block, static_cast<std::int16_t>(la), static_cast<std::int16_t>(lb)});
-      }
-      if (point >= 0) {
-        raw_edges.push_back({point, ca, block, static_cast<std::int16_t>(la),
-                             static_cast<std::int16_t>(point_local)});
-      }
-    }
-    if (point >= 0) {
-      raw_pt.emplace_back(point, block, static_cast<std::int16_t>(point_local));
-      block_has_point[bi] = 1;
-      if (cams.size() > 1) fused = false;
-    }
-  }
   // Fused: the kept-variable part of a block with a point is one diagonal block (of its one
-  // camera), summed per chunk of points (slots below) rather than gathered per camera.
-  if (fused) {
-    const auto has_point = [&](std::int32_t block) {
-      return block_has_point[static_cast<std::size_t>(block)] != 0;
-    };
-    std::erase_if(raw_cam, [&](const auto& entry) { return has_point(std::get<1>(entry)); });
-    std::erase_if(raw_pairs, [&](const RawPair& pair) { return has_point(pair.block); });
-  }
+  // camera), summed per chunk of points (slots below) rather than gathered per camera; such
+  // blocks then list no camera gradient nor camera pair. The first pass assumes it and leaves
+  // those out; a block with a point and two cameras ends the assumption and a second pass lists
+  // every block's.
+  const auto collect = [&](bool assume_fused) {
+    raw_pairs.clear();
+    raw_edges.clear();
+    raw_pt.clear();
+    raw_cam.clear();
+    block_dims.clear();
+    raw_cam.reserve(blocks.size());
+    raw_pairs.reserve(assume_fused ? 0 : blocks.size());
+    raw_edges.reserve(blocks.size());
+    raw_pt.reserve(blocks.size());
+    block_dims.reserve(blocks.size());
+    for (std::size_t bi = 0; bi < blocks.size(); ++bi) {
+      cams.clear();
+      int point = -1;
+      int point_var = -1;
+      int point_local = 0;
+      int local = 0;
+      for (VariableId v : blocks[bi].variables) {
+        const Role& r = role[at(v.index)];
+        if (r.cam >= 0) cams.emplace_back(r.cam, local);
+        if (r.pt >= 0) {
+          if (point >= 0) refuse_shared_block(bi, point_var, v.index);
+          point = r.pt;
+          point_var = v.index;
+          point_local = local;
+        }
+        local += r.dim;
+      }
+      block_dims.push_back(local);
+      const auto block = static_cast<std::int32_t>(bi);
+      if (point >= 0) {
+        if (cams.size() > 1 && assume_fused) return false;
+        raw_pt.emplace_back(point, block, static_cast<std::int16_t>(point_local));
+        for (const auto& [ca, la] : cams) {
+          raw_edges.push_back({point, ca, block, static_cast<std::int16_t>(la),
+                               static_cast<std::int16_t>(point_local)});
+        }
+        if (assume_fused) continue;
+      }
+      for (const auto& [ca, la] : cams) {
+        raw_cam.emplace_back(ca, block, static_cast<std::int16_t>(la));
+        for (const auto& [cb, lb] : cams) {
+          if (ca < cb) continue;
+          raw_pairs.push_back(
+              {cb, ca, block, static_cast<std::int16_t>(la), static_cast<std::int16_t>(lb)});
+        }
+      }
+    }
+    return true;
+  };
+  fused = collect(true);
+  if (!fused) collect(false);
 
   // Edges, point-major, and their contributions.
   // By point (a stable counting sort: blocks stay in order within a point), then by camera.
@@ -235,6 +257,11 @@ SchurStructure::SchurStructure(const Problem& problem, const std::vector<char>& 
     }
   }
   pt_edge_begin.assign(np + 1, 0);
+  edge_cam.reserve(raw_edges.size());
+  edge_pt.reserve(raw_edges.size());
+  edge_w_offset.reserve(raw_edges.size());
+  edge_contrib_begin.reserve(raw_edges.size() + 1);
+  edge_contribs.reserve(raw_edges.size());
   for (std::size_t k = 0; k < raw_edges.size();) {
     const RawEdge& first = raw_edges[k];
     edge_cam.push_back(first.cam);

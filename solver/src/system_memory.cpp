@@ -79,24 +79,47 @@ SchurMemory schur_system_bytes(const Problem& problem, const std::vector<char>& 
   graph.neighbours.resize(kept);
   // (eliminated variable, kept node) of every block with an eliminated variable; kept nodes
   // that share a block directly.
-  std::vector<std::pair<int, int>> links;
+  const auto num_vars = static_cast<std::size_t>(problem.num_variables());
+  std::vector<char> eliminated(num_vars, 0);
+  for (std::size_t v = 0; v < num_vars; ++v) {
+    eliminated[v] = eliminate[v] && !problem.is_constant(VariableId{static_cast<int>(v)});
+  }
+  std::vector<std::pair<int, int>> found;
+  found.reserve(problem.blocks().size());
   for (const auto& entry : problem.blocks()) {
     int point = -1;
     for (const VariableId a : entry.variables) {
-      if (eliminate[static_cast<std::size_t>(a.index)] && !problem.is_constant(a)) point = a.index;
+      if (eliminated[static_cast<std::size_t>(a.index)]) point = a.index;
     }
     for (const VariableId a : entry.variables) {
       const int i = node[static_cast<std::size_t>(a.index)];
       if (i < 0) continue;
-      if (point >= 0) links.emplace_back(point, i);
+      if (point >= 0) found.emplace_back(point, i);
       for (const VariableId b : entry.variables) {
         const int j = node[static_cast<std::size_t>(b.index)];
         if (j >= 0 && j != i) graph.neighbours[static_cast<std::size_t>(i)].push_back(j);
       }
     }
   }
-  std::sort(links.begin(), links.end());
-  links.erase(std::unique(links.begin(), links.end()), links.end());
+  // Sorted and without repeats: by eliminated variable (a counting sort), then each one's few
+  // kept nodes.
+  std::vector<std::pair<int, int>> links(found.size());
+  {
+    std::vector<std::size_t> start(num_vars + 1, 0);
+    for (const auto& [point, i] : found) ++start[static_cast<std::size_t>(point) + 1];
+    for (std::size_t v = 0; v < num_vars; ++v) start[v + 1] += start[v];
+    std::vector<std::size_t> fill(start.begin(), start.end() - 1);
+    for (const auto& link : found) links[fill[static_cast<std::size_t>(link.first)]++] = link;
+    std::size_t kept_links = 0;
+    for (std::size_t v = 0; v < num_vars; ++v) {
+      const auto first = links.begin() + static_cast<std::ptrdiff_t>(start[v]);
+      const auto last = links.begin() + static_cast<std::ptrdiff_t>(start[v + 1]);
+      std::sort(first, last);
+      const auto end = std::unique(first, last);
+      for (auto link = first; link != end; ++link) links[kept_links++] = *link;
+    }
+    links.resize(kept_links);
+  }
   // What the elimination holds, and the whole system's matrix (a lower bound of its bytes).
   SchurMemory out;
   double whole_entries = 0.0;
