@@ -76,13 +76,15 @@ py::array_t<int> PythonProblem::add_rows(const py::object& function, const py::h
 
   std::vector<RowsSlot> slots(items.size());
   std::vector<RowsVariable> batch_variables;
-  std::unordered_map<int, int> local;  // variable id -> batch variable
+  // Variable id -> batch variable (-1: none yet).
+  std::vector<int> local(static_cast<std::size_t>(problem_.num_variables()), -1);
   const auto local_of = [&](VariableId v) {
-    const auto [it, inserted] = local.emplace(v.index, static_cast<int>(batch_variables.size()));
-    if (inserted) {
+    int& batch = local[static_cast<std::size_t>(v.index)];
+    if (batch < 0) {
+      batch = static_cast<int>(batch_variables.size());
       batch_variables.push_back({v, problem_.value_offset(v), problem_.manifold(v).ambient_size()});
     }
-    return it->second;
+    return batch;
   };
   for (std::size_t j = 0; j < items.size(); ++j) {
     const std::string what = "add_rows argument " + std::to_string(j + 1);
@@ -148,60 +150,69 @@ py::array_t<int> PythonProblem::add_rows(const py::object& function, const py::h
   std::vector<int> block_of_group(static_cast<std::size_t>(scanned));
   std::vector<int> first_group;  // per block
   {
-    // A tuple of up to two variables is one 64-bit key; longer ones are strings of their bytes.
-    std::unordered_map<std::uint64_t, int> by_pair;
-    std::unordered_map<std::string, int> by_bytes;
-    if (num_slots <= 2) by_pair.reserve(static_cast<std::size_t>(scanned));
-    std::string key(num_slots * sizeof(int), '\0');
-    const auto same_as_previous = [&](int g) {
-      for (std::size_t j = 0; j < num_slots; ++j) {
-        if (variable_of(j, g) != variable_of(j, g - 1)) return false;
+    // Each group's first group over the same variables (itself when it starts a block).
+    std::vector<int> first_of_group(static_cast<std::size_t>(scanned));
+    if (num_slots <= 2) {
+      // Without hashing: the groups by their first variable (a counting sort, groups ascending
+      // within it), then per first variable a mark per second variable.
+      const std::size_t num_batch = batch_variables.size();
+      std::vector<int> start(num_batch + 1, 0);
+      for (int g = 0; g < scanned; ++g) ++start[static_cast<std::size_t>(variable_of(0, g)) + 1];
+      for (std::size_t v = 0; v < num_batch; ++v) start[v + 1] += start[v];
+      std::vector<int> by_first(static_cast<std::size_t>(scanned));
+      {
+        std::vector<int> fill(start.begin(), start.end() - 1);
+        for (int g = 0; g < scanned; ++g) {
+          by_first[static_cast<std::size_t>(fill[static_cast<std::size_t>(variable_of(0, g))]++)] =
+              g;
+        }
       }
-      return true;
-    };
-    for (int g = 0; g < scanned; ++g) {
-      // Runs of groups over the same variables (every group when no argument is indexed) need
-      // no look-up.
-      if (g > 0 && same_as_previous(g)) {
-        block_of_group[static_cast<std::size_t>(g)] =
-            block_of_group[static_cast<std::size_t>(g) - 1];
-        continue;
+      std::vector<int> marked(num_batch, -1);  // first variable that last marked it
+      std::vector<int> first(num_batch, 0);    // the first group of (that variable, it)
+      for (std::size_t a = 0; a < num_batch; ++a) {
+        for (int k = start[a]; k < start[a + 1]; ++k) {
+          const int g = by_first[static_cast<std::size_t>(k)];
+          const auto b = static_cast<std::size_t>(num_slots == 2 ? variable_of(1, g) : 0);
+          if (marked[b] != static_cast<int>(a)) {
+            marked[b] = static_cast<int>(a);
+            first[b] = g;
+          }
+          first_of_group[static_cast<std::size_t>(g)] = first[b];
+        }
       }
-      const auto next = static_cast<int>(first_group.size());
-      bool inserted = false;
-      int block = 0;
-      if (num_slots <= 2) {
-        const std::uint64_t pair =
-            static_cast<std::uint64_t>(static_cast<std::uint32_t>(variable_of(0, g))) << 32 |
-            (num_slots == 2 ? static_cast<std::uint32_t>(variable_of(1, g)) : 0U);
-        const auto [it, fresh] = by_pair.emplace(pair, next);
-        inserted = fresh;
-        block = it->second;
-      } else {
+    } else {
+      // Longer tuples: strings of their bytes as keys.
+      std::unordered_map<std::string, int> by_bytes;
+      std::string key(num_slots * sizeof(int), '\0');
+      for (int g = 0; g < scanned; ++g) {
         for (std::size_t j = 0; j < num_slots; ++j) {
           const int v = variable_of(j, g);
           std::memcpy(key.data() + j * sizeof(int), &v, sizeof(int));
         }
-        const auto [it, fresh] = by_bytes.emplace(key, next);
-        inserted = fresh;
-        block = it->second;
+        first_of_group[static_cast<std::size_t>(g)] = by_bytes.emplace(key, g).first->second;
       }
-      if (inserted) {
-        for (std::size_t a = 0; a < num_slots; ++a) {
-          for (std::size_t b = a + 1; b < num_slots; ++b) {
-            if (variable_of(a, g) == variable_of(b, g)) {
-              throw py::value_error(
-                  "add_rows: arguments " + std::to_string(a + 1) + " and " + std::to_string(b + 1) +
-                  " are the same variable (" +
-                  std::to_string(
-                      batch_variables[static_cast<std::size_t>(variable_of(a, g))].id.index) +
-                  ") in group " + std::to_string(g) + "; a block's variables must be distinct");
-            }
+    }
+    for (int g = 0; g < scanned; ++g) {
+      const int earlier = first_of_group[static_cast<std::size_t>(g)];
+      if (earlier != g) {
+        block_of_group[static_cast<std::size_t>(g)] =
+            block_of_group[static_cast<std::size_t>(earlier)];
+        continue;
+      }
+      for (std::size_t a = 0; a < num_slots; ++a) {
+        for (std::size_t b = a + 1; b < num_slots; ++b) {
+          if (variable_of(a, g) == variable_of(b, g)) {
+            throw py::value_error(
+                "add_rows: arguments " + std::to_string(a + 1) + " and " + std::to_string(b + 1) +
+                " are the same variable (" +
+                std::to_string(
+                    batch_variables[static_cast<std::size_t>(variable_of(a, g))].id.index) +
+                ") in group " + std::to_string(g) + "; a block's variables must be distinct");
           }
         }
-        first_group.push_back(g);
       }
-      block_of_group[static_cast<std::size_t>(g)] = block;
+      block_of_group[static_cast<std::size_t>(g)] = static_cast<int>(first_group.size());
+      first_group.push_back(g);
     }
   }
   const std::size_t num_blocks = first_group.size();

@@ -502,16 +502,6 @@ NumpyRows::Held NumpyRows::held_where(std::size_t num_slots, SlotOf slot_of,
   return cache_.jacobians ? Held::kWithJacobians : Held::kResidualsOnly;
 }
 
-std::vector<NumpyRows::HeldSlot> NumpyRows::held_slots(std::span<const int> block_variables) const {
-  std::vector<HeldSlot> slots;
-  slots.reserve(block_variables.size());
-  for (int v : block_variables) {
-    const auto at = static_cast<std::size_t>(v);
-    slots.push_back({variable_start_[at], variables_[at].ambient});
-  }
-  return slots;
-}
-
 NumpyRows::Held NumpyRows::held_at(std::span<const HeldSlot> slots, ParameterPointers params,
                                    std::span<const int> groups) const {
   return held_where(
@@ -521,12 +511,8 @@ NumpyRows::Held NumpyRows::held_at(std::span<const HeldSlot> slots, ParameterPoi
 NumpyRows::Held NumpyRows::held(std::span<const int> block_variables, ParameterPointers params,
                                 std::span<const int> groups) const {
   return held_where(
-      block_variables.size(),
-      [&](std::size_t j) {
-        const auto v = static_cast<std::size_t>(block_variables[j]);
-        return HeldSlot{variable_start_[v], variables_[v].ambient};
-      },
-      params, groups);
+      block_variables.size(), [&](std::size_t j) { return held_slot(block_variables[j]); }, params,
+      groups);
 }
 
 bool NumpyRows::serves(Held state, bool jacobians) const {

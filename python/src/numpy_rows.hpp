@@ -225,10 +225,13 @@ class NumpyRows {
     std::size_t start = 0;  ///< first double among the kept values
     int ambient = 0;        ///< doubles stored
   };
-  /// The kept-values layout of a block's variables (`block_variables`: its variable per slot).
-  std::vector<HeldSlot> held_slots(std::span<const int> block_variables) const;
+  /// Where variable v (an index into variables()) lies among the kept values.
+  HeldSlot held_slot(int v) const {
+    const auto at = static_cast<std::size_t>(v);
+    return {variable_start_[at], variables_[at].ambient};
+  }
 
-  /// lookup() for a block of one group (`slots`: held_slots() of its variables, which are
+  /// lookup() for a block of one group (`slots`: held_slot() of each of its variables, which are
   /// `block_variables`): calls read(evaluation, w) with an evaluation holding group `group` at
   /// `params` as its w-th group (its rows start at w * group_rows()). The evaluation is valid only
   /// during the call, which holds the batch's lock when served from the kept evaluation (`read`

@@ -82,12 +82,10 @@ NumpyRowsBlock::NumpyRowsBlock(std::shared_ptr<const NumpyRows> rows, std::vecto
   one_group_ = batch_rows_.empty() && groups_.size() == 1 && !rows_->single_block();
   if (one_group_) {
     group_ = groups_.front();
-    std::vector<NumpyRows::HeldSlot> held = rows_->held_slots(variables_);
-    if (held.size() <= kInlineSlots) {
-      std::copy(held.begin(), held.end(), held_.begin());
-      num_held_ = held.size();
+    if (variables_.size() <= kInlineSlots) {
+      for (int v : variables_) held_[num_held_++] = rows_->held_slot(v);
     } else {
-      many_held_ = std::move(held);
+      for (int v : variables_) many_held_.push_back(rows_->held_slot(v));
     }
   }
   rows_->acquire(groups_);

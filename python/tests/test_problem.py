@@ -555,6 +555,39 @@ def test_bad_arguments_are_named():
         carat.solve(p, lm_start="newton")
 
 
+@pytest.mark.parametrize("slots", [2, 3])
+def test_groups_over_the_same_variables_form_one_block_in_order_of_first_use(slots):
+    # Row g: sum_j (j + 1) x_{tuple_g[j]} - g, one group per row.
+    tuples = np.array([[0, 1, 2], [1, 0, 2], [0, 1, 2], [0, 2, 1], [1, 0, 2], [3, 1, 0],
+                       [0, 2, 1]])[:, :slots]
+    p = carat.Problem()
+    start = np.array([0.5, -1.0, 2.0, 0.25])
+    ids = [p.add_euclidean(np.array([x])) for x in start]
+    weights = np.arange(1.0, slots + 1.0)
+
+    def residual(*arguments):
+        values, rows = arguments[:-1], arguments[-1]
+        r = sum(w * v[:, 0] for w, v in zip(weights, values)) - rows
+        return r, [np.full((len(rows), 1), w) for w in weights]
+
+    added = p.add_rows(residual, [np.array(ids)[tuples[:, j]] for j in range(slots)],
+                       rows=len(tuples))
+    distinct = list(dict.fromkeys(map(tuple, tuples)))  # in order of first use
+    assert p.num_residual_blocks == len(distinct)
+    assert list(added) == list(range(len(distinct)))
+    r = start[tuples] @ weights - np.arange(len(tuples))
+    assert p.cost() == pytest.approx(0.5 * r @ r, rel=1e-14)
+    gradient = np.zeros(len(start))
+    for g, t in enumerate(tuples):
+        gradient[t] += weights * r[g]
+    np.testing.assert_allclose(p.gradient(), gradient, rtol=1e-14, atol=1e-14)
+    twice = tuples.copy()
+    twice[4, 1] = twice[4, 0]
+    with pytest.raises(ValueError, match="add_rows: arguments 1 and 2 are the same variable "
+                                         r"\(1\) in group 4; a block's variables must be distinct"):
+        p.add_rows(residual, [np.array(ids)[twice[:, j]] for j in range(slots)], rows=len(tuples))
+
+
 def test_ctrl_c_in_a_slow_residual_ends_the_solve():
     script = textwrap.dedent(
         """
