@@ -249,7 +249,8 @@ py::array_t<int> PythonProblem::add_rows(const py::object& function, const py::h
     }
     auto block =
         std::make_shared<NumpyRowsBlock>(batch, tuple, std::move(block_groups), std::vector<int>{});
-    ids.mutable_data()[b] = problem_.add_residual_block(block, variable_ids, block_loss).index;
+    ids.mutable_data()[b] =
+        problem_.add_residual_block(std::move(block), variable_ids, block_loss).index;
   }
   return ids;
 }
