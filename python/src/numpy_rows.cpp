@@ -112,7 +112,7 @@ NumpyRows::NumpyRows(py::object function, std::string name, int group_rows, int 
     all_groups_.resize(static_cast<std::size_t>(groups_));
     std::iota(all_groups_.begin(), all_groups_.end(), 0);
   } else {
-    users_.assign(static_cast<std::size_t>(groups_), 0);
+    users_ = std::vector<std::atomic<int>>(static_cast<std::size_t>(groups_));
   }
 }
 
@@ -539,14 +539,12 @@ bool NumpyRows::ask_jacobians(Held state, bool jacobians) const {
 void NumpyRows::refresh_cache(std::span<const int> groups, const double* base, bool jacobians,
                               bool asked) const {
   std::vector<int> wanted;
-  {
-    std::lock_guard<std::mutex> users(users_mutex_);
-    std::size_t next = 0;
-    for (int g = 0; g < groups_; ++g) {
-      const bool is_asked = next < groups.size() && groups[next] == g;
-      if (is_asked) ++next;
-      if (is_asked || users_[static_cast<std::size_t>(g)] > 0) wanted.push_back(g);
-    }
+  std::size_t next = 0;
+  for (int g = 0; g < groups_; ++g) {
+    const bool is_asked = next < groups.size() && groups[next] == g;
+    if (is_asked) ++next;
+    if (is_asked || users_[static_cast<std::size_t>(g)].load(std::memory_order_relaxed) > 0)
+      wanted.push_back(g);
   }
   cache_ = Cache{};  // its arrays freed first: the function's new ones can take their memory
   Cache fresh;
@@ -638,14 +636,12 @@ void NumpyRows::forget() const {
 
 void NumpyRows::acquire(std::span<const int> groups) const {
   if (single_block_) return;
-  std::lock_guard<std::mutex> lock(users_mutex_);
-  for (int g : groups) ++users_[static_cast<std::size_t>(g)];
+  for (int g : groups) users_[static_cast<std::size_t>(g)].fetch_add(1, std::memory_order_relaxed);
 }
 
 void NumpyRows::release(std::span<const int> groups) const noexcept {
   if (single_block_) return;
-  std::lock_guard<std::mutex> lock(users_mutex_);
-  for (int g : groups) --users_[static_cast<std::size_t>(g)];
+  for (int g : groups) users_[static_cast<std::size_t>(g)].fetch_sub(1, std::memory_order_relaxed);
 }
 
 }  // namespace carat::python

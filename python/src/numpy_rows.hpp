@@ -357,8 +357,9 @@ class NumpyRows {
   mutable bool ahead_ = true;  // cost passes ask for Jacobians (cache_mutex_ held)
   mutable std::mutex cache_mutex_;
   mutable Cache cache_;
-  mutable std::mutex users_mutex_;           // never held while waiting for the GIL
-  mutable std::vector<int> users_;           // per group: blocks that use it
+  // Per group: blocks that use it (counts only: a block made during a refresh that misses it
+  // asks for its group itself).
+  mutable std::vector<std::atomic<int>> users_;
   std::vector<std::size_t> variable_start_;  // where each variable's values lie in Cache::values
   std::size_t values_size_ = 0;              // doubles of Cache::values
 };
