@@ -100,11 +100,16 @@ void build_pattern(SchurStructure& s) {
 
 }  // namespace
 
-void check_eliminable_group(const Problem& problem, const std::vector<char>& eliminate) {
-  std::vector<char> eliminated(eliminate.size(), 0);
+std::vector<char> free_marked(const Problem& problem, const std::vector<char>& eliminate) {
+  std::vector<char> marked(eliminate.size(), 0);
   for (std::size_t v = 0; v < eliminate.size(); ++v) {
-    eliminated[v] = eliminate[v] && !problem.is_constant(VariableId{static_cast<int>(v)});
+    marked[v] = eliminate[v] && !problem.is_constant(VariableId{static_cast<int>(v)});
   }
+  return marked;
+}
+
+void check_eliminable_group(const Problem& problem, const std::vector<char>& eliminate) {
+  const std::vector<char> eliminated = free_marked(problem, eliminate);
   const auto blocks = problem.blocks();
   for (std::size_t bi = 0; bi < blocks.size(); ++bi) {
     int first = -1;

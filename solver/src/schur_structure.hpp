@@ -19,6 +19,10 @@
 
 namespace carat::internal {
 
+/// One char per variable: 1 where `eliminate` marks it and it is not constant (the variables a
+/// Schur complement eliminates).
+std::vector<char> free_marked(const Problem& problem, const std::vector<char>& eliminate);
+
 /// Throws carat::Error naming the block and the two variables when a residual block connects
 /// two free variables marked in `eliminate` (one char per variable; the eliminated variables
 /// must not share a block).

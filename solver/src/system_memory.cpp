@@ -7,6 +7,7 @@
 
 #include "block_variables.hpp"
 #include "fill_estimate.hpp"
+#include "schur_structure.hpp"
 
 namespace carat::internal {
 namespace {
@@ -80,10 +81,7 @@ SchurMemory schur_system_bytes(const Problem& problem, const std::vector<char>& 
   // (eliminated variable, kept node) of every block with an eliminated variable; kept nodes
   // that share a block directly.
   const auto num_vars = static_cast<std::size_t>(problem.num_variables());
-  std::vector<char> eliminated(num_vars, 0);
-  for (std::size_t v = 0; v < num_vars; ++v) {
-    eliminated[v] = eliminate[v] && !problem.is_constant(VariableId{static_cast<int>(v)});
-  }
+  const std::vector<char> eliminated = free_marked(problem, eliminate);
   std::vector<std::pair<int, int>> found;
   found.reserve(problem.blocks().size());
   for (const auto& entry : problem.blocks()) {
