@@ -9,8 +9,11 @@ finite-difference Jacobians through the sparsity pattern. carat gets the same mo
 (bal_numpy.py) as one add_rows() call, one group of two rows per observation over its camera
 and its point (points eliminated by the Schur complement), with analytic Jacobians; and, as
 references, the same with the residuals alone (carat's central differences) and carat's C++
-SnavelyReprojectionBlock. Times are wall seconds of building the problem plus solving it, all
-in this one process, medians over --repeat runs taken in turn. Prints a table (or JSON with
+SnavelyReprojectionBlock. carat runs on one thread, and the numpy model once more on --threads
+(SciPy's recipe has no threads to give: its finite differences call the residual column group
+after column group, and LSMR multiplies one sparse matrix at a time). Times are wall seconds of
+building the problem plus solving it, all in this one process, medians over --repeat runs taken
+in turn. Prints a table (or JSON with
 --json); exits 1 if a carat solve ends above SciPy's final cost, 77 (skipped) without SciPy.
 
     PYTHONPATH=build/python python3 examples/python/bundle_adjustment_vs_scipy.py [--points N]
@@ -70,7 +73,7 @@ def scipy_solve(scene):
             "evaluations": int(result.nfev), "jacobians": int(result.njev)}
 
 
-def carat_solve(scene, residuals):
+def carat_solve(scene, residuals, threads=1):
     """carat: 'numpy' (analytic Jacobians), 'numpy-differences' (residuals alone) or 'c++'."""
     start = time.perf_counter()
     cameras, points = scene["cameras"], scene["points"]
@@ -92,7 +95,7 @@ def carat_solve(scene, residuals):
 
         problem.add_rows(reprojection, [camera_ids[ci], point_ids[pi]], rows=2 * len(ci), group=2,
                          name="reprojection")
-    summary = carat.solve(problem)
+    summary = carat.solve(problem, threads=threads)
     return {"time_s": time.perf_counter() - start, "solve_s": summary.time_s,
             "final_cost": summary.final_cost, "iterations": summary.iterations}
 
@@ -103,6 +106,8 @@ def main():
     parser.add_argument("--points", type=int, default=22106)
     parser.add_argument("--seed", type=int, default=7)
     parser.add_argument("--repeat", type=int, default=1, help="runs of each method (medians)")
+    parser.add_argument("--threads", type=int, default=2,
+                        help="threads of the second numpy run (1: no second run)")
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
     try:
@@ -116,6 +121,9 @@ def main():
         runs.setdefault("scipy", []).append(scipy_solve(scene))
         for residuals in ("numpy", "numpy-differences", "c++"):
             runs.setdefault("carat " + residuals, []).append(carat_solve(scene, residuals))
+        if args.threads > 1:
+            runs.setdefault(f"carat numpy, {args.threads} threads", []).append(
+                carat_solve(scene, "numpy", args.threads))
     results = {}
     for name, rs in runs.items():
         results[name] = dict(rs[0])

@@ -117,7 +117,7 @@ NumpyRows::NumpyRows(py::object function, std::string name, int group_rows, int 
 }
 
 NumpyRows::~NumpyRows() {
-  cache_.evaluation.reset();
+  publish(nullptr);
   for (py::object& spare : spare_) drop(spare);
   drop(all_rows_);
   drop(function_);
@@ -478,55 +478,45 @@ const double* NumpyRows::common_base(std::span<const int> block_variables,
 }
 
 template <class SlotOf>
-NumpyRows::Held NumpyRows::held_where(std::size_t num_slots, SlotOf slot_of,
+NumpyRows::Held NumpyRows::held_where(const Cache* kept, std::size_t num_slots, SlotOf slot_of,
                                       ParameterPointers params, std::span<const int> groups) const {
-  const RowsEvaluation* evaluation = cache_.evaluation.get();
-  if (evaluation == nullptr || (!groups.empty() && cache_.group_position.empty())) {
-    return Held::kNo;
-  }
+  if (kept == nullptr || (!groups.empty() && kept->group_position.empty())) return Held::kNo;
   for (std::size_t j = 0; j < num_slots; ++j) {
     const HeldSlot slot = slot_of(j);
     // The same bits (as memcmp; a few numbers, inline: this runs once per block per pass).
-    const double* kept = cache_.values.data() + slot.start;
+    const double* value = kept->values.data() + slot.start;
     for (int e = 0; e < slot.ambient; ++e) {
       std::uint64_t a = 0;
       std::uint64_t b = 0;
       std::memcpy(&a, params[j] + e, sizeof(a));
-      std::memcpy(&b, kept + e, sizeof(b));
+      std::memcpy(&b, value + e, sizeof(b));
       if (a != b) return Held::kNo;
     }
   }
   for (int g : groups) {
-    if (cache_.group_position[static_cast<std::size_t>(g)] < 0) return Held::kNo;
+    if (kept->group_position[static_cast<std::size_t>(g)] < 0) return Held::kNo;
   }
-  return cache_.jacobians ? Held::kWithJacobians : Held::kResidualsOnly;
+  return kept->jacobians ? Held::kWithJacobians : Held::kResidualsOnly;
 }
 
-NumpyRows::Held NumpyRows::held_at(std::span<const HeldSlot> slots, ParameterPointers params,
-                                   std::span<const int> groups) const {
+NumpyRows::Held NumpyRows::held_at(const Cache& kept, std::span<const HeldSlot> slots,
+                                   ParameterPointers params, std::span<const int> groups) const {
   return held_where(
-      slots.size(), [&](std::size_t j) { return slots[j]; }, params, groups);
+      &kept, slots.size(), [&](std::size_t j) { return slots[j]; }, params, groups);
 }
 
 NumpyRows::Held NumpyRows::held(std::span<const int> block_variables, ParameterPointers params,
                                 std::span<const int> groups) const {
   return held_where(
-      block_variables.size(), [&](std::size_t j) { return held_slot(block_variables[j]); }, params,
-      groups);
-}
-
-bool NumpyRows::serves(Held state, bool jacobians) const {
-  if (state == Held::kWithJacobians) {
-    if (jacobians) cache_.linearized = true;
-    return true;
-  }
-  return state == Held::kResidualsOnly && !jacobians;
+      cache(), block_variables.size(), [&](std::size_t j) { return held_slot(block_variables[j]); },
+      params, groups);
 }
 
 bool NumpyRows::ask_jacobians(Held state, bool jacobians) const {
   if (state == Held::kResidualsOnly && jacobians) {
     ahead_ = true;  // a linearization at the last cost pass's point
-  } else if (state == Held::kNo && !jacobians && cache_.ahead && !cache_.linearized) {
+  } else if (state == Held::kNo && !jacobians && cache() != nullptr && cache()->ahead &&
+             !cache()->linearized.load(std::memory_order_relaxed)) {
     ahead_ = false;  // a cost pass after one with Jacobians asked ahead: a rejected step
   }
   if (jacobians) return true;
@@ -546,22 +536,22 @@ void NumpyRows::refresh_cache(std::span<const int> groups, const double* base, b
     if (is_asked || users_[static_cast<std::size_t>(g)].load(std::memory_order_relaxed) > 0)
       wanted.push_back(g);
   }
-  cache_ = Cache{};  // its arrays freed first: the function's new ones can take their memory
-  Cache fresh;
-  fresh.evaluation = evaluate_groups(wanted, Source{{}, base}, asked, asked && !jacobians);
-  fresh.jacobians = fresh.evaluation->has_jacobians();
-  fresh.ahead = fresh.jacobians && !jacobians;
-  fresh.linearized = jacobians;
-  fresh.values.resize(values_size_);
+  publish(nullptr);  // its arrays freed first: the function's new ones can take their memory
+  auto fresh = std::make_unique<Cache>();
+  fresh->evaluation = evaluate_groups(wanted, Source{{}, base}, asked, asked && !jacobians);
+  fresh->jacobians = fresh->evaluation->has_jacobians();
+  fresh->ahead = fresh->jacobians && !jacobians;
+  fresh->linearized.store(jacobians, std::memory_order_relaxed);
+  fresh->values.resize(values_size_);
   for (std::size_t v = 0; v < variables_.size(); ++v) {
     std::copy_n(base + variables_[v].offset, variables_[v].ambient,
-                fresh.values.data() + variable_start_[v]);
+                fresh->values.data() + variable_start_[v]);
   }
-  fresh.group_position.assign(static_cast<std::size_t>(groups_), -1);
+  fresh->group_position.assign(static_cast<std::size_t>(groups_), -1);
   for (std::size_t w = 0; w < wanted.size(); ++w) {
-    fresh.group_position[static_cast<std::size_t>(wanted[w])] = static_cast<std::int64_t>(w);
+    fresh->group_position[static_cast<std::size_t>(wanted[w])] = static_cast<std::int64_t>(w);
   }
-  std::swap(cache_, fresh);
+  publish(std::move(fresh));
 }
 
 std::shared_ptr<const RowsEvaluation> NumpyRows::evaluate_all(std::span<const int> block_variables,
@@ -569,22 +559,22 @@ std::shared_ptr<const RowsEvaluation> NumpyRows::evaluate_all(std::span<const in
                                                               bool jacobians) const {
   std::lock_guard<std::mutex> lock(cache_mutex_);
   const Held state = held(block_variables, params, {});
-  if (serves(state, jacobians)) return cache_.evaluation;
+  if (serves(state, jacobians)) return cache()->evaluation;
   const bool asked = ask_jacobians(state, jacobians);
-  cache_ = Cache{};  // its arrays freed first: the function's new ones can take their memory
-  Cache fresh;
-  fresh.evaluation =
+  publish(nullptr);  // its arrays freed first: the function's new ones can take their memory
+  auto fresh = std::make_unique<Cache>();
+  fresh->evaluation =
       evaluate_groups(all_groups_, Source{params, nullptr}, asked, asked && !jacobians);
-  fresh.jacobians = fresh.evaluation->has_jacobians();
-  fresh.ahead = fresh.jacobians && !jacobians;
-  fresh.linearized = jacobians;
-  fresh.values.resize(values_size_);
+  fresh->jacobians = fresh->evaluation->has_jacobians();
+  fresh->ahead = fresh->jacobians && !jacobians;
+  fresh->linearized.store(jacobians, std::memory_order_relaxed);
+  fresh->values.resize(values_size_);
   for (std::size_t j = 0; j < block_variables.size(); ++j) {
     const auto v = static_cast<std::size_t>(block_variables[j]);
-    std::copy_n(params[j], variables_[v].ambient, fresh.values.data() + variable_start_[v]);
+    std::copy_n(params[j], variables_[v].ambient, fresh->values.data() + variable_start_[v]);
   }
-  std::swap(cache_, fresh);
-  return cache_.evaluation;
+  publish(std::move(fresh));
+  return cache()->evaluation;
 }
 
 std::shared_ptr<const RowsEvaluation> NumpyRows::lookup(std::span<const int> block_variables,
@@ -601,10 +591,10 @@ std::shared_ptr<const RowsEvaluation> NumpyRows::lookup(std::span<const int> blo
     if (hit || base != nullptr) {
       for (std::size_t q = 0; q < groups.size(); ++q) {
         (*positions)[q] =
-            static_cast<std::size_t>(cache_.group_position[static_cast<std::size_t>(groups[q])]) *
+            static_cast<std::size_t>(cache()->group_position[static_cast<std::size_t>(groups[q])]) *
             static_cast<std::size_t>(group_rows_);
       }
-      return cache_.evaluation;
+      return cache()->evaluation;
     }
   }
   // Values that need not lie in an array of the problem's layout: these groups alone.
@@ -619,19 +609,19 @@ const RowsEvaluation* NumpyRows::kept_group(std::span<const HeldSlot> slots,
                                             ParameterPointers params, int group, bool jacobians,
                                             std::size_t* w) const {
   const std::span<const int> groups(&group, 1);
-  const Held state = held_at(slots, params, groups);
+  const Held state = cache() ? held_at(*cache(), slots, params, groups) : Held::kNo;
   const bool hit = serves(state, jacobians);
   const double* base = hit ? nullptr : common_base(block_variables, params);
   if (base != nullptr) refresh_cache(groups, base, jacobians, ask_jacobians(state, jacobians));
   if (!hit && base == nullptr) return nullptr;
-  *w = static_cast<std::size_t>(cache_.group_position[static_cast<std::size_t>(group)]);
-  return cache_.evaluation.get();
+  *w = static_cast<std::size_t>(cache()->group_position[static_cast<std::size_t>(group)]);
+  return cache()->evaluation.get();
 }
 
 void NumpyRows::forget() const {
   std::lock_guard<std::mutex> lock(cache_mutex_);
   likely_final_.store(false);
-  cache_ = Cache{};
+  publish(nullptr);
 }
 
 void NumpyRows::acquire(std::span<const int> groups) const {

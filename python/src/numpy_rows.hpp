@@ -12,7 +12,8 @@
 /// groups with the same variables form one residual block (numpy_rows_block.hpp). When there are
 /// several such blocks, evaluating them one by one would cost a Python call per block, so the
 /// batch keeps the last evaluation of all its active groups and serves every block from it while
-/// that block's variables hold the same values (see lookup()). A batch of one block keeps its
+/// that block's variables hold the same values (see lookup()); an observation's block reads it
+/// without the batch's lock (carat/base/read_mostly.hpp). A batch of one block keeps its
 /// last whole evaluation the same way (evaluate_all()).
 ///
 /// Jacobians ahead: a cost pass (residuals only) whose point is then linearized costs a second
@@ -47,6 +48,7 @@
 #include <vector>
 
 #include "callback_errors.hpp"
+#include "carat/base/read_mostly.hpp"
 #include "carat/solver/loss_function.hpp"
 #include "carat/solver/residual_block.hpp"
 #include "carat/solver/variable_id.hpp"
@@ -234,11 +236,22 @@ class NumpyRows {
   /// lookup() for a block of one group (`slots`: held_slot() of each of its variables, which are
   /// `block_variables`): calls read(evaluation, w) with an evaluation holding group `group` at
   /// `params` as its w-th group (its rows start at w * group_rows()). The evaluation is valid only
-  /// during the call, which holds the batch's lock when served from the kept evaluation (`read`
-  /// only reads numbers).
+  /// during the call (`read` only reads numbers). A kept evaluation that serves the block is read
+  /// without the batch's lock (see Reader), so that threads reading observations side by side do
+  /// not queue for it; a refresh takes the lock.
   template <class Read>
   void read_group(std::span<const HeldSlot> slots, std::span<const int> block_variables,
                   ParameterPointers params, int group, bool jacobians, Read&& read) const {
+    const std::span<const int> groups(&group, 1);
+    {
+      const ReadMostly<Cache>::Read held = kept_.read();
+      const Cache* kept = held.get();
+      if (kept != nullptr && serves(*kept, held_at(*kept, slots, params, groups), jacobians)) {
+        read(*kept->evaluation,
+             static_cast<std::size_t>(kept->group_position[static_cast<std::size_t>(group)]));
+        return;
+      }
+    }
     {
       std::lock_guard<std::mutex> lock(cache_mutex_);
       std::size_t w = 0;
@@ -248,7 +261,6 @@ class NumpyRows {
         return;
       }
     }
-    const std::span<const int> groups(&group, 1);
     const std::shared_ptr<const RowsEvaluation> own =
         evaluate_groups(groups, Source{params, nullptr}, jacobians);
     read(*own, std::size_t{0});
@@ -269,6 +281,16 @@ class NumpyRows {
   void release(std::span<const int> groups) const noexcept;
 
  private:
+  // lookup()'s last evaluation, the values it was made at and where each group lies in it.
+  // Immutable once published, but for `linearized`.
+  struct Cache {
+    std::shared_ptr<const RowsEvaluation> evaluation;
+    std::vector<double> values;                // each variable at variable_start_[v]
+    std::vector<std::int64_t> group_position;  // each group's index in it, -1: not held
+    bool jacobians = false;
+    bool ahead = false;                            // Jacobians asked on a cost pass
+    mutable std::atomic<bool> linearized = false;  // a request for Jacobians was served from it
+  };
   /// Where one evaluation reads its values: one block's parameters (every group the same) or an
   /// array in the problem's layout.
   struct Source {
@@ -306,10 +328,10 @@ class NumpyRows {
   /// held() for the variables whose places among the kept values slot_of(j) gives, j <
   /// num_slots (defined and used in numpy_rows.cpp).
   template <class SlotOf>
-  Held held_where(std::size_t num_slots, SlotOf slot_of, ParameterPointers params,
-                  std::span<const int> groups) const;
-  /// held() for a block whose variables lie at `slots` among the kept values.
-  Held held_at(std::span<const HeldSlot> slots, ParameterPointers params,
+  Held held_where(const Cache* kept, std::size_t num_slots, SlotOf slot_of,
+                  ParameterPointers params, std::span<const int> groups) const;
+  /// held() in `kept` for a block whose variables lie at `slots` among the kept values.
+  Held held_at(const Cache& kept, std::span<const HeldSlot> slots, ParameterPointers params,
                std::span<const int> groups) const;
   /// read_group()'s look-up (cache_mutex_ held): the kept evaluation, refreshed first when the
   /// block's values lie in the problem's layout and it does not serve them, and in *w the
@@ -317,9 +339,21 @@ class NumpyRows {
   const RowsEvaluation* kept_group(std::span<const HeldSlot> slots,
                                    std::span<const int> block_variables, ParameterPointers params,
                                    int group, bool jacobians, std::size_t* w) const;
-  /// Whether a request (`jacobians` or not) for what the cache holds as `state` is served from it;
-  /// notes a linearization served (cache_mutex_ held).
-  bool serves(Held state, bool jacobians) const;
+  /// Whether a request (`jacobians` or not) for what `kept` holds as `state` is served from it;
+  /// notes a linearization served.
+  static bool serves(const Cache& kept, Held state, bool jacobians) {
+    if (state == Held::kWithJacobians) {
+      if (jacobians && !kept.linearized.load(std::memory_order_relaxed)) {
+        kept.linearized.store(true, std::memory_order_relaxed);
+      }
+      return true;
+    }
+    return state == Held::kResidualsOnly && !jacobians;
+  }
+  /// serves() for the kept evaluation, if any (cache_mutex_ held).
+  bool serves(Held state, bool jacobians) const {
+    return cache() != nullptr && serves(*cache(), state, jacobians);
+  }
   /// Whether an evaluation asked with `jacobians` after a cache miss of `state` asks for the
   /// Jacobians (ahead when not asked); updates the policy (cache_mutex_ held).
   bool ask_jacobians(Held state, bool jacobians) const;
@@ -345,18 +379,15 @@ class NumpyRows {
   mutable std::atomic<bool> jacobians_returned_{false};  // the last Jacobians came from it
   mutable std::atomic<bool> likely_final_{false};        // hint_final()
 
-  // lookup()'s last evaluation, the values it was made at and where each group lies in it.
-  struct Cache {
-    std::shared_ptr<const RowsEvaluation> evaluation;
-    std::vector<double> values;                // each variable at variable_start_[v]
-    std::vector<std::int64_t> group_position;  // each group's index in it, -1: not held
-    bool jacobians = false;
-    bool ahead = false;       // Jacobians asked on a cost pass
-    bool linearized = false;  // a request for Jacobians was served from it
-  };
+  /// Makes `fresh` (or nothing) the kept evaluation; the replaced one is freed once no reader
+  /// holds it (cache_mutex_ held).
+  void publish(std::unique_ptr<Cache> fresh) const { kept_.replace(std::move(fresh)); }
+  /// The kept evaluation, or null (cache_mutex_ held).
+  const Cache* cache() const { return kept_.current(); }
+
   mutable bool ahead_ = true;  // cost passes ask for Jacobians (cache_mutex_ held)
   mutable std::mutex cache_mutex_;
-  mutable Cache cache_;
+  mutable ReadMostly<Cache> kept_;  // replaced under cache_mutex_, read without it
   // Per group: blocks that use it (counts only: a block made during a refresh that misses it
   // asks for its group itself).
   mutable std::vector<std::atomic<int>> users_;

@@ -434,6 +434,31 @@ def test_bundle_adjustment_rows_match_carats_reprojection_blocks():
     np.testing.assert_allclose(rows.value(x2), cpp.value(x1), rtol=1e-10, atol=1e-10)
 
 
+def test_threads_reading_one_batch_side_by_side_reach_the_one_thread_solution():
+    # Enough observations that two threads split every pass, each reading the batch's kept
+    # evaluation while the other may replace it (at each new point's first block).
+    scene = carat.simulate_bal(cameras=4, points=3000, observations_per_point=3, seed=5)
+    ci, pi, observed = scene["camera_index"], scene["point_index"], scene["observed"]
+    results = []
+    for threads in (1, 2, 2):
+        p = carat.Problem()
+        cameras, points = p.add_euclidean(scene["cameras"]), p.add_euclidean(scene["points"])
+        p.set_eliminable(points)
+
+        def reprojection(camera, point, rows):
+            image, J_camera, J_point = project(camera, point)
+            return image - observed[rows[::2] // 2], [J_camera, J_point]
+
+        p.add_rows(reprojection, [cameras[ci], points[pi]], rows=2 * len(ci), group=2)
+        s = carat.solve(p, threads=threads, function_tolerance=1e-10, lm_start="trust_region")
+        assert s.termination == "CONVERGENCE"
+        results.append((s.final_cost, p.value(cameras), p.value(points)))
+    for cost, camera_values, point_values in results[1:]:  # results do not depend on threads
+        assert cost == results[0][0]
+        np.testing.assert_array_equal(camera_values, results[0][1])
+        np.testing.assert_array_equal(point_values, results[0][2])
+
+
 def test_gicp_block_recovers_the_relative_pose():
     rng = np.random.default_rng(4)
     target = rng.uniform(-5.0, 5.0, size=(60, 3))
