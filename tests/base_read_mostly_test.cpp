@@ -1,7 +1,8 @@
 // ReadMostly: a value read without a lock while a writer replaces it. A replaced value lives while
-// a reader holds it and is freed afterwards; readers racing a writer only ever see whole, live
-// values (the sanitizer build catches a read of a freed one); reader numbers are distinct among
-// running threads and reused once a thread ends.
+// a reader holds it and is freed afterwards; a thread's second Read, or a read before reads are
+// enabled, is empty; readers racing a writer only ever see whole, live values (the sanitizer build
+// catches a read of a freed one); reader numbers are distinct among running threads and reused
+// once a thread ends.
 #include <gtest/gtest.h>
 
 #include <array>
@@ -36,6 +37,11 @@ struct Value {
 TEST(ReadMostlyTest, AReplacedValueLivesWhileReadAndIsFreedAfterwards) {
   {
     ReadMostly<Value> value;
+    value.replace(std::make_unique<Value>(1));
+    EXPECT_EQ(value.read().get(), nullptr);  // reads not enabled: the caller takes its lock
+    value.replace(nullptr);
+    EXPECT_EQ(g_alive.load(), 0);  // nothing could read it: freed at once
+    value.enable_reads();
     EXPECT_EQ(value.read().get(), nullptr);
     value.replace(std::make_unique<Value>(1));
     EXPECT_EQ(g_alive.load(), 1);
@@ -46,9 +52,11 @@ TEST(ReadMostlyTest, AReplacedValueLivesWhileReadAndIsFreedAfterwards) {
       value.replace(std::make_unique<Value>(2));
       EXPECT_EQ(value.retired(), 1u);
       EXPECT_EQ(g_alive.load(), 2);
-      EXPECT_EQ(held.get()->numbers[15], 1);  // still the value it read
-      EXPECT_EQ(value.read().get()->numbers[0], 2);
+      EXPECT_EQ(held.get()->numbers[15], 1);   // still the value it read
+      EXPECT_EQ(value.read().get(), nullptr);  // this thread's second Read
+      EXPECT_EQ(value.current()->numbers[0], 2);
     }
+    EXPECT_EQ(value.read().get()->numbers[0], 2);
     value.replace(std::make_unique<Value>(3));  // nothing holds 1 or 2 any more
     EXPECT_EQ(value.retired(), 0u);
     EXPECT_EQ(g_alive.load(), 1);
@@ -66,6 +74,7 @@ TEST(ReadMostlyTest, AReplacedValueLivesWhileReadAndIsFreedAfterwards) {
 
 TEST(ReadMostlyTest, ReadersRacingAWriterSeeOnlyWholeLiveValues) {
   ReadMostly<Value> value;
+  value.enable_reads();
   value.replace(std::make_unique<Value>(0));
   std::atomic<bool> stop{false};
   std::atomic<long> torn{0};

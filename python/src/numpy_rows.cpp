@@ -113,6 +113,7 @@ NumpyRows::NumpyRows(py::object function, std::string name, int group_rows, int 
     std::iota(all_groups_.begin(), all_groups_.end(), 0);
   } else {
     users_ = std::vector<std::atomic<int>>(static_cast<std::size_t>(groups_));
+    kept_.enable_reads();  // observations' blocks read the kept evaluation without the lock
   }
 }
 
@@ -536,7 +537,9 @@ void NumpyRows::refresh_cache(std::span<const int> groups, const double* base, b
     if (is_asked || users_[static_cast<std::size_t>(g)].load(std::memory_order_relaxed) > 0)
       wanted.push_back(g);
   }
-  publish(nullptr);  // its arrays freed first: the function's new ones can take their memory
+  // Its arrays freed first (unless a thread is reading it this instant): the function's new ones
+  // can take their memory.
+  publish(nullptr);
   auto fresh = std::make_unique<Cache>();
   fresh->evaluation = evaluate_groups(wanted, Source{{}, base}, asked, asked && !jacobians);
   fresh->jacobians = fresh->evaluation->has_jacobians();
@@ -561,7 +564,9 @@ std::shared_ptr<const RowsEvaluation> NumpyRows::evaluate_all(std::span<const in
   const Held state = held(block_variables, params, {});
   if (serves(state, jacobians)) return cache()->evaluation;
   const bool asked = ask_jacobians(state, jacobians);
-  publish(nullptr);  // its arrays freed first: the function's new ones can take their memory
+  // Its arrays freed first (unless a thread is reading it this instant): the function's new ones
+  // can take their memory.
+  publish(nullptr);
   auto fresh = std::make_unique<Cache>();
   fresh->evaluation =
       evaluate_groups(all_groups_, Source{params, nullptr}, asked, asked && !jacobians);

@@ -237,8 +237,8 @@ class NumpyRows {
   /// `block_variables`): calls read(evaluation, w) with an evaluation holding group `group` at
   /// `params` as its w-th group (its rows start at w * group_rows()). The evaluation is valid only
   /// during the call (`read` only reads numbers). A kept evaluation that serves the block is read
-  /// without the batch's lock (see Reader), so that threads reading observations side by side do
-  /// not queue for it; a refresh takes the lock.
+  /// without the batch's lock (kept_, a ReadMostly), so that threads reading observations side by
+  /// side do not queue for it; a refresh takes the lock.
   template <class Read>
   void read_group(std::span<const HeldSlot> slots, std::span<const int> block_variables,
                   ParameterPointers params, int group, bool jacobians, Read&& read) const {
@@ -380,7 +380,7 @@ class NumpyRows {
   mutable std::atomic<bool> likely_final_{false};        // hint_final()
 
   /// Makes `fresh` (or nothing) the kept evaluation; the replaced one is freed once no reader
-  /// holds it (cache_mutex_ held).
+  /// holds it (cache_mutex_ held, or no other thread left: the destructor).
   void publish(std::unique_ptr<Cache> fresh) const { kept_.replace(std::move(fresh)); }
   /// The kept evaluation, or null (cache_mutex_ held).
   const Cache* cache() const { return kept_.current(); }

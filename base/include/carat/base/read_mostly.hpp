@@ -4,8 +4,11 @@
 /// evaluation every residual block of a pass reads. A reader marks the value it reads in a slot of
 /// its own (a hazard pointer: one cache line per thread, so readers never write a line another
 /// thread writes); a replaced value is freed only once no slot marks it. Replacements are the
-/// caller's to serialize (its own lock); reading costs two loads and two stores, no atomic
-/// read-modify-write.
+/// caller's to serialize (its own lock); a read costs two loads of the shared pointer and two
+/// stores to the thread's own slot (the first a full fence), and writes no line another thread
+/// reads in the meantime. A thread holds one Read of a ReadMostly at a time: a second read() while
+/// the first lives is empty (the caller then takes its lock), as is every read() before
+/// enable_reads().
 
 #include <algorithm>
 #include <atomic>
@@ -25,7 +28,8 @@ class ReadMostly {
   /// Threads that read without the lock (reader_number() below it); others get an empty Read.
   static constexpr int kReaders = 64;
 
-  /// The current value as a reader holds it: valid while the Read lives.
+  /// The current value as a reader holds it: valid while the Read lives, which ends on the thread
+  /// that read it.
   class Read {
    public:
     Read() = default;
@@ -48,18 +52,27 @@ class ReadMostly {
     std::atomic<const T*>* mark_ = nullptr;
   };
 
-  ReadMostly() : readers_(std::make_unique<Reader[]>(kReaders)) {}
+  ReadMostly() = default;
   ReadMostly(const ReadMostly&) = delete;
   ReadMostly& operator=(const ReadMostly&) = delete;
   /// Frees every value; no Read may outlive it.
   ~ReadMostly() = default;
 
-  /// The current value, marked for this thread until the Read ends (empty when none is set or
-  /// the thread's reader_number() is kReaders or more).
+  /// Lets read() mark values (allocates the readers' slots, kReaders cache lines); call it before
+  /// any thread reads.
+  void enable_reads() {
+    if (readers_ == nullptr) readers_ = std::make_unique<Reader[]>(kReaders);
+  }
+
+  /// The current value, marked for this thread until the Read ends (empty when none is set,
+  /// reads are not enabled, the thread's reader_number() is kReaders or more, or the thread
+  /// already holds a Read of this ReadMostly).
   Read read() const {
+    if (readers_ == nullptr) return {};
     const int number = reader_number();
     if (number >= kReaders) return {};
     std::atomic<const T*>& mark = readers_[static_cast<std::size_t>(number)].mark;
+    if (mark.load(std::memory_order_relaxed) != nullptr) return {};  // a Read of its own lives
     const T* value = current_.load(std::memory_order_acquire);
     while (value != nullptr) {
       mark.store(value, std::memory_order_seq_cst);
@@ -78,9 +91,14 @@ class ReadMostly {
   /// reads may. The replaced value is freed now if no Read holds it, else by a later replace() or
   /// the destructor.
   void replace(std::unique_ptr<T> fresh) {
+    retired_.reserve(retired_.size() + 1);  // nothing below throws once `fresh` is published
     current_.store(fresh.get(), std::memory_order_seq_cst);
     if (owned_ != nullptr) retired_.push_back(std::move(owned_));
     owned_ = std::move(fresh);
+    if (readers_ == nullptr) {  // nothing reads without the lock
+      retired_.clear();
+      return;
+    }
     std::erase_if(retired_, [&](const std::unique_ptr<T>& old) {
       for (int r = 0; r < kReaders; ++r) {
         if (readers_[static_cast<std::size_t>(r)].mark.load(std::memory_order_seq_cst) ==
