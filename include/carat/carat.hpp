@@ -13,6 +13,7 @@
 #include <carat/base/machine_memory.hpp>
 #include <carat/base/multiversion.hpp>
 #include <carat/base/output_folder.hpp>
+#include <carat/base/read_mostly.hpp>
 #include <carat/base/stage_times.hpp>
 #include <carat/base/statistics.hpp>
 #include <carat/base/stopwatch.hpp>
