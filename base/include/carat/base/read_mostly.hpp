@@ -32,13 +32,16 @@ class ReadMostly {
   /// that read it.
   class Read {
    public:
+    /// An empty Read (get() is null).
     Read() = default;
     Read(const Read&) = delete;
     Read& operator=(const Read&) = delete;
+    /// Takes over `other`'s mark (on the same thread); `other` is left unmarking nothing.
     Read(Read&& other) noexcept : value_(other.value_), mark_(other.mark_) {
       other.mark_ = nullptr;
     }
     Read& operator=(Read&&) = delete;
+    /// Unmarks the value: a writer may free it from now on.
     ~Read() {
       if (mark_ != nullptr) mark_->store(nullptr, std::memory_order_release);
     }
@@ -52,6 +55,7 @@ class ReadMostly {
     std::atomic<const T*>* mark_ = nullptr;
   };
 
+  /// No value, reads not yet enabled.
   ReadMostly() = default;
   ReadMostly(const ReadMostly&) = delete;
   ReadMostly& operator=(const ReadMostly&) = delete;
