@@ -407,6 +407,7 @@ GlobalRegistrationOptions unusual_options() {
   v.max_lm_diagonal = 1e30;
   v.reuse_factorization = !v.reuse_factorization;
   v.factor_reuse_ratio = 1.2;
+  v.anderson_memory = 3;
   v.num_threads = 5;
   v.record_iterations = !v.record_iterations;
   v.iteration_callback = [](const IterationSummary&) { return CallbackResult::kAbort; };
@@ -462,6 +463,7 @@ TEST(OptionBytesTest, EveryFieldButTheCallbacksRoundTrips) {
   EXPECT_EQ(a.max_lm_diagonal, b.max_lm_diagonal);
   EXPECT_EQ(a.reuse_factorization, b.reuse_factorization);
   EXPECT_EQ(a.factor_reuse_ratio, b.factor_reuse_ratio);
+  EXPECT_EQ(a.anderson_memory, b.anderson_memory);
   EXPECT_EQ(a.num_threads, b.num_threads);
   EXPECT_EQ(a.record_iterations, b.record_iterations);
   EXPECT_FALSE(a.iteration_callback);

@@ -76,5 +76,31 @@ TEST(FactorizationReuseTest, NeverKeptWithANonFiniteCost) {
   EXPECT_FALSE(internal::keeps_reused_step(reused(-inf, -inf), 0.0, 8.0, 0.0));
 }
 
+TEST(FactorizationReuseTest, ASlowTailIsMarkedWhetherOrNotReuseIsOn) {
+  SolverOptions options;
+  options.reuse_factorization = false;
+  EXPECT_TRUE(internal::is_slow_tail_step(accepted(std::nextafter(1.1, 2.0), 1.0), options));
+  EXPECT_FALSE(internal::is_slow_tail_step(accepted(1.1, 1.0), options));
+  EXPECT_FALSE(internal::is_slow_tail_step(accepted(2.0, 1e3 * 1e-9), options));
+  EXPECT_FALSE(internal::should_try_reuse(accepted(2.0, 1.0), options));
+}
+
+TEST(FactorizationReuseTest, AnAcceleratedTailKeepsStepsDownToATenthOfAFreshOne) {
+  // fresh decrease 1, cost 100, function tolerance 1e-6: the decrease must reach 0.1, whatever
+  // the ratio (Anderson's step has no model of its own).
+  EXPECT_TRUE(internal::keeps_accelerated_tail_step(reused(0.2, 0.1), 1.0, 100.0, 1e-6));
+  EXPECT_FALSE(internal::keeps_accelerated_tail_step(reused(1.0, std::nextafter(0.1, 0.0)), 1.0,
+                                                     100.0, 1e-6));
+  // Above the function tolerance strictly (cost 8, tolerance 1/4, fresh decrease 0) ...
+  EXPECT_TRUE(internal::keeps_accelerated_tail_step(reused(1.0, 2.5), 0.0, 8.0, 0.25));
+  // ... or, at or below it, a step that agrees with the model ends the solve as a probe would.
+  EXPECT_TRUE(internal::keeps_accelerated_tail_step(reused(0.9, 2.0), 0.0, 8.0, 0.25));
+  EXPECT_FALSE(internal::keeps_accelerated_tail_step(reused(0.4, 2.0), 0.0, 8.0, 0.25));
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_FALSE(internal::keeps_accelerated_tail_step(reused(nan, nan), 0.0, 8.0, 0.0));
+  const double inf = std::numeric_limits<double>::infinity();
+  EXPECT_FALSE(internal::keeps_accelerated_tail_step(reused(-inf, inf), 0.0, 8.0, 0.0));
+}
+
 }  // namespace
 }  // namespace carat

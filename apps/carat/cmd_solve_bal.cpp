@@ -1,6 +1,6 @@
 // carat solve-bal FILE [--out FILE] [--linear-solver auto|schur|cholesky] [--max-iterations N]
 //                      [--threads T] [--loss none|huber|cauchy] [--loss-scale S]
-//                      [--trust-region-growth G] [--no-factor-reuse]
+//                      [--trust-region-growth G] [--no-factor-reuse] [--anderson-memory M]
 //                      [--lm-start auto|gauss_newton|trust_region]
 //                      [--covariance FILE [--covariance-gauge error|pseudo-inverse]] [--json]
 #include <cstdio>
@@ -34,6 +34,7 @@ struct SolveBalArgs {
   double trust_region_growth = SolverOptions{}.max_trust_region_growth;
   std::string lm_start = to_string(SolverOptions{}.lm_start);
   bool no_factor_reuse = false;
+  int anderson_memory = SolverOptions{}.anderson_memory;
   std::string camera_steps = "centre";
   CovarianceRequest covariance;
   bool json = false;
@@ -65,6 +66,7 @@ int run_solve_bal(const CLI::App& command, const SolveBalArgs& args) {
   options.num_threads = args.threads;
   options.max_trust_region_growth = args.trust_region_growth;
   options.reuse_factorization = !args.no_factor_reuse;
+  options.anderson_memory = args.anderson_memory;
   options.lm_start = parse_lm_start(args.lm_start);
   const SolverSummary summary = solve(options, problem);
   if (summary.termination == TerminationType::kFailure) {
@@ -189,6 +191,10 @@ void register_solve_bal(CLI::App& app, CommandRegistry& registry) {
       ->capture_default_str();
   cmd->add_flag("--no-factor-reuse", args->no_factor_reuse,
                 "factorize afresh every iteration (no steps on an earlier factorization)");
+  cmd->add_option("--anderson-memory", args->anderson_memory,
+                  "steps Anderson's method combines in a slow tail (0: off; docs/cli.md)")
+      ->check(integer_in(0, 64))
+      ->capture_default_str();
   cmd->add_option("--camera-steps", args->camera_steps,
                   "how a camera steps: centre (rotation about its centre, and the centre; fewer "
                   "iterations far from the world origin) or parameters (added to its nine "

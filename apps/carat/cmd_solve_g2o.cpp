@@ -1,5 +1,6 @@
 // carat solve-g2o FILE [--out FILE] [--max-iterations N] [--threads T] [--method lm|gn]
 //                      [--loss none|huber|cauchy] [--loss-scale S] [--no-factor-reuse]
+//                      [--anderson-memory M]
 //                      [--trust-region-growth G] [--lm-start auto|gauss_newton|trust_region]
 //                      [--repair-information]
 //                      [--covariance FILE [--covariance-gauge error|pseudo-inverse]] [--json]
@@ -36,6 +37,7 @@ struct SolveG2oArgs {
   std::string loss = "none";
   double loss_scale = 1.0;
   bool no_factor_reuse = false;
+  int anderson_memory = SolverOptions{}.anderson_memory;
   bool repair_information = false;
   double trust_region_growth = SolverOptions{}.max_trust_region_growth;
   std::string lm_start = to_string(SolverOptions{}.lm_start);
@@ -64,6 +66,7 @@ int solve_graph(const SolveG2oArgs& args, Method method, LossKind loss,
   options.method = method;
   options.ordering = parse_ordering(args.ordering);
   options.reuse_factorization = !args.no_factor_reuse;
+  options.anderson_memory = args.anderson_memory;
   options.lm_start = parse_lm_start(args.lm_start);
   options.max_trust_region_growth = args.trust_region_growth;
   const SolverSummary summary = solve(options, built.problem);
@@ -136,6 +139,7 @@ int run_solve_g2o(const CLI::App& command, const SolveG2oArgs& args) {
   const bool lm = method == Method::kLevenbergMarquardt;
   refuse_unused(command, "--trust-region-growth", lm, "to --method gn");
   refuse_unused(command, "--no-factor-reuse", lm, "to --method gn");
+  refuse_unused(command, "--anderson-memory", lm, "to --method gn");
   refuse_unused(command, "--lm-start", lm, "to --method gn");
   if (!args.output.empty()) check_output_file("--out", args.output, {{"FILE", args.input}});
   check_covariance_request(command, args.covariance, {{"FILE", args.input}}, "--out", args.output);
@@ -178,6 +182,10 @@ void register_solve_g2o(CLI::App& app, CommandRegistry& registry) {
       ->capture_default_str();
   cmd->add_flag("--no-factor-reuse", args->no_factor_reuse,
                 "factorize afresh every iteration (no steps on an earlier factorization)");
+  cmd->add_option("--anderson-memory", args->anderson_memory,
+                  "steps Anderson's method combines in a slow tail (0: off; docs/cli.md)")
+      ->check(integer_in(0, 64))
+      ->capture_default_str();
   cmd->add_option("--lm-start", args->lm_start,
                   "how LM begins: gauss_newton (undamped steps while they keep their gain), "
                   "trust_region (Ceres's start) or auto (gauss_newton)")

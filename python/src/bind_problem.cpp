@@ -98,6 +98,8 @@ SolverOptions solver_options(const py::kwargs& kwargs, const char* who) {
         options.min_relative_decrease = value.cast<double>();
       } else if (key == "reuse_factorization") {
         options.reuse_factorization = value.cast<bool>();
+      } else if (key == "anderson_memory") {
+        options.anderson_memory = value.cast<int>();
       } else if (key == "threads") {
         options.num_threads = threads_argument(value.cast<int>());
       } else if (key == "check_blocks") {
@@ -438,8 +440,8 @@ Options as keywords: max_iterations (50), method ('lm' or 'gn'), linear_solver (
 parameter_tolerance (1e-8), initial_trust_region_radius, lm_start ('auto', 'gauss_newton',
 'trust_region'), gauss_newton_phase_radius (1e10), gauss_newton_phase_min_gain (0.5),
 max_trust_region_radius,
-max_trust_region_growth, min_relative_decrease, reuse_factorization, threads (1),
-check_blocks (False). Returns a carat.SolverSummary; raises carat.Error when the solve fails
+max_trust_region_growth, min_relative_decrease, reuse_factorization, anderson_memory (5),
+threads (1), check_blocks (False). Returns a carat.SolverSummary; raises carat.Error when the solve fails
 (e.g. a non-finite row at the start, naming the block and row) and re-raises an exception a
 residual function raised.)");
 

@@ -67,6 +67,21 @@ def test_curve_fit_reaches_the_dense_gauss_newton_optimum():
     assert "iter" in s.full_report() and s.iterations >= 1
 
 
+def test_anderson_memory_is_an_option_and_zero_turns_it_off():
+    X, Y = curve_data()
+    reference, _ = dense_gauss_newton(X, Y, np.array([0.3, 0.1]))
+    for memory in (0, 5):
+        p, v = curve_problem(X, Y)
+        s = carat.solve(p, anderson_memory=memory, **TIGHT)
+        assert s.termination == "CONVERGENCE"
+        np.testing.assert_allclose(p.value(v), reference, rtol=1e-10, atol=0)
+        if memory == 0:
+            assert s.to_dict()["accelerated_steps"] == 0
+    p, v = curve_problem(X, Y)
+    with pytest.raises(ValueError, match=r"^solve\(\): anderson_memory must be in \[0, 64\], got 65$"):
+        carat.solve(p, anderson_memory=65)
+
+
 def test_every_lm_start_reaches_the_same_optimum():
     X, Y = curve_data()
     reference, _ = dense_gauss_newton(X, Y, np.array([0.3, 0.1]))

@@ -13,7 +13,7 @@ namespace {
 static_assert(field_count<ReadOptions>() == 2, "option_serialization: write the new field");
 static_assert(field_count<PreprocessOptions>() == 4, "option_serialization: write the new field");
 static_assert(field_count<OpenScansOptions>() == 5, "option_serialization: write the new field");
-static_assert(field_count<SolverOptions>() == 26, "option_serialization: write the new field");
+static_assert(field_count<SolverOptions>() == 27, "option_serialization: write the new field");
 static_assert(field_count<GlobalRegistrationOptions>() == 14,
               "option_serialization: write the new field");
 static_assert(field_count<DenseGraphOptions>() == 5, "option_serialization: write the new field");
@@ -84,6 +84,7 @@ void write_options(ByteWriter& out, const SolverOptions& options) {
   out.put(options.max_lm_diagonal);
   put_bool(out, options.reuse_factorization);
   out.put(options.factor_reuse_ratio);
+  out.put(options.anderson_memory);
   out.put(options.num_threads);
   put_bool(out, options.record_iterations);
   // iteration_callback and evaluation_callback stay in their process.
@@ -174,6 +175,7 @@ SolverOptions read_solver_options(ByteReader& in) {
   options.max_lm_diagonal = in.get<double>();
   options.reuse_factorization = get_bool(in, "reuse_factorization");
   options.factor_reuse_ratio = in.get<double>();
+  options.anderson_memory = in.get<int>();
   options.num_threads = in.get<int>();
   options.record_iterations = get_bool(in, "record_iterations");
   options.update_state_every_iteration = get_bool(in, "update_state_every_iteration");

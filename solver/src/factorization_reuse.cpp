@@ -4,9 +4,13 @@
 
 namespace carat::internal {
 
-bool should_try_reuse(const StepQuality& accepted_step, const SolverOptions& options) {
-  return options.reuse_factorization && accepted_step.gain_ratio > options.factor_reuse_ratio &&
+bool is_slow_tail_step(const StepQuality& accepted_step, const SolverOptions& options) {
+  return accepted_step.gain_ratio > options.factor_reuse_ratio &&
          accepted_step.model_decrease > 1e3 * accepted_step.rounding;
+}
+
+bool should_try_reuse(const StepQuality& accepted_step, const SolverOptions& options) {
+  return options.reuse_factorization && is_slow_tail_step(accepted_step, options);
 }
 
 bool should_probe_convergence(const StepQuality& accepted_step, double cost,
@@ -27,6 +31,14 @@ bool keeps_reused_step(const StepQuality& step, double fresh_decrease, double co
   // Each test is false for a NaN cost.
   return step.measured_ratio > 0.5 && step.cost_decrease >= 0.5 * fresh_decrease &&
          step.cost_decrease > function_tolerance * cost;
+}
+
+bool keeps_accelerated_tail_step(const StepQuality& step, double fresh_decrease, double cost,
+                                 double function_tolerance) {
+  // Each test is false for a NaN cost.
+  return (step.cost_is_finite && step.cost_decrease > function_tolerance * cost &&
+          step.cost_decrease >= 0.1 * fresh_decrease) ||
+         probe_converged(step, cost, function_tolerance);
 }
 
 }  // namespace carat::internal

@@ -10,9 +10,11 @@
 
 namespace carat::internal {
 
-/// True if the step after `accepted_step` first tries the same factorization: reuse is on, the
-/// gain ratio exceeds factor_reuse_ratio and the predicted decrease is above 1000 times the
-/// cost's rounding (the ratio is measured, not noise).
+/// True if `accepted_step` marks a slow tail: its gain ratio exceeds factor_reuse_ratio and its
+/// predicted decrease is above 1000 times the cost's rounding (the ratio is measured, not noise).
+bool is_slow_tail_step(const StepQuality& accepted_step, const SolverOptions& options);
+/// True if the step after `accepted_step` first tries the same factorization: reuse is on and
+/// is_slow_tail_step().
 bool should_try_reuse(const StepQuality& accepted_step, const SolverOptions& options);
 
 /// True if the step after `accepted_step` (taken from an iterate of cost `cost`) probes for
@@ -35,5 +37,11 @@ bool probe_converged(const StepQuality& step, double cost, double function_toler
 /// `cost`. A NaN or +inf trial cost fails these tests.
 bool keeps_reused_step(const StepQuality& step, double fresh_decrease, double cost,
                        double function_tolerance);
+/// The rule of an accelerated tail (SolverOptions::anderson_memory), where Anderson's method
+/// makes up for an older factorization: a reused step is kept if it lowers the cost by more
+/// than function_tolerance * `cost` and by at least a tenth of `fresh_decrease`, or if
+/// probe_converged() says it ends the solve. A NaN or +inf trial cost fails.
+bool keeps_accelerated_tail_step(const StepQuality& step, double fresh_decrease, double cost,
+                                 double function_tolerance);
 
 }  // namespace carat::internal

@@ -174,8 +174,10 @@ bool Solver::stop_on_small_step(IterationSummary& row, double radius,
   return finish(std::move(*stop));
 }
 
-/// Writes current [+] delta_ into the other buffer and returns its cost.
-double Solver::trial_cost() {
+/// Writes current [+] delta_ into the other buffer and returns its cost. `predicted`: the
+/// decrease the evaluation callback's likely_final hint weighs (negative: delta_'s own, as
+/// solved from the damped system); kept in hint_decrease_.
+double Solver::trial_cost(double predicted) {
   const int trial = 1 - current_;
   apply_step(problem_, system_->variable_offset(), buffers_[current_].data(), delta_,
              buffers_[trial].data());
@@ -195,9 +197,9 @@ double Solver::trial_cost() {
     // The step ends the solve if it meets the function tolerance (take_step()): likely so when
     // the model predicts that much; or when no iteration follows.
     const bool last = summary_.num_iterations >= options_.max_iterations;
-    const bool small =
-        !projected_ && internal::damped_model_decrease(gradient_, delta_, damping_) <=
-                           options_.function_tolerance * cost_;
+    if (predicted < 0.0) predicted = internal::damped_model_decrease(gradient_, delta_, damping_);
+    hint_decrease_ = predicted;
+    const bool small = !projected_ && predicted <= options_.function_tolerance * cost_;
     options_.evaluation_callback({false, last || small});
   }
   const Stopwatch t0;
@@ -255,12 +257,54 @@ bool Solver::reject_step(IterationSummary& row, internal::TrustRegionStrategy& r
   return stop && finish(std::move(*stop));
 }
 
+/// With delta_ the solved step and the trial buffer at current [+] delta_ (cost *new_cost,
+/// judged as *step): in an accelerated tail, if Anderson's method proposes a step of lower cost,
+/// delta_ and the trial buffer become that step, *new_cost its cost, *step keeps the solved
+/// step's ratio (how well the factorization serves) with the decrease achieved, and the result
+/// is true; otherwise nothing changes. solved_ is the solved step either way.
+bool Solver::accelerate(double* new_cost, internal::StepQuality* step) {
+  solved_ = delta_;
+  if (!accelerated_tail_ || !anderson_.propose(solved_, &accelerated_)) return false;
+  delta_.swap(accelerated_);
+  // The hint weighs the solved step's prediction: the combination has no model of its own.
+  const double cost = trial_cost(hint_decrease_);
+  if (cost < *new_cost) {  // false for a NaN cost
+    *new_cost = cost;
+    step->cost_decrease = cost_ - cost;
+    return true;
+  }
+  // Back to the solved step: its cost is known, so the trial point is rebuilt, not evaluated.
+  delta_ = solved_;
+  apply_step(problem_, system_->variable_offset(), buffers_[current_].data(), delta_,
+             buffers_[1 - current_].data());
+  return false;
+}
+
+/// After a step of LM: a rejected one ends an accelerated tail; an accepted slow-tail step starts
+/// one (when anderson_memory > 0 and there are no bounds, which a combination could leave); an
+/// accepted step in a tail is recorded (solved_, delta_) for Anderson's method.
+void Solver::enter_or_leave_tail(bool accepted, const internal::StepQuality& step) {
+  if (!accepted) {
+    accelerated_tail_ = false;
+    anderson_.reset();
+    return;
+  }
+  if (!accelerated_tail_ && options_.anderson_memory > 0 && !bounds_ &&
+      internal::is_slow_tail_step(step, options_)) {
+    accelerated_tail_ = true;
+    anderson_ = internal::AndersonAcceleration(options_.anderson_memory);
+  }
+  if (accelerated_tail_) anderson_.push(solved_, delta_);
+}
+
 /// A step solved with the factorization of an earlier iterate: no numeric factorization, only
-/// a triangular solve, H delta for the model at the current iterate, and one cost evaluation.
-/// Kept if keeps_reused_step() says so: a run of reused steps ends once they fall to half of
-/// what a fresh one achieved; a convergence probe is kept only when probe_converged() says the
-/// solve is over (take_step() then stops on the function tolerance). Then returns true (*stop:
-/// the solve ends); otherwise nothing is recorded and the caller factorizes afresh.
+/// a triangular solve, H delta for the model at the current iterate, and one cost evaluation
+/// (two in an accelerated tail, where accelerate() may replace it). Kept by the rule that
+/// applies: in an accelerated tail keeps_accelerated_tail_step(); otherwise keeps_reused_step()
+/// (a run of reused steps ends once they fall to half of what a fresh one achieved); a
+/// convergence probe only when probe_converged() says the solve is over (take_step() then
+/// stops on the function tolerance). Then returns true (*stop: the solve ends); otherwise
+/// nothing is recorded and the caller factorizes afresh.
 bool Solver::try_reused_factorization(IterationSummary& row, int iteration,
                                       const Stopwatch& iteration_time, bool convergence_probe,
                                       bool* stop) {
@@ -276,18 +320,24 @@ bool Solver::try_reused_factorization(IterationSummary& row, int iteration,
     return false;
   }
   const double predicted = internal::model_decrease(gradient_, delta_, h_delta_);
-  const double new_cost = trial_cost();
-  const internal::StepQuality step = internal::judge_step(cost_, new_cost, predicted);
+  double new_cost = trial_cost();
+  internal::StepQuality step = internal::judge_step(cost_, new_cost, predicted);
+  const bool accelerated = !convergence_probe && accelerate(&new_cost, &step);
   // A convergence probe is kept only when it ends the solve; other reused steps by the rule of
-  // slow tails.
+  // an accelerated tail or of slow tails.
   const bool keep =
-      convergence_probe
-          ? internal::probe_converged(step, cost_, options_.function_tolerance)
+      convergence_probe ? internal::probe_converged(step, cost_, options_.function_tolerance)
+      : accelerated_tail_
+          ? internal::keeps_accelerated_tail_step(step, fresh_decrease_, cost_,
+                                                  options_.function_tolerance)
           : internal::keeps_reused_step(step, fresh_decrease_, cost_, options_.function_tolerance);
   if (!keep) {
     ++summary_.num_refused_reuses;
     return false;
   }
+  row.accelerated = accelerated;
+  if (accelerated) ++summary_.num_accelerated_steps;
+  enter_or_leave_tail(true, step);
   ++summary_.num_successful_steps;
   ++summary_.num_reused_factorizations;
   row.step_norm = delta_.norm();

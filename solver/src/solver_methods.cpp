@@ -46,15 +46,21 @@ void Solver::run_levenberg_marquardt() {
     if (!solve_for_step(row, iteration_time)) return;
     if (stop_on_small_step(row, region.radius(), iteration_time)) return;
 
-    const double new_cost = trial_cost();
-    const internal::StepQuality step = internal::judge_step(cost_, new_cost, predicted_decrease());
+    double new_cost = trial_cost();
+    internal::StepQuality step = internal::judge_step(cost_, new_cost, predicted_decrease());
     row.relative_decrease = step.measured_ratio;
     if (!region.accepts(step)) {
+      enter_or_leave_tail(false, step);
       if (reject_step(row, region, internal::RadiusShrinkCause::kStepRejected, iteration_time)) {
         return;
       }
       continue;
     }
+    // In an accelerated tail, Anderson's combination of recent steps replaces the solved step
+    // when it lowers the cost more; the trust region judges the solved step.
+    row.accelerated = accelerate(&new_cost, &step);
+    if (row.accelerated) ++summary_.num_accelerated_steps;
+    enter_or_leave_tail(true, step);
     ++summary_.num_successful_steps;
     row.step_is_successful = true;
     row.cost_change = step.cost_decrease;
@@ -66,7 +72,9 @@ void Solver::run_levenberg_marquardt() {
     // first tries this factorization.
     // A step the model predicted well that changed the cost by at most sqrt(function_tolerance):
     // the next one, solved with this factorization, probably confirms convergence.
-    const bool slow_tail = internal::should_try_reuse(step, options_);
+    // In an accelerated tail every next step tries this factorization first.
+    const bool slow_tail = internal::should_try_reuse(step, options_) ||
+                           (accelerated_tail_ && options_.reuse_factorization);
     probe_next = !slow_tail && internal::should_probe_convergence(step, cost_, options_);
     reuse_next = slow_tail || probe_next;
     if (take_step(row, new_cost, iteration, iteration_time)) return;

@@ -137,6 +137,10 @@ bool SolverOptions::validate(std::string* error) const {
     return fail(error, "factor_reuse_ratio must be finite and >= 0, got " +
                            std::to_string(factor_reuse_ratio));
   }
+  if (anderson_memory < 0 || anderson_memory > 64) {
+    return fail(error,
+                "anderson_memory must be in [0, 64], got " + std::to_string(anderson_memory));
+  }
   return true;
 }
 

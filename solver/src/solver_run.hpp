@@ -9,6 +9,7 @@
 #include <utility>
 #include <vector>
 
+#include "anderson_acceleration.hpp"
 #include "block_evaluator.hpp"
 #include "bound_constraints.hpp"
 #include "carat/base/stopwatch.hpp"
@@ -45,8 +46,10 @@ class Solver {
   bool factorize_gauss_newton(IterationSummary* row);
   bool solve_for_step(IterationSummary& row, const Stopwatch& iteration_time);
   bool stop_on_small_step(IterationSummary& row, double radius, const Stopwatch& iteration_time);
-  double trial_cost();
+  double trial_cost(double predicted = -1.0);
   double predicted_decrease();
+  bool accelerate(double* new_cost, internal::StepQuality* step);
+  void enter_or_leave_tail(bool accepted, const internal::StepQuality& step);
   bool reject_step(IterationSummary& row, internal::TrustRegionStrategy& region,
                    internal::RadiusShrinkCause cause, const Stopwatch& iteration_time);
   bool linearize();
@@ -81,6 +84,13 @@ class Solver {
   Eigen::VectorXd delta_;    ///< scratch: the step
   Eigen::VectorXd rhs_;      ///< scratch: -gradient
   Eigen::VectorXd h_delta_;  ///< scratch: H delta
+  /// An accelerated tail (SolverOptions::anderson_memory) is running: from a slow-tail step
+  /// until a step is rejected.
+  bool accelerated_tail_ = false;
+  internal::AndersonAcceleration anderson_{0};  ///< the tail's recent steps
+  Eigen::VectorXd solved_;       ///< scratch: the step solved, before any acceleration
+  Eigen::VectorXd accelerated_;  ///< scratch: Anderson's step
+  double hint_decrease_ = 0.0;   ///< the decrease the last trial's likely_final hint weighed
 };
 
 }  // namespace carat::internal

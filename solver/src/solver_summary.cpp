@@ -55,8 +55,12 @@ std::string SolverSummary::iteration_table() const {
       note = "  (not positive definite)";
     } else if (it.iteration > 0 && !it.step_is_successful) {
       note = "  (rejected)";
+    } else if (it.reused_factorization && it.accelerated) {
+      note = "  (reused factorization, accelerated)";
     } else if (it.reused_factorization) {
       note = "  (reused factorization)";
+    } else if (it.accelerated) {
+      note = "  (accelerated)";
     }
     // A value that is not a number is shown as "-", never as "nan" or "-nan".
     const auto cell = [](const char* fmt, double value, int width) {
@@ -97,6 +101,7 @@ std::string SolverSummary::full_report() const {
                 num_linear_solver_failures);
   out += format("  %-28s %d kept, %d refused\n", "steps on a reused factor",
                 num_reused_factorizations, num_refused_reuses);
+  out += format("  %-28s %d\n", "accelerated steps", num_accelerated_steps);
   out += "\nTime (seconds)\n";
   out += format("  %-28s %.6f\n", "symbolic analysis", time.symbolic_s);
   out += format("  %-28s %.6f\n", "linearization", time.linearize_s);
@@ -121,6 +126,7 @@ std::string SolverSummary::to_json() const {
   j["unsuccessful_steps"] = num_unsuccessful_steps;
   j["reused_factorizations"] = num_reused_factorizations;
   j["refused_reuses"] = num_refused_reuses;
+  j["accelerated_steps"] = num_accelerated_steps;
   j["linear_solver_failures"] = num_linear_solver_failures;
   j["variables"] = num_variables;
   j["free_variables"] = num_free_variables;
@@ -152,6 +158,7 @@ std::string SolverSummary::to_json() const {
                     {"step_is_successful", it.step_is_successful},
                     {"linear_solver_failed", it.linear_solver_failed},
                     {"reused_factorization", it.reused_factorization},
+                    {"accelerated", it.accelerated},
                     {"iteration_time_s", it.iteration_time_s},
                     {"cumulative_time_s", it.cumulative_time_s}});
   }
@@ -161,9 +168,9 @@ std::string SolverSummary::to_json() const {
 
 // merge_later_solve() is written for these members: a new one must be merged there (or left as
 // `later`'s on purpose), and the count here raised.
-static_assert(field_count<SolverSummary>() == 25, "merge_later_solve: merge the new field");
+static_assert(field_count<SolverSummary>() == 26, "merge_later_solve: merge the new field");
 static_assert(field_count<TimeBreakdown>() == 8, "merge_later_solve: sum the new stage time");
-static_assert(field_count<IterationSummary>() == 12, "merge_later_solve: continue the new field");
+static_assert(field_count<IterationSummary>() == 13, "merge_later_solve: continue the new field");
 
 void merge_later_solve(SolverSummary& total, const SolverSummary& later) {
   if (total.num_iterations == 0 && total.iterations.empty()) {
@@ -177,6 +184,7 @@ void merge_later_solve(SolverSummary& total, const SolverSummary& later) {
   const int unsuccessful = total.num_unsuccessful_steps + later.num_unsuccessful_steps;
   const int reused = total.num_reused_factorizations + later.num_reused_factorizations;
   const int refused = total.num_refused_reuses + later.num_refused_reuses;
+  const int accelerated = total.num_accelerated_steps + later.num_accelerated_steps;
   const int failures = total.num_linear_solver_failures + later.num_linear_solver_failures;
   TimeBreakdown time = total.time;
   time.linearize_s += later.time.linearize_s;
@@ -204,6 +212,7 @@ void merge_later_solve(SolverSummary& total, const SolverSummary& later) {
   total.num_unsuccessful_steps = unsuccessful;
   total.num_reused_factorizations = reused;
   total.num_refused_reuses = refused;
+  total.num_accelerated_steps = accelerated;
   total.num_linear_solver_failures = failures;
   total.time = time;
   total.iterations = std::move(rows);

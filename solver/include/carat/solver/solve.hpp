@@ -20,7 +20,12 @@ namespace carat {
 /// linearly converging tail), the next step is first tried with the previous numeric
 /// factorization (a triangular solve instead of a factorization) and kept only if its gain
 /// ratio against the current model exceeds 1/2 and it lowers the cost by at least half as much
-/// as the last freshly factorized step did; otherwise H is factorized afresh. Steps whose
+/// as the last freshly factorized step did; otherwise H is factorized afresh. Such a step also
+/// starts an accelerated tail (options.anderson_memory > 0, no bounds), which lasts until a step
+/// is rejected: each accepted step is compared with Anderson's combination of the last
+/// anderson_memory steps (one more cost evaluation) and replaced by it if its cost is lower,
+/// every next step first tries the previous factorization, and a reused step is kept while it
+/// lowers the cost by more than function_tolerance * cost. Steps whose
 /// predicted decrease is below the rounding of the cost are taken unless the cost rose by more
 /// than that rounding.
 SolverSummary solve(const SolverOptions& options, Problem& problem);

@@ -128,6 +128,12 @@ struct SolverOptions {
   /// with the previous numeric factorization (see solve()); false always factorizes afresh.
   bool reuse_factorization = true;
   double factor_reuse_ratio = 1.1;  ///< LM: gain ratio above which a reuse is tried
+  /// LM, slow tails: from an accepted step whose gain ratio exceeds factor_reuse_ratio until a
+  /// step is rejected, each step is also tried as Anderson's combination of the last
+  /// `anderson_memory` steps and taken if that lowers the cost more, and each next step first
+  /// tries the previous factorization (see solve()); 0: off. At most 64. The tail holds 2 x
+  /// anderson_memory vectors of the tangent size, and as much again while it combines them.
+  int anderson_memory = 5;
   int num_threads = 1;  ///< threads for linearization (>= 1; capped at the machine's cores)
   bool record_iterations = true;  ///< keep one IterationSummary per iteration
   /// Called after every iteration, on the thread that called solve(), whether or not rows are

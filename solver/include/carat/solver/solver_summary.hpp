@@ -31,8 +31,11 @@ struct IterationSummary {
   bool step_is_successful = false;    ///< step accepted
   bool linear_solver_failed = false;  ///< the damped system was not positive definite
   bool reused_factorization = false;  ///< step solved with an earlier iterate's factorization
-  double iteration_time_s = 0.0;      ///< wall time of this iteration
-  double cumulative_time_s = 0.0;     ///< wall time since solve() started
+  /// The step taken is Anderson's combination of recent steps (relative_decrease stays the
+  /// solved step's, which the trust region judges; cost_change is the combination's)
+  bool accelerated = false;
+  double iteration_time_s = 0.0;   ///< wall time of this iteration
+  double cumulative_time_s = 0.0;  ///< wall time since solve() started
 };
 
 /// Wall time per stage, summed over the solve, in seconds.
@@ -57,6 +60,7 @@ struct SolverSummary {
   int num_successful_steps = 0;        ///< accepted steps
   int num_unsuccessful_steps = 0;      ///< rejected steps
   int num_reused_factorizations = 0;   ///< accepted steps solved with an earlier factorization
+  int num_accelerated_steps = 0;       ///< accepted steps that took Anderson's combination
   int num_refused_reuses = 0;          ///< steps with an earlier factorization tried and not kept
   int num_linear_solver_failures = 0;  ///< factorizations that were not positive definite
   int num_variables = 0;               ///< variables in the problem
