@@ -272,6 +272,7 @@ check map_pgo_sampling 2 "--sampling does not apply to --method pgo" -- "$CARAT"
 check map_lossless_residuals 2 "--residuals does not apply to --sampling lossless" -- "$CARAT" map --frames "$seqdir" --poses "$seqdir/poses.txt" --sampling lossless --residuals 64
 check g2o_scale_without_loss 2 "--loss-scale does not apply to --loss none" -- "$CARAT" solve-g2o "$scratch/tiny.g2o" --loss-scale 5
 check g2o_gn_growth 2 "--trust-region-growth does not apply to --method gn" -- "$CARAT" solve-g2o "$scratch/tiny.g2o" --method gn --trust-region-growth 3
+check g2o_gn_anderson 2 "--anderson-memory does not apply to --method gn" -- "$CARAT" solve-g2o "$scratch/tiny.g2o" --method gn --anderson-memory 3
 check ate_kitti_max_difference 2 "--max-difference does not apply" -- "$CARAT" ate --estimate "$scratch/ref.kitti" --reference "$scratch/ref.kitti" --max-difference 0.1
 check coreset_too_slow 2 "would take about" -- "$CARAT" coreset-check --rows 5000 --dim 64 --clusters 2147 --trials 1
 check paper_missing_data 2 "--data $scratch/nothing-here: not a folder" -- "$CARAT" paper --quick --data "$scratch/nothing-here" --out "$scratch/never-paper"

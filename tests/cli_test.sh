@@ -93,6 +93,7 @@ check unknown_flag 2 "" -- "$CARAT" solve-g2o "$scratch/tiny.g2o" --bogus
 check out_of_range 2 "" -- "$CARAT" solve-g2o "$scratch/tiny.g2o" --threads 0
 check bad_method 2 "" -- "$CARAT" solve-g2o "$scratch/tiny.g2o" --method newton
 check bad_growth 2 "" -- "$CARAT" solve-g2o "$scratch/tiny.g2o" --trust-region-growth 0.5
+check bad_anderson_memory 2 "" -- "$CARAT" solve-g2o "$scratch/tiny.g2o" --anderson-memory 65
 check ceres_like_lm 0 "" -- "$CARAT" solve-g2o "$scratch/tiny.g2o" --json --no-factor-reuse --trust-region-growth 3
 cp "$scratch/out" "$scratch/ceres_like.json"
 if [[ $(json_field "$scratch/ceres_like.json" "j['reused_factorizations'] == 0 and j['refused_reuses'] == 0 and j['final_cost'] < 1e-12") != "True" ]]; then
