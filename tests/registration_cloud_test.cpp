@@ -287,4 +287,62 @@ TEST(KdTreeTest, KnnMatchesBruteForce) {
   EXPECT_EQ(indices[2], 1u);
 }
 
+TEST(KdTreeTest, RunsOfKnnQueriesFindWhatSingleQueriesFindTiesIncluded) {
+  // A grid (many neighbours tied at one distance, where the order points are met decides), a
+  // plane with repeated points, queries on the cloud's own points in order (as the covariance
+  // estimate asks) with jumps, a NaN and a far query among them.
+  PointCloud cloud;
+  for (int x = 0; x < 20; ++x)
+    for (int y = 0; y < 20; ++y)
+      for (int z = 0; z < 3; ++z)
+        cloud.points.emplace_back(0.25f * static_cast<float>(x), 0.25f * static_cast<float>(y),
+                                  0.25f * static_cast<float>(z));
+  std::mt19937 rng(37);
+  std::uniform_real_distribution<float> u(-2.0f, 7.0f);
+  for (int k = 0; k < 800; ++k) cloud.points.emplace_back(u(rng), u(rng), -1.0f);
+  for (int k = 0; k < 40; ++k) cloud.points.emplace_back(2.0f, 2.0f, -1.0f);
+  const KdTree tree(cloud);
+  std::vector<Eigen::Vector3f> queries = cloud.points;
+  queries[100] = Eigen::Vector3f(std::nanf(""), 0.0f, 0.0f);
+  queries[101] = Eigen::Vector3f(500.0f, -300.0f, 20.0f);
+  for (int k = 0; k < 300; ++k) queries.emplace_back(u(rng), u(rng), 0.2f * u(rng));
+  for (const int k : {1, 10, 45}) {
+    const auto slots = static_cast<std::size_t>(k);
+    std::vector<std::uint32_t> indices(queries.size() * slots);
+    std::vector<float> distances(queries.size() * slots);
+    std::vector<int> found(queries.size());
+    tree.knn(queries, k, indices.data(), distances.data(), found.data());
+    for (std::size_t q = 0; q < queries.size(); ++q) {
+      std::vector<std::uint32_t> one_indices(slots);
+      std::vector<float> one_distances(slots);
+      const int one = tree.knn(queries[q], k, one_indices.data(), one_distances.data());
+      ASSERT_EQ(found[q], one) << "k " << k << " query " << q;
+      for (std::size_t n = 0; n < static_cast<std::size_t>(one); ++n) {
+        ASSERT_EQ(indices[q * slots + n], one_indices[n]) << "k " << k << " query " << q;
+        ASSERT_EQ(distances[q * slots + n], one_distances[n]) << "k " << k << " query " << q;
+      }
+    }
+    EXPECT_EQ(found[100], 0);  // NaN: nothing is closer
+    EXPECT_EQ(found[101], k);
+  }
+  // More neighbours than points, and an empty tree.
+  PointCloud small;
+  small.points = {{0, 0, 0}, {3, 0, 0}, {1, 0, 0}};
+  const std::vector<Eigen::Vector3f> two = {{0, 0, 0}, {2, 0, 0}};
+  std::uint32_t indices[10];
+  float distances[10];
+  int found[2];
+  KdTree(small).knn(two, 5, indices, distances, found);
+  EXPECT_EQ(found[0], 3);
+  EXPECT_EQ(found[1], 3);
+  EXPECT_EQ(distances[5], 1.0f);  // the second query's: (1, 0, 0) and (3, 0, 0), then (0, 0, 0)
+  EXPECT_EQ(distances[6], 1.0f);
+  EXPECT_EQ(indices[7], 0u);
+  EXPECT_EQ(distances[7], 4.0f);
+  const PointCloud empty;
+  KdTree(empty).knn(two, 5, indices, distances, found);
+  EXPECT_EQ(found[0], 0);
+  EXPECT_EQ(found[1], 0);
+}
+
 }  // namespace carat

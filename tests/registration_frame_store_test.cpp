@@ -1,16 +1,20 @@
 // FrameStore: frames on demand under a byte cap (least recently used dropped first, frames in
-// use kept, loader errors passed on and retried), the locality order of pairs, and the dense
-// graph, factors, registration and loop closure from a capped store equal to the resident run;
-// the dense graph measured in shares reading only the frames each share names.
+// use kept, loader errors passed on and retried, prefetches that never wait), the locality order
+// of pairs, and the dense graph, factors, registration and loop closure from a capped store equal
+// to the resident run; the dense graph measured in shares reading only the frames each share
+// names.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <array>
 #include <atomic>
+#include <condition_variable>
 #include <memory>
+#include <mutex>
 #include <numeric>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "carat/base/error.hpp"
@@ -139,6 +143,77 @@ TEST(FrameStoreTest, LoaderErrorsPassThroughAndAreRetried) {
   EXPECT_THAT(
       error_of([] { FrameStore nulls(std::vector<std::shared_ptr<const Frame>>{nullptr}); }),
       HasSubstr("frame 0 is null"));
+}
+
+TEST(FrameStoreTest, PrefetchReadsOnlyWhatIsNeitherCachedNorBeingRead) {
+  CountingStore s(2.5, true);  // room for two frames
+  FrameStore& store = *s.store;
+  EXPECT_TRUE(store.prefetch(0));
+  EXPECT_FALSE(store.prefetch(0));  // cached
+  EXPECT_EQ(*s.calls, 1);
+  store.get(0);  // a hit
+  EXPECT_TRUE(store.prefetch(1));
+  EXPECT_TRUE(store.prefetch(2));  // drops 0, the least recently used
+  store.get(0);                    // read again
+  EXPECT_EQ(*s.calls, 4);
+  EXPECT_FALSE(store.prefetch(99));  // out of range: nothing to read
+  const FrameStoreStats stats = store.stats();
+  EXPECT_EQ(stats.requests, 2u);
+  EXPECT_EQ(stats.hits, 1u);
+  EXPECT_EQ(stats.loads, 4u);
+  EXPECT_EQ(stats.evictions, 2u);
+  // A resident store reads nothing.
+  FrameStore resident = resident_store(drive().frames);
+  EXPECT_FALSE(resident.prefetch(0));
+}
+
+TEST(FrameStoreTest, PrefetchDropsLoaderErrorsAndGetThrowsThem) {
+  int calls = 0;
+  FrameStore store(
+      2,
+      [&](std::size_t k) -> std::shared_ptr<const Frame> {
+        if (++calls <= 2) throw Error("frame " + std::to_string(k) + ".bin: truncated");
+        return copy_of_frame(k);
+      },
+      0);
+  EXPECT_FALSE(store.prefetch(1));  // the error is dropped, the frame stays unread
+  EXPECT_EQ(error_of([&] { store.get(1); }), "frame 1.bin: truncated");
+  EXPECT_EQ(store.get(1)->name(), "frame 1");
+  EXPECT_EQ(calls, 3);
+  EXPECT_EQ(store.stats().loads, 1u);
+}
+
+TEST(FrameStoreTest, PrefetchSkipsAFrameAnotherThreadIsReading) {
+  std::mutex mutex;
+  std::condition_variable changed;
+  bool reading = false, release = false;
+  std::atomic<int> calls{0};
+  FrameStore store(
+      1,
+      [&](std::size_t k) -> std::shared_ptr<const Frame> {
+        ++calls;
+        std::unique_lock lock(mutex);
+        reading = true;
+        changed.notify_all();
+        changed.wait(lock, [&] { return release; });
+        return copy_of_frame(k);
+      },
+      0);
+  std::thread reader([&] { store.get(0); });
+  {
+    std::unique_lock lock(mutex);
+    changed.wait(lock, [&] { return reading; });
+  }
+  EXPECT_FALSE(store.prefetch(0));  // being read: returns at once instead of waiting
+  {
+    std::lock_guard lock(mutex);
+    release = true;
+  }
+  changed.notify_all();
+  reader.join();
+  EXPECT_EQ(calls, 1);
+  EXPECT_EQ(store.get(0)->name(), "frame 0");
+  EXPECT_EQ(calls, 1);
 }
 
 TEST(FrameStoreTest, LocalityOrderIsAPermutationThatKeepsCellsTogether) {

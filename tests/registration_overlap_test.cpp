@@ -6,6 +6,7 @@
 #include <cmath>
 #include <random>
 #include <set>
+#include <vector>
 
 #include "carat/base/error.hpp"
 #include "carat/registration/overlap.hpp"
@@ -75,6 +76,44 @@ TEST(OverlapTest, CompactAndScatteredCloudsAnswerAsTheirVoxels) {
     }
   }
   EXPECT_FALSE(VoxelOccupancy(PointCloud{}, 1.0).occupied(Eigen::Vector3d::Zero()));
+}
+
+TEST(OverlapTest, CountingAtOnceAnswersAsOnePointAtATime) {
+  // count_occupied() inlines the bitmap lookup: over a compact cloud (bitmap) and a scattered one
+  // (hash table), poses that put points on voxel borders, outside the box and off the grid, and
+  // NaN points, it must count exactly what occupied() answers point by point.
+  std::mt19937 rng(41);
+  std::uniform_real_distribution<float> u(-20.0f, 20.0f);
+  PointCloud compact;
+  for (int k = 0; k < 3000; ++k) compact.points.emplace_back(u(rng), u(rng), 0.1f * u(rng));
+  PointCloud scattered = compact;
+  scattered.points.emplace_back(1000.0f, -1000.0f, 5.0f);
+  PointCloud source = compact;
+  for (int k = 0; k < 300; ++k)
+    source.points.emplace_back(std::round(u(rng)), std::round(u(rng)), 0.0f);  // on borders
+  source.points.emplace_back(std::nanf(""), 0.0f, 0.0f);
+  source.points.emplace_back(3e9f, 0.0f, 0.0f);
+  std::vector<Eigen::Isometry3d> poses(4, Eigen::Isometry3d::Identity());
+  poses[1].translation() = Eigen::Vector3d(0.5, -0.25, 0.0);
+  poses[2] = Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ()) * Eigen::Translation3d(7.0, 1.0, 0.1);
+  poses[3].translation() = Eigen::Vector3d(35.0, 0.0, 0.0);  // mostly outside the box
+  for (const PointCloud* target : {&compact, &scattered}) {
+    for (const double size : {1.0, 0.3}) {
+      const VoxelOccupancy occupancy(*target, size);
+      for (const Eigen::Isometry3d& T : poses) {
+        for (const std::size_t stride : {std::size_t{1}, std::size_t{3}}) {
+          std::size_t expected = 0, total = 0;
+          for (std::size_t i = 0; i < source.size(); i += stride, ++total)
+            expected += occupancy.occupied(T * source.point(i)) ? 1 : 0;
+          EXPECT_EQ(occupancy.count_occupied(source, T, stride), expected);
+          EXPECT_DOUBLE_EQ(overlap_fraction(occupancy, source, T, static_cast<int>(stride)),
+                           static_cast<double>(expected) / static_cast<double>(total));
+        }
+      }
+      EXPECT_EQ(occupancy.count_occupied(source, poses[0], 0),
+                occupancy.count_occupied(source, poses[0], 1));
+    }
+  }
 }
 
 }  // namespace

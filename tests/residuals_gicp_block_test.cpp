@@ -156,8 +156,9 @@ TEST(GicpBlockTest, WeightedExtractFoldsTheWeightsIntoItsRows) {
 }
 
 TEST(GicpBlockTest, WholeCorrespondencesMatchRowByRowEvaluation) {
-  // Rows asked for as whole correspondences in order take a straight-line path; one row at a
-  // time takes the general one. Both must give the same bits, Jacobians included.
+  // Rows asked for as whole correspondences in order take a straight-line path (runs of eight
+  // correspondences at once, then one at a time: 50 is six runs and two more); one row at a time
+  // takes the general one. All must give the same bits, Jacobians included.
   const auto pairs = random_correspondences(50, 4);
   se3::Vector6d xi;
   xi << -0.3, 0.2, 0.1, 0.5, -1.0, 0.25;

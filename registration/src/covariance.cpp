@@ -25,14 +25,22 @@ void estimate_covariances(PointCloud& cloud, const KdTree& tree, const Covarianc
       std::min<std::size_t>(static_cast<std::size_t>(options.neighbors), cloud.size()));
   cloud.covariances.resize(cloud.size());
   const auto work = [&](const tbb::blocked_range<std::size_t>& range) {
-    std::vector<std::uint32_t> indices(static_cast<std::size_t>(k));
-    std::vector<float> distances(static_cast<std::size_t>(k));
+    // The range's points searched as one run (a voxel-ordered scan's neighbours follow each
+    // other): the same neighbours as one search at a time.
+    const std::size_t count = range.size();
+    std::vector<std::uint32_t> indices(count * static_cast<std::size_t>(k));
+    std::vector<float> distances(count * static_cast<std::size_t>(k));
+    std::vector<int> founds(count);
+    tree.knn(std::span(cloud.points.data() + range.begin(), count), k, indices.data(),
+             distances.data(), founds.data());
     for (std::size_t i = range.begin(); i != range.end(); ++i) {
-      const int found = tree.knn(cloud.points[i], k, indices.data(), distances.data());
+      const std::size_t at = i - range.begin();
+      const int found = founds[at];
+      const std::uint32_t* neighbours = indices.data() + at * static_cast<std::size_t>(k);
       Eigen::Vector3d mean = Eigen::Vector3d::Zero();
       Eigen::Matrix3d second = Eigen::Matrix3d::Zero();
       for (int n = 0; n < found; ++n) {
-        const Eigen::Vector3d p = cloud.point(indices[static_cast<std::size_t>(n)]);
+        const Eigen::Vector3d p = cloud.point(neighbours[n]);
         mean += p;
         second += p * p.transpose();
       }

@@ -47,6 +47,26 @@ std::shared_ptr<const Frame> FrameStore::get(std::size_t k) {
     return entry.frame;
   }
   entry.loading = true;
+  return load_marked(k, lock);
+}
+
+bool FrameStore::prefetch(std::size_t k) {
+  if (!load_ || k >= entries_.size()) return false;
+  std::unique_lock lock(mutex_);
+  Entry& entry = entries_[k];
+  if (entry.frame || entry.loading) return false;
+  entry.loading = true;
+  try {
+    load_marked(k, lock);
+  } catch (...) {
+    return false;
+  }
+  return true;
+}
+
+std::shared_ptr<const Frame> FrameStore::load_marked(std::size_t k,
+                                                     std::unique_lock<std::mutex>& lock) {
+  Entry& entry = entries_[k];
   lock.unlock();
   std::shared_ptr<const Frame> frame;
   try {

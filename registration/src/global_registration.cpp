@@ -339,7 +339,20 @@ std::vector<RegistrationFactor> build_registration_factors(
     chosen.reserve(indices.size());
     for (const std::size_t k : indices) chosen.push_back(pairs[k]);
     const std::vector<std::size_t> order = locality_order(chosen, T_world_frame);
-    internal::parallel_for_in_order(order, threads, build_one);
+    // Each worker first reads the frames of the factor kFramesAhead positions on, unless they
+    // are cached or being read: frames are then read while the other workers build factors,
+    // not while they wait for the same frame.
+    constexpr std::size_t kFramesAhead = 64;
+    std::vector<std::size_t> positions(order.size());
+    std::iota(positions.begin(), positions.end(), std::size_t{0});
+    internal::parallel_for_in_order(positions, threads, [&](std::size_t position) {
+      if (position + kFramesAhead < order.size()) {
+        const FramePair& ahead = chosen[order[position + kFramesAhead]];
+        frames.prefetch(static_cast<std::size_t>(ahead.target));
+        frames.prefetch(static_cast<std::size_t>(ahead.source));
+      }
+      build_one(order[position]);
+    });
   });
   return out;
 }

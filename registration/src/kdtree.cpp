@@ -75,6 +75,18 @@ struct TreeView {
   d = dx * dx + dy * dy + dz * dz;
 }
 
+/// The least of eight lanes (none NaN: a NaN lane may come out as the least), halving them
+/// three times: a tree of three dependent minima, not a chain of seven.
+[[gnu::always_inline]] inline float lane_minimum(Lanes v) {
+  Lanes folded = __builtin_shuffle(v, LaneIndices{4, 5, 6, 7, 0, 1, 2, 3});
+  v = folded < v ? folded : v;
+  folded = __builtin_shuffle(v, LaneIndices{2, 3, 0, 1, 6, 7, 4, 5});
+  v = folded < v ? folded : v;
+  folded = __builtin_shuffle(v, LaneIndices{1, 0, 3, 2, 5, 4, 7, 6});
+  v = folded < v ? folded : v;
+  return v[0];
+}
+
 /// The one nearest point strictly closer than a bound; ties keep the point met first.
 struct NearestResult {
   static constexpr std::uint32_t kNone = ~std::uint32_t{0};
@@ -87,15 +99,20 @@ struct NearestResult {
                                               std::uint32_t end, const float* q) {
     constexpr float kInf = std::numeric_limits<float>::infinity();
     Lanes d[kLeafGroups];
-    Lanes smallest = Lanes{} + kInf;
+    // Two running minima, over the even and the odd groups, so that the minima of the groups
+    // do not form one chain.
+    Lanes even = Lanes{} + kInf, odd = even;
     const std::uint32_t groups = (end - begin + kLanes - 1) / kLanes;
     for (std::uint32_t g = 0; g < groups; ++g) {
       group_distances(tree, begin + g * kLanes, q, d[g]);
-      smallest = d[g] < smallest ? d[g] : smallest;  // a NaN distance never wins
+      if (g % 2 == 0) {
+        even = d[g] < even ? d[g] : even;  // a NaN distance never wins
+      } else {
+        odd = d[g] < odd ? d[g] : odd;
+      }
     }
-    float best = smallest[0];
-    for (std::uint32_t lane = 1; lane < kLanes; ++lane)
-      best = smallest[lane] < best ? smallest[lane] : best;
+    Lanes smallest = odd < even ? odd : even;
+    const float best = lane_minimum(smallest);
     if (!(best < worst)) return;
     LaneIndices lanes;
     for (std::uint32_t lane = 0; lane < kLanes; ++lane)
@@ -106,8 +123,13 @@ struct NearestResult {
       const LaneIndices candidate = d[g] == best ? here : first;
       first = candidate < first ? candidate : first;
     }
-    std::int32_t lane = first[0];
-    for (std::uint32_t k = 1; k < kLanes; ++k) lane = first[k] < lane ? first[k] : lane;
+    LaneIndices fold = __builtin_shuffle(first, LaneIndices{4, 5, 6, 7, 0, 1, 2, 3});
+    first = fold < first ? fold : first;
+    fold = __builtin_shuffle(first, LaneIndices{2, 3, 0, 1, 6, 7, 4, 5});
+    first = fold < first ? fold : first;
+    fold = __builtin_shuffle(first, LaneIndices{1, 0, 3, 2, 5, 4, 7, 6});
+    first = fold < first ? fold : first;
+    const std::int32_t lane = first[0];
     worst = best;
     position = begin + static_cast<std::uint32_t>(lane);
   }
@@ -115,33 +137,49 @@ struct NearestResult {
 
 /// The k nearest points (strictly closer than the k-th found so far), nearest first; ties keep
 /// the point met first.
+/// With a bound, only points strictly closer than it are kept: when at least k are, the same k
+/// points as without (a search prunes only cells no closer than the bound, and meets the points
+/// it keeps in the same order).
 struct KnnResult {
-  KnnResult(int count_wanted, std::uint32_t* out_indices, float* out_distances)
-      : k(count_wanted), indices(out_indices), distances(out_distances) {}
+  KnnResult(int count_wanted, std::uint32_t* out_indices, float* out_distances,
+            float bound = std::numeric_limits<float>::infinity())
+      : k(count_wanted), worst(bound), indices(out_indices), distances(out_distances) {}
   int k;
   int count = 0;
-  float worst = std::numeric_limits<float>::infinity();
+  float worst;
   std::uint32_t* indices;
   float* distances;
   [[gnu::always_inline]] inline void add_leaf(const TreeView& tree, std::uint32_t begin,
                                               std::uint32_t end, const float* q) {
+    // The kept points in locals that nothing else can point at: the stores of an insertion then
+    // do not force the bound, the count and the arrays' addresses to be read again.
+    float* __restrict kept_distances = distances;
+    std::uint32_t* __restrict kept_indices = indices;
+    int kept = count;
+    float bound = worst;
     for (std::uint32_t at = begin; at < end; at += kLanes) {
       Lanes d;
       group_distances(tree, at, q, d);
+      // Most groups hold no point closer than the k-th kept: one test of the group's least
+      // distance (padding lanes are at infinity, a NaN distance never wins) skips them.
+      const Lanes bounds = Lanes{} + bound;
+      if (!(lane_minimum(d < bounds ? d : bounds) < bound)) continue;
       const std::uint32_t n = std::min(kLanes, end - at);
-      for (std::uint32_t lane = 0; lane < n; ++lane) add(d[lane], tree.order[at + lane]);
+      for (std::uint32_t lane = 0; lane < n; ++lane) {
+        const float distance = d[lane];
+        if (!(distance < bound)) continue;
+        int j = kept < k ? kept++ : k - 1;
+        for (; j > 0 && kept_distances[j - 1] > distance; --j) {
+          kept_distances[j] = kept_distances[j - 1];
+          kept_indices[j] = kept_indices[j - 1];
+        }
+        kept_distances[j] = distance;
+        kept_indices[j] = tree.order[at + lane];
+        if (kept == k) bound = kept_distances[k - 1];
+      }
     }
-  }
-  [[gnu::always_inline]] inline void add(float d, std::uint32_t i) {
-    if (!(d < worst)) return;
-    int j = count < k ? count++ : k - 1;
-    for (; j > 0 && distances[j - 1] > d; --j) {
-      distances[j] = distances[j - 1];
-      indices[j] = indices[j - 1];
-    }
-    distances[j] = d;
-    indices[j] = i;
-    if (count == k) worst = distances[k - 1];
+    count = kept;
+    worst = bound;
   }
 };
 
@@ -258,6 +296,46 @@ CARAT_MULTIVERSION_WIDE void search_nearest(const TreeView& tree, const float* q
 /// The k nearest points of one query (search from the root).
 CARAT_MULTIVERSION_WIDE void search_knn(const TreeView& tree, const float* q, KnnResult& result) {
   search(tree, q, result);
+}
+
+/// The k nearest points of each of a run of queries (k slots a query in indices and distances;
+/// found[q] of them filled). Each search is bounded by what the one before found: the previous
+/// query's k points are k points within the farthest of them from q, so no point beyond that
+/// can be among q's k nearest (the bound is raised by 1e-5 of itself over rounding). A search
+/// that keeps fewer than k (a query or a point is not finite) is run again without it. The
+/// answers are the single-query search's exactly, ties included: the bounded search prunes only
+/// cells no closer than its bound and meets the points it keeps in the same order.
+CARAT_MULTIVERSION_WIDE void search_knn_run(const TreeView& tree, const Eigen::Vector3f* points,
+                                            const Eigen::Vector3f* queries, std::size_t count,
+                                            int k, std::size_t available, std::uint32_t* indices,
+                                            float* distances, int* found) {
+  const int wanted =
+      static_cast<int>(std::min<std::size_t>(static_cast<std::size_t>(k), available));
+  constexpr float kInf = std::numeric_limits<float>::infinity();
+  const auto slots = static_cast<std::size_t>(k);
+  for (std::size_t q = 0; q < count; ++q) {
+    std::uint32_t* out_indices = indices + q * slots;
+    float* out_distances = distances + q * slots;
+    float bound = kInf;
+    if (q > 0 && found[q - 1] == k) {
+      const std::uint32_t* previous = indices + (q - 1) * slots;
+      float farthest = 0.0f;
+      for (std::size_t j = 0; j < slots; ++j) {
+        const Eigen::Vector3f d = points[previous[j]] - queries[q];
+        const float squared = d.x() * d.x() + d.y() * d.y() + d.z() * d.z();
+        farthest = squared > farthest ? squared : farthest;  // a NaN distance leaves no bound
+        if (!(squared <= farthest)) farthest = kInf;
+      }
+      bound = farthest * (1.0f + 1e-5f) + std::numeric_limits<float>::denorm_min();
+    }
+    KnnResult result(k, out_indices, out_distances, bound);
+    search(tree, queries[q].data(), result);
+    if (result.count < wanted && bound < kInf) {
+      result = KnnResult(k, out_indices, out_distances);
+      search(tree, queries[q].data(), result);
+    }
+    found[q] = result.count;
+  }
 }
 
 /// Nearest points (leaf order) and squared distances of a run of queries.
@@ -386,6 +464,16 @@ int KdTree::knn(const Eigen::Vector3f& query, int k, std::uint32_t* indices,
   KnnResult result(k, indices, squared_distances);
   search_knn(impl_->view(), query.data(), result);
   return result.count;
+}
+
+void KdTree::knn(std::span<const Eigen::Vector3f> queries, int k, std::uint32_t* indices,
+                 float* squared_distances, int* found) const {
+  if (impl_->nodes.empty() || k <= 0) {
+    std::fill_n(found, queries.size(), 0);
+    return;
+  }
+  search_knn_run(impl_->view(), impl_->cloud.points.data(), queries.data(), queries.size(), k,
+                 impl_->cloud.size(), indices, squared_distances, found);
 }
 
 std::size_t KdTree::memory_bytes() const {

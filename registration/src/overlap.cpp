@@ -126,12 +126,50 @@ bool VoxelOccupancy::occupied(const Eigen::Vector3d& p) const {
   }
 }
 
+std::size_t VoxelOccupancy::count_occupied(const PointCloud& source,
+                                           const Eigen::Isometry3d& T_target_source,
+                                           std::size_t stride) const {
+  const std::size_t step = std::max<std::size_t>(stride, 1);
+  const std::size_t count = (source.size() + step - 1) / step;  // points visited
+  std::size_t inside = 0, k = 0;
+  if (box_size_[0] > 0) {
+    // occupied()'s bitmap path inlined: T p formed as Eigen forms it, its voxel as
+    // voxel_coordinates() does.
+    const Eigen::Matrix3d linear = T_target_source.linear();
+    const Eigen::Vector3d translation = T_target_source.translation();
+    const double* R = linear.data();
+    const double* t = translation.data();
+    for (; k < count; ++k) {
+      const Eigen::Vector3f& point = source.points[k * step];
+      const double p0 = point.x(), p1 = point.y(), p2 = point.z();
+      const double q[3] = {((R[0] * p0 + R[3] * p1) + R[6] * p2) + t[0],
+                           ((R[1] * p0 + R[4] * p1) + R[7] * p2) + t[1],
+                           ((R[2] * p0 + R[5] * p1) + R[8] * p2) + t[2]};
+      std::int64_t at = 0;
+      bool in_box = true;
+      for (std::size_t axis = 0; axis < 3; ++axis) {
+        const double x = q[axis] * inverse_size_;
+        in_box = in_box && x >= -kMaxCoordinate && x < kMaxCoordinate;
+        const double bounded = in_box ? x : 0.0;
+        auto v = static_cast<std::int64_t>(bounded);
+        v -= static_cast<double>(v) > bounded ? 1 : 0;
+        const std::int64_t offset = v + (std::int64_t{1} << 20) - box_begin_[axis];
+        in_box = in_box &&
+                 static_cast<std::uint64_t>(offset) < static_cast<std::uint64_t>(box_size_[axis]);
+        at = at * box_size_[axis] + offset;
+      }
+      if (in_box) inside += (bits_[static_cast<std::size_t>(at) / 64] >> (at % 64)) & 1u;
+    }
+  }
+  for (; k < count; ++k) inside += occupied(T_target_source * source.point(k * step)) ? 1 : 0;
+  return inside;
+}
+
 double overlap_fraction(const VoxelOccupancy& target, const PointCloud& source,
                         const Eigen::Isometry3d& T_target_source, int stride) {
-  const std::size_t step = static_cast<std::size_t>(std::max(stride, 1));
-  std::size_t inside = 0, total = 0;
-  for (std::size_t i = 0; i < source.size(); i += step, ++total)
-    inside += target.occupied(T_target_source * source.point(i)) ? 1 : 0;
+  const auto step = static_cast<std::size_t>(std::max(stride, 1));
+  const std::size_t total = (source.size() + step - 1) / step;
+  const std::size_t inside = target.count_occupied(source, T_target_source, step);
   return total == 0 ? 0.0 : static_cast<double>(inside) / static_cast<double>(total);
 }
 

@@ -165,6 +165,45 @@ CARAT_MULTIVERSION_WIDE void fused_whitenings(const double* __restrict target,
   }
 }
 
+/// The residuals and Jacobian rows of kBatch whole correspondences, given lane by lane
+/// (target[e * kBatch + lane]: coordinate e of correspondence lane's target mean; source alike;
+/// whitening[e * kBatch + lane]: entry e of its W), rows written in order (three a
+/// correspondence), written for the compiler to vectorize over the lanes: the same operations in
+/// the same order as Pose::difference(), whitening_row(), dot3() and jacobian_row(), so each
+/// row has the bits evaluate_rows() gives it one at a time.
+CARAT_MULTIVERSION_WIDE void whole_rows(const double* __restrict r, const double* __restrict t,
+                                        const double* __restrict target,
+                                        const double* __restrict source,
+                                        const double* __restrict whitening,
+                                        double* __restrict residuals, double* __restrict jacobian) {
+  for (std::size_t lane = 0; lane < kBatch; ++lane) {
+    const double m0 = source[lane], m1 = source[kBatch + lane], m2 = source[2 * kBatch + lane];
+    const double q0 = (r[0] * m0 + r[3] * m1 + r[6] * m2) + t[0];
+    const double q1 = (r[1] * m0 + r[4] * m1 + r[7] * m2) + t[1];
+    const double q2 = (r[2] * m0 + r[5] * m1 + r[8] * m2) + t[2];
+    const double d0 = target[lane] - q0, d1 = target[kBatch + lane] - q1,
+                 d2 = target[2 * kBatch + lane] - q2;
+    double w[6];
+    for (std::size_t e = 0; e < 6; ++e) w[e] = whitening[e * kBatch + lane];
+    const double ell[3][3] = {{w[0], w[1], w[2]}, {0.0, w[3], w[4]}, {0.0, 0.0, w[5]}};
+    for (std::size_t c = 0; c < 3; ++c) {
+      const double* l = ell[c];
+      const std::size_t row = 3 * lane + c;
+      residuals[row] = l[0] * d0 + l[1] * d1 + l[2] * d2;
+      const double a0 = l[0] * r[0] + l[1] * r[1] + l[2] * r[2];
+      const double a1 = l[0] * r[3] + l[1] * r[4] + l[2] * r[5];
+      const double a2 = l[0] * r[6] + l[1] * r[7] + l[2] * r[8];
+      double* J = jacobian + 6 * row;
+      J[0] = a1 * m2 - a2 * m1;
+      J[1] = a2 * m0 - a0 * m2;
+      J[2] = a0 * m1 - a1 * m0;
+      J[3] = -a0;
+      J[4] = -a1;
+      J[5] = -a2;
+    }
+  }
+}
+
 /// The rotation of T, row-major.
 std::array<double, 9> row_major(const Eigen::Isometry3d& T) {
   std::array<double, 9> R;
@@ -322,10 +361,37 @@ void GicpBlock::evaluate_rows(ParameterPointers params, std::span<const int> row
   }
   // Rows come in groups of up to three per correspondence: the difference mu_target - T mu is
   // computed once per correspondence and reused by its rows. Every path below goes through the
-  // same scalar helpers, so a row has the same bits whichever way it was asked for.
+  // same scalar helpers (whole_rows() repeats them lane by lane), so a row has the same bits
+  // whichever way it was asked for.
+  std::size_t k = 0;
+  if (jacobian) {
+    // Leading batches of whole correspondences in order (every row of the block, as compress()
+    // asks for), kBatch at a time.
+    double target[3 * kBatch], source[3 * kBatch], whitening[6 * kBatch];
+    const auto in_order = [&](std::size_t at) {
+      const int first = rows[at];
+      if (first % 3 != 0) return false;
+      for (std::size_t j = 1; j < 3 * kBatch; ++j)
+        if (rows[at + j] != first + static_cast<int>(j)) return false;
+      return true;
+    };
+    while (k + 3 * kBatch <= rows.size() && in_order(k)) {
+      const auto first = static_cast<std::size_t>(rows[k] / 3);
+      for (std::size_t lane = 0; lane < kBatch; ++lane) {
+        const Point& p = points_[first + lane];
+        for (std::size_t e = 0; e < 3; ++e) {
+          target[e * kBatch + lane] = p.target[e];
+          source[e * kBatch + lane] = p.source[e];
+        }
+        for (std::size_t e = 0; e < 6; ++e) whitening[e * kBatch + lane] = p.whitening[e];
+      }
+      whole_rows(T.r, T.t, target, source, whitening, residuals + k, jacobian + 6 * k);
+      k += 3 * kBatch;
+    }
+  }
   std::size_t cached = static_cast<std::size_t>(-1);
   std::array<double, 3> d{};
-  for (std::size_t k = 0; k < rows.size(); ++k) {
+  for (; k < rows.size(); ++k) {
     const int row = rows[k];
     const auto index = static_cast<std::size_t>(row / 3);
     const Point& p = points_[index];

@@ -48,6 +48,12 @@ class FrameStore {
   /// Frame k, loaded if it is not in memory. Throws carat::Error for k out of range, or what the
   /// loader threw (a later get() of the same frame tries again).
   std::shared_ptr<const Frame> get(std::size_t k);
+  /// Reads frame k into the cache unless it is there or being read already, and returns at once
+  /// in those cases: a worker that knows which frames come next reads them while the others
+  /// work, instead of all waiting for the same frame later. Returns whether this call read it.
+  /// Not a request: stats() counts its reads as loads only. A loader error is dropped (the
+  /// frame stays unread, and the next get() tries again and throws it); so is k out of range.
+  bool prefetch(std::size_t k);
   /// True when the frames are held in memory by the caller (the first constructor).
   bool resident() const { return !load_; }
   /// Drops every cached frame that no caller holds, when frames are read on demand (a later
@@ -68,6 +74,9 @@ class FrameStore {
     std::list<std::size_t>::iterator lru;  // valid while frame is set
   };
   void evict_locked(std::size_t incoming);  // drops frames until `incoming` more bytes fit
+  // Reads entry k, marked as loading by the caller, with `lock` released meanwhile; throws what
+  // the loader threw (the mark cleared).
+  std::shared_ptr<const Frame> load_marked(std::size_t k, std::unique_lock<std::mutex>& lock);
 
   std::vector<Entry> entries_;
   Loader load_;

@@ -28,6 +28,14 @@ class KdTree {
   int knn(const Eigen::Vector3f& query, int k, std::uint32_t* indices,
           float* squared_distances) const;
 
+  /// What knn() finds for each query, in order: query q's points in indices[q * k, q * k + k)
+  /// and squared_distances alike, found[q] of them (nearest first). The same answers as knn(),
+  /// ties included; each search is bounded by the one before (the k points the previous query
+  /// found bound the reach of the next), so runs of nearby queries (a scan's own points in
+  /// voxel order) are answered faster than one at a time.
+  void knn(std::span<const Eigen::Vector3f> queries, int k, std::uint32_t* indices,
+           float* squared_distances, int* found) const;
+
   /// The nearest point: its index and squared distance; false for an empty cloud.
   bool nearest(const Eigen::Vector3f& query, std::uint32_t* index, float* squared_distance) const;
 

@@ -20,6 +20,11 @@ class VoxelOccupancy {
   VoxelOccupancy(const PointCloud& cloud, double voxel_size);
   /// Whether the voxel containing p (same frame as the cloud) holds a point.
   bool occupied(const Eigen::Vector3d& p) const;
+  /// How many of the points source.points[0], [stride], [2 stride], ... (stride 0 taken as 1)
+  /// map by T_target_source into an occupied voxel: occupied(T_target_source * source.point(i))
+  /// summed, with the same answers (the bitmap lookup inlined into one loop).
+  std::size_t count_occupied(const PointCloud& source, const Eigen::Isometry3d& T_target_source,
+                             std::size_t stride) const;
   /// Number of occupied voxels.
   std::size_t size() const { return keys_.size(); }
   /// Voxel edge, metres.
