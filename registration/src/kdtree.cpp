@@ -75,14 +75,40 @@ struct TreeView {
   d = dx * dx + dy * dy + dz * dz;
 }
 
-/// The least of eight lanes (none NaN: a NaN lane may come out as the least), halving them
-/// three times: a tree of three dependent minima, not a chain of seven.
-[[gnu::always_inline]] inline float lane_minimum(Lanes v) {
-  Lanes folded = __builtin_shuffle(v, LaneIndices{4, 5, 6, 7, 0, 1, 2, 3});
+/// out = v with its lanes exchanged in blocks of `span` (4, 2 or 1): lane i takes lane i ^ span.
+/// (Vectors by reference: a 32-byte vector passed or returned by value changes the ABI between
+/// the clones.)
+template <int span, class Vector>
+[[gnu::always_inline]] inline void exchange_lanes(const Vector& v, Vector& out) {
+#if defined(__clang__)
+  if constexpr (span == 4) {
+    out = __builtin_shufflevector(v, v, 4, 5, 6, 7, 0, 1, 2, 3);
+  } else if constexpr (span == 2) {
+    out = __builtin_shufflevector(v, v, 2, 3, 0, 1, 6, 7, 4, 5);
+  } else {
+    out = __builtin_shufflevector(v, v, 1, 0, 3, 2, 5, 4, 7, 6);
+  }
+#else
+  if constexpr (span == 4) {
+    out = __builtin_shuffle(v, LaneIndices{4, 5, 6, 7, 0, 1, 2, 3});
+  } else if constexpr (span == 2) {
+    out = __builtin_shuffle(v, LaneIndices{2, 3, 0, 1, 6, 7, 4, 5});
+  } else {
+    out = __builtin_shuffle(v, LaneIndices{1, 0, 3, 2, 5, 4, 7, 6});
+  }
+#endif
+}
+
+/// The least of eight lanes (Lanes or LaneIndices; none NaN: a NaN lane may come out as the
+/// least), halving them three times: a tree of three dependent minima, not a chain of seven.
+template <class Vector>
+[[gnu::always_inline]] inline auto lane_minimum(const Vector& lanes) {
+  Vector v = lanes, folded;
+  exchange_lanes<4>(v, folded);
   v = folded < v ? folded : v;
-  folded = __builtin_shuffle(v, LaneIndices{2, 3, 0, 1, 6, 7, 4, 5});
+  exchange_lanes<2>(v, folded);
   v = folded < v ? folded : v;
-  folded = __builtin_shuffle(v, LaneIndices{1, 0, 3, 2, 5, 4, 7, 6});
+  exchange_lanes<1>(v, folded);
   v = folded < v ? folded : v;
   return v[0];
 }
@@ -123,13 +149,7 @@ struct NearestResult {
       const LaneIndices candidate = d[g] == best ? here : first;
       first = candidate < first ? candidate : first;
     }
-    LaneIndices fold = __builtin_shuffle(first, LaneIndices{4, 5, 6, 7, 0, 1, 2, 3});
-    first = fold < first ? fold : first;
-    fold = __builtin_shuffle(first, LaneIndices{2, 3, 0, 1, 6, 7, 4, 5});
-    first = fold < first ? fold : first;
-    fold = __builtin_shuffle(first, LaneIndices{1, 0, 3, 2, 5, 4, 7, 6});
-    first = fold < first ? fold : first;
-    const std::int32_t lane = first[0];
+    const std::int32_t lane = lane_minimum(first);
     worst = best;
     position = begin + static_cast<std::uint32_t>(lane);
   }
