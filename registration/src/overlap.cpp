@@ -42,6 +42,19 @@ constexpr std::uint64_t kMultiplier = 0x9E3779B97F4A7C15ull;
   return static_cast<std::int64_t>((key >> (42 - 21 * axis)) & ((1u << 21) - 1));
 }
 
+/// Whether the voxel of grid coordinates c (offset as voxel_coordinates() gives them) is set in
+/// the bitmap over the box [begin, begin + size) (false outside the box).
+[[gnu::always_inline]] inline bool in_bitmap(const std::int64_t* c, const std::int64_t* begin,
+                                             const std::int64_t* size, const std::uint64_t* bits) {
+  std::int64_t at = 0;
+  for (std::size_t axis = 0; axis < 3; ++axis) {
+    const std::int64_t offset = c[axis] - begin[axis];
+    if (static_cast<std::uint64_t>(offset) >= static_cast<std::uint64_t>(size[axis])) return false;
+    at = at * size[axis] + offset;
+  }
+  return (bits[static_cast<std::size_t>(at) / 64] >> (at % 64)) & 1u;
+}
+
 }  // namespace
 
 VoxelOccupancy::VoxelOccupancy(const PointCloud& cloud, double voxel_size)
@@ -107,16 +120,7 @@ VoxelOccupancy::VoxelOccupancy(const PointCloud& cloud, double voxel_size)
 bool VoxelOccupancy::occupied(const Eigen::Vector3d& p) const {
   std::int64_t c[3];
   if (keys_.empty() || !voxel_coordinates(p, inverse_size_, c)) return false;
-  if (box_size_[0] > 0) {
-    std::int64_t at = 0;
-    for (std::size_t axis = 0; axis < 3; ++axis) {
-      const std::int64_t offset = c[axis] - box_begin_[axis];
-      if (static_cast<std::uint64_t>(offset) >= static_cast<std::uint64_t>(box_size_[axis]))
-        return false;
-      at = at * box_size_[axis] + offset;
-    }
-    return (bits_[static_cast<std::size_t>(at) / 64] >> (at % 64)) & 1u;
-  }
+  if (box_size_[0] > 0) return in_bitmap(c, box_begin_.data(), box_size_.data(), bits_.data());
   const std::uint64_t key = voxel_key(c);
   const std::size_t mask = table_.size() - 1;
   for (std::size_t slot = static_cast<std::size_t>((key * kMultiplier) >> shift_);;
@@ -133,32 +137,11 @@ std::size_t VoxelOccupancy::count_occupied(const PointCloud& source,
   const std::size_t count = (source.size() + step - 1) / step;  // points visited
   std::size_t inside = 0, k = 0;
   if (box_size_[0] > 0) {
-    // occupied()'s bitmap path inlined: T p formed as Eigen forms it, its voxel as
-    // voxel_coordinates() does.
-    const Eigen::Matrix3d linear = T_target_source.linear();
-    const Eigen::Vector3d translation = T_target_source.translation();
-    const double* R = linear.data();
-    const double* t = translation.data();
+    // occupied()'s bitmap path, inlined into the loop.
     for (; k < count; ++k) {
-      const Eigen::Vector3f& point = source.points[k * step];
-      const double p0 = point.x(), p1 = point.y(), p2 = point.z();
-      const double q[3] = {((R[0] * p0 + R[3] * p1) + R[6] * p2) + t[0],
-                           ((R[1] * p0 + R[4] * p1) + R[7] * p2) + t[1],
-                           ((R[2] * p0 + R[5] * p1) + R[8] * p2) + t[2]};
-      std::int64_t at = 0;
-      bool in_box = true;
-      for (std::size_t axis = 0; axis < 3; ++axis) {
-        const double x = q[axis] * inverse_size_;
-        in_box = in_box && x >= -kMaxCoordinate && x < kMaxCoordinate;
-        const double bounded = in_box ? x : 0.0;
-        auto v = static_cast<std::int64_t>(bounded);
-        v -= static_cast<double>(v) > bounded ? 1 : 0;
-        const std::int64_t offset = v + (std::int64_t{1} << 20) - box_begin_[axis];
-        in_box = in_box &&
-                 static_cast<std::uint64_t>(offset) < static_cast<std::uint64_t>(box_size_[axis]);
-        at = at * box_size_[axis] + offset;
-      }
-      if (in_box) inside += (bits_[static_cast<std::size_t>(at) / 64] >> (at % 64)) & 1u;
+      std::int64_t c[3];
+      if (voxel_coordinates(T_target_source * source.point(k * step), inverse_size_, c))
+        inside += in_bitmap(c, box_begin_.data(), box_size_.data(), bits_.data()) ? 1 : 0;
     }
   }
   for (; k < count; ++k) inside += occupied(T_target_source * source.point(k * step)) ? 1 : 0;

@@ -22,7 +22,7 @@ class VoxelOccupancy {
   bool occupied(const Eigen::Vector3d& p) const;
   /// How many of the points source.points[0], [stride], [2 stride], ... (stride 0 taken as 1)
   /// map by T_target_source into an occupied voxel: occupied(T_target_source * source.point(i))
-  /// summed, with the same answers (the bitmap lookup inlined into one loop).
+  /// summed (the bitmap lookup inlined into the loop).
   std::size_t count_occupied(const PointCloud& source, const Eigen::Isometry3d& T_target_source,
                              std::size_t stride) const;
   /// Number of occupied voxels.
