@@ -61,14 +61,14 @@ struct Pose {
     for (int i = 0; i < 3; ++i) t[i] = T.translation()[i];
   }
   /// T mu.
-  std::array<double, 3> apply(const std::array<double, 3>& mu) const {
+  [[gnu::always_inline]] std::array<double, 3> apply(const std::array<double, 3>& mu) const {
     return {(r[0] * mu[0] + r[3] * mu[1] + r[6] * mu[2]) + t[0],
             (r[1] * mu[0] + r[4] * mu[1] + r[7] * mu[2]) + t[1],
             (r[2] * mu[0] + r[5] * mu[1] + r[8] * mu[2]) + t[2]};
   }
   /// mu_target - T mu_source.
-  std::array<double, 3> difference(const std::array<double, 3>& target,
-                                   const std::array<double, 3>& source) const {
+  [[gnu::always_inline]] std::array<double, 3> difference(
+      const std::array<double, 3>& target, const std::array<double, 3>& source) const {
     const std::array<double, 3> q = apply(source);
     return {target[0] - q[0], target[1] - q[1], target[2] - q[2]};
   }
@@ -168,38 +168,24 @@ CARAT_MULTIVERSION_WIDE void fused_whitenings(const double* __restrict target,
 /// The residuals and Jacobian rows of kBatch whole correspondences, given lane by lane
 /// (target[e * kBatch + lane]: coordinate e of correspondence lane's target mean; source alike;
 /// whitening[e * kBatch + lane]: entry e of its W), rows written in order (three a
-/// correspondence), written for the compiler to vectorize over the lanes: the same operations in
-/// the same order as Pose::difference(), whitening_row(), dot3() and jacobian_row(), so each
-/// row has the bits evaluate_rows() gives it one at a time.
-CARAT_MULTIVERSION_WIDE void whole_rows(const double* __restrict r, const double* __restrict t,
-                                        const double* __restrict target,
+/// correspondence), through the scalar helpers evaluate_rows() uses, written for the compiler to
+/// vectorize over the lanes: each row has the bits evaluate_rows() gives it one at a time.
+CARAT_MULTIVERSION_WIDE void whole_rows(const Pose& T, const double* __restrict target,
                                         const double* __restrict source,
                                         const double* __restrict whitening,
                                         double* __restrict residuals, double* __restrict jacobian) {
   for (std::size_t lane = 0; lane < kBatch; ++lane) {
-    const double m0 = source[lane], m1 = source[kBatch + lane], m2 = source[2 * kBatch + lane];
-    const double q0 = (r[0] * m0 + r[3] * m1 + r[6] * m2) + t[0];
-    const double q1 = (r[1] * m0 + r[4] * m1 + r[7] * m2) + t[1];
-    const double q2 = (r[2] * m0 + r[5] * m1 + r[8] * m2) + t[2];
-    const double d0 = target[lane] - q0, d1 = target[kBatch + lane] - q1,
-                 d2 = target[2 * kBatch + lane] - q2;
-    double w[6];
+    const std::array<double, 3> mu = {source[lane], source[kBatch + lane],
+                                      source[2 * kBatch + lane]};
+    const std::array<double, 3> d =
+        T.difference({target[lane], target[kBatch + lane], target[2 * kBatch + lane]}, mu);
+    std::array<double, 6> w;
     for (std::size_t e = 0; e < 6; ++e) w[e] = whitening[e * kBatch + lane];
-    const double ell[3][3] = {{w[0], w[1], w[2]}, {0.0, w[3], w[4]}, {0.0, 0.0, w[5]}};
-    for (std::size_t c = 0; c < 3; ++c) {
-      const double* l = ell[c];
-      const std::size_t row = 3 * lane + c;
-      residuals[row] = l[0] * d0 + l[1] * d1 + l[2] * d2;
-      const double a0 = l[0] * r[0] + l[1] * r[1] + l[2] * r[2];
-      const double a1 = l[0] * r[3] + l[1] * r[4] + l[2] * r[5];
-      const double a2 = l[0] * r[6] + l[1] * r[7] + l[2] * r[8];
-      double* J = jacobian + 6 * row;
-      J[0] = a1 * m2 - a2 * m1;
-      J[1] = a2 * m0 - a0 * m2;
-      J[2] = a0 * m1 - a1 * m0;
-      J[3] = -a0;
-      J[4] = -a1;
-      J[5] = -a2;
+    for (int c = 0; c < 3; ++c) {
+      const std::size_t row = 3 * lane + static_cast<std::size_t>(c);
+      const std::array<double, 3> ell = whitening_row(w, c);
+      residuals[row] = dot3(ell, d);
+      jacobian_row(T, ell, mu, jacobian + 6 * row);
     }
   }
 }
@@ -361,7 +347,7 @@ void GicpBlock::evaluate_rows(ParameterPointers params, std::span<const int> row
   }
   // Rows come in groups of up to three per correspondence: the difference mu_target - T mu is
   // computed once per correspondence and reused by its rows. Every path below goes through the
-  // same scalar helpers (whole_rows() repeats them lane by lane), so a row has the same bits
+  // same scalar helpers (whole_rows() runs them lane by lane), so a row has the same bits
   // whichever way it was asked for.
   std::size_t k = 0;
   if (jacobian) {
@@ -385,7 +371,7 @@ void GicpBlock::evaluate_rows(ParameterPointers params, std::span<const int> row
         }
         for (std::size_t e = 0; e < 6; ++e) whitening[e * kBatch + lane] = p.whitening[e];
       }
-      whole_rows(T.r, T.t, target, source, whitening, residuals + k, jacobian + 6 * k);
+      whole_rows(T, target, source, whitening, residuals + k, jacobian + 6 * k);
       k += 3 * kBatch;
     }
   }
