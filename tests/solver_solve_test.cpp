@@ -177,6 +177,74 @@ TEST(SolveTest, AssemblyMatchesDenseNormalEquations) {
   }
 }
 
+TEST(SolveTest, LinearizingInRunsAssemblesWhatAllBlocksAtOnceDo) {
+  // 70,000 one-row blocks over pairs of 300 scalars (Cauchy on every fifth): more than two of
+  // SparseSystem::linearize()'s runs.
+  Problem problem;
+  std::mt19937_64 rng(7);
+  std::normal_distribution<double> normal;
+  constexpr int kVariables = 300;
+  constexpr int kBlocks = 70000;
+  for (int v = 0; v < kVariables; ++v)
+    problem.add_euclidean(Eigen::VectorXd::Constant(1, normal(rng)));
+  const auto loss = std::make_shared<CauchyLoss>(0.5);
+  std::uniform_int_distribution<int> pick(0, kVariables - 1);
+  for (int k = 0; k < kBlocks; ++k) {
+    const int a = pick(rng);
+    const int b = (a + 1 + pick(rng) % (kVariables - 1)) % kVariables;
+    problem.add_residual_block(
+        std::make_shared<LinearBlock>(
+            std::vector<Eigen::MatrixXd>{Eigen::MatrixXd::Constant(1, 1, normal(rng)),
+                                         Eigen::MatrixXd::Constant(1, 1, normal(rng))},
+            Eigen::VectorXd::Constant(1, normal(rng))),
+        {VariableId{a}, VariableId{b}}, k % 5 == 0 ? loss : nullptr);
+  }
+  internal::BlockEvaluator evaluator(problem);
+  std::vector<double> values(problem.all_values().begin(), problem.all_values().end());
+  evaluator.bind(0, values.data());
+  internal::SparseSystem runs(problem, Ordering::kAmd);
+  Eigen::VectorXd run_gradient;
+  const internal::LinearizeReport report = runs.linearize(evaluator, 0, &run_gradient);
+  ASSERT_TRUE(report.ok) << report.error;
+
+  internal::SparseSystem whole(problem, Ordering::kAmd);
+  internal::BlockLinearizations blocks;
+  evaluator.allocate(&blocks);
+  std::string error;
+  ASSERT_TRUE(evaluator.linearize(0, &blocks, &error)) << error;
+  Eigen::VectorXd gradient;
+  whole.assemble(blocks, &gradient);
+  double cost = 0.0;
+  for (const double c : blocks.cost) cost += c;
+
+  EXPECT_EQ(report.cost, cost);
+  ASSERT_EQ(run_gradient.size(), gradient.size());
+  EXPECT_TRUE((run_gradient.array() == gradient.array()).all());
+  EXPECT_TRUE((runs.diagonal().array() == whole.diagonal().array()).all());
+  Eigen::VectorXd x(runs.size()), hx_runs, hx_whole;
+  for (Eigen::Index k = 0; k < x.size(); ++k) x[k] = normal(rng);
+  runs.multiply(x, &hx_runs);
+  whole.multiply(x, &hx_whole);
+  EXPECT_TRUE((hx_runs.array() == hx_whole.array()).all());
+
+  // A block that is not finite in the last run is the one named, as for all blocks at once.
+  problem.add_residual_block(
+      std::make_shared<LinearBlock>(
+          std::vector<Eigen::MatrixXd>{Eigen::MatrixXd::Ones(1, 1), Eigen::MatrixXd::Ones(1, 1)},
+          Eigen::VectorXd::Constant(1, std::numeric_limits<double>::quiet_NaN())),
+      {VariableId{0}, VariableId{1}});
+  internal::BlockEvaluator bad_evaluator(problem);
+  bad_evaluator.bind(0, values.data());
+  internal::SparseSystem bad(problem, Ordering::kAmd);
+  const internal::LinearizeReport failed = bad.linearize(bad_evaluator, 0, &run_gradient);
+  EXPECT_FALSE(failed.ok);
+  EXPECT_THAT(failed.error, testing::StartsWith("residual block 70000: row 0 is not finite"));
+  internal::BlockLinearizations bad_blocks;
+  bad_evaluator.allocate(&bad_blocks);
+  EXPECT_FALSE(bad_evaluator.linearize(0, &bad_blocks, &error));
+  EXPECT_EQ(failed.error, error);
+}
+
 TEST(SolveTest, RosenbrockFromTheClassicStart) {
   Problem problem;
   const VariableId x = problem.add_euclidean(Eigen::Vector2d(-1.2, 1.0));

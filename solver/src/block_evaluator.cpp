@@ -86,14 +86,17 @@ void BlockEvaluator::bind(int which, const double* values) {
   for (std::size_t k = 0; k < param_offsets_.size(); ++k) ptrs[k] = values + param_offsets_[k];
 }
 
-void BlockEvaluator::allocate(BlockLinearizations* out) const {
+void BlockEvaluator::allocate(BlockLinearizations* out, std::size_t run_blocks) const {
   const auto blocks = problem_.blocks();
   out->h_offset.resize(blocks.size());
   out->b_offset.resize(blocks.size());
   out->dim.resize(blocks.size());
   out->cost.assign(blocks.size(), 0.0);
+  run_blocks = std::max<std::size_t>(run_blocks, 1);
   std::size_t h = 0;
   std::size_t b = 0;
+  std::size_t run_h = 0;  // the largest run's
+  std::size_t run_b = 0;
   for (std::size_t i = 0; i < blocks.size(); ++i) {
     const int D = blocks[i].block->tangent_dim();
     out->dim[i] = D;
@@ -101,9 +104,12 @@ void BlockEvaluator::allocate(BlockLinearizations* out) const {
     out->b_offset[i] = b;
     h += static_cast<std::size_t>(D) * static_cast<std::size_t>(D + 1) / 2;
     b += static_cast<std::size_t>(D);
+    const std::size_t first = i - i % run_blocks;
+    run_h = std::max(run_h, h - out->h_offset[first]);
+    run_b = std::max(run_b, b - out->b_offset[first]);
   }
-  out->h.assign(h, 0.0);  // huge pages (see huge_pages.hpp)
-  out->b.assign(b, 0.0);
+  out->h.assign(run_h, 0.0);  // huge pages (see huge_pages.hpp)
+  out->b.assign(run_b, 0.0);
 }
 
 bool BlockEvaluator::evaluate_block(std::size_t i, int which, BlockScratch& s, double* packed_h,
@@ -200,22 +206,30 @@ std::string BlockEvaluator::describe_bad_block(std::size_t i, int which) const {
 }
 
 bool BlockEvaluator::linearize(int which, BlockLinearizations* out, std::string* error) const {
-  const std::size_t num_blocks = problem_.blocks().size();
+  return linearize_run(which, 0, problem_.blocks().size(), out, error);
+}
+
+bool BlockEvaluator::linearize_run(int which, std::size_t first, std::size_t last,
+                                   BlockLinearizations* out, std::string* error) const {
+  if (first >= last) return true;
   tbb::enumerable_thread_specific<BlockScratch> scratch;
-  // The first block (lowest index) whose H, b or cost is not finite; none: num_blocks.
-  std::atomic<std::size_t> first_bad{num_blocks};
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, num_blocks, 8),
-                    [&](const tbb::blocked_range<std::size_t>& range) {
-                      BlockScratch& s = scratch.local();
-                      for (std::size_t i = range.begin(); i != range.end(); ++i) {
-                        if (!evaluate_block(i, which, s, out->h.data() + out->h_offset[i],
-                                            out->b.data() + out->b_offset[i], &out->cost[i])) {
-                          record_bad_block(first_bad, i);
-                        }
-                      }
-                    });
+  const std::size_t h_base = out->h_offset[first];
+  const std::size_t b_base = out->b_offset[first];
+  // The first block (lowest index) whose H, b or cost is not finite; none: last.
+  std::atomic<std::size_t> first_bad{last};
+  tbb::parallel_for(
+      tbb::blocked_range<std::size_t>(first, last, 8),
+      [&](const tbb::blocked_range<std::size_t>& range) {
+        BlockScratch& s = scratch.local();
+        for (std::size_t i = range.begin(); i != range.end(); ++i) {
+          if (!evaluate_block(i, which, s, out->h.data() + (out->h_offset[i] - h_base),
+                              out->b.data() + (out->b_offset[i] - b_base), &out->cost[i])) {
+            record_bad_block(first_bad, i);
+          }
+        }
+      });
   const std::size_t bad = first_bad.load();
-  if (bad < num_blocks) {
+  if (bad < last) {
     *error = describe_bad_block(bad, which);
     return false;
   }

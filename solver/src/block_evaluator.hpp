@@ -6,6 +6,7 @@
 #include <Eigen/Core>
 #include <atomic>
 #include <cstddef>
+#include <limits>
 #include <span>
 #include <string>
 #include <vector>
@@ -45,6 +46,11 @@ class BlockEvaluator {
   /// space, robust loss applied). Returns false and names the block in *error if a value is
   /// not finite.
   bool linearize(int which, BlockLinearizations* out, std::string* error) const;
+  /// As linearize(), for blocks [first, last) only: block i's H and b at its offsets less block
+  /// first's in `out` (storage allocated for runs of at least last - first blocks), its cost at
+  /// out->cost[i]. The error names the lowest bad block of the run.
+  bool linearize_run(int which, std::size_t first, std::size_t last, BlockLinearizations* out,
+                     std::string* error) const;
 
   /// Linearizes block i at buffer `which`: its H lifted to the full tangent space with the loss
   /// applied, as a lower triangle packed by columns into packed_h (D (D + 1) / 2), b into b (D)
@@ -67,8 +73,11 @@ class BlockEvaluator {
   /// The own blocks' costs 1/2 rho at buffer `which` (per-block parallel), in block order.
   const std::vector<double>& own_costs(int which) const;
 
-  /// Allocates the per-block storage of `out` for this problem.
-  void allocate(BlockLinearizations* out) const;
+  /// Allocates the per-block storage of `out` for this problem: offsets and costs for every
+  /// block, H and b for the largest run of `run_blocks` consecutive blocks from a multiple of
+  /// run_blocks (every block by default).
+  void allocate(BlockLinearizations* out,
+                std::size_t run_blocks = std::numeric_limits<std::size_t>::max()) const;
 
  private:
   bool evaluate_block_unguarded(std::size_t i, int which, BlockScratch& scratch, double* packed_h,

@@ -79,16 +79,21 @@ LinearizeReport LinearSystem::linearize(const BlockEvaluator& evaluator, int whi
   t0.restart();
   assemble(storage_, gradient);
   report.time.assembly_s = t0.elapsed_s();
-  for (const double c : storage_.cost) report.cost += c;
-  if (const auto& source = evaluator.problem().block_source()) {
-    t0.restart();
-    const bool added = add_source_blocks(*source, evaluator.values(which),
-                                         evaluator.problem().blocks().size(), gradient, &report);
-    report.time.linearize_s += t0.elapsed_s();
-    if (!added) return report;
-  }
-  report.ok = true;
+  finish_linearize(evaluator, which, gradient, &report);
   return report;
+}
+
+void LinearSystem::finish_linearize(const BlockEvaluator& evaluator, int which,
+                                    Eigen::VectorXd* gradient, LinearizeReport* report) {
+  for (const double c : storage_.cost) report->cost += c;
+  if (const auto& source = evaluator.problem().block_source()) {
+    const Stopwatch t0;
+    const bool added = add_source_blocks(*source, evaluator.values(which),
+                                         evaluator.problem().blocks().size(), gradient, report);
+    report->time.linearize_s += t0.elapsed_s();
+    if (!added) return;
+  }
+  report->ok = true;
 }
 
 bool LinearSystem::add_source_blocks(BlockSource&, std::span<const double>, std::size_t,

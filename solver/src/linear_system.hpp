@@ -81,6 +81,12 @@ class LinearSystem {
   int n_ = 0;
   std::vector<int> var_offset_;
   BlockLinearizations storage_;  ///< per-block H and b of the default linearize()
+
+  /// What linearize() does once the own blocks are assembled: sums their costs (storage_.cost,
+  /// in block order) into report->cost, adds the block source's blocks, and sets report->ok
+  /// unless one of those is not finite.
+  void finish_linearize(const BlockEvaluator& evaluator, int which, Eigen::VectorXd* gradient,
+                        LinearizeReport* report);
   std::string description_;
 };
 

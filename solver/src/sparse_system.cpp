@@ -13,6 +13,7 @@
 
 #include "block_variables.hpp"
 #include "carat/base/error.hpp"
+#include "carat/base/stopwatch.hpp"
 #include "huge_pages.hpp"
 #include "source_runs.hpp"
 
@@ -204,6 +205,7 @@ SparseSystem::SparseSystem(const Problem& problem, Ordering ordering)
   }
   values_.assign(rows_.size(), 0.0);
   diag_pos_.assign(colptr_.begin(), colptr_.end() - 1);
+  run_blocks_ = std::max<std::size_t>(std::size_t{1} << 15, 2 * nb);
 
   std::sort(grad_raw.begin(), grad_raw.end());
   grad_begin_.assign(nb + 1, 0);
@@ -250,8 +252,37 @@ SparseSystem::SparseSystem(const Problem& problem, Ordering ordering)
 }
 
 void SparseSystem::assemble(const BlockLinearizations& blocks, Eigen::VectorXd* gradient) {
+  assemble_run(blocks, 0, blocks.dim.size(), gradient);
+}
+
+LinearizeReport SparseSystem::linearize(const BlockEvaluator& evaluator, int which,
+                                        Eigen::VectorXd* gradient) {
+  LinearizeReport report;
+  const std::size_t num_blocks = evaluator.problem().blocks().size();
+  if (storage_.dim.empty()) evaluator.allocate(&storage_, run_blocks_);
+  std::size_t first = 0;
+  do {  // once at least: the first run zeroes the system
+    const std::size_t last = std::min(num_blocks, first + run_blocks_);
+    Stopwatch t0;
+    const bool ok = evaluator.linearize_run(which, first, last, &storage_, &report.error);
+    report.time.linearize_s += t0.elapsed_s();
+    if (!ok) return report;
+    t0.restart();
+    assemble_run(storage_, first, last, gradient);
+    report.time.assembly_s += t0.elapsed_s();
+    first = last;
+  } while (first < num_blocks);
+  finish_linearize(evaluator, which, gradient, &report);
+  return report;
+}
+
+void SparseSystem::assemble_run(const BlockLinearizations& blocks, std::size_t first,
+                                std::size_t last, Eigen::VectorXd* gradient) {
   const std::size_t num_cols = free_vars_.size();
-  gradient->setZero(n_);
+  if (first == 0) gradient->setZero(n_);
+  const std::size_t h_base = first < last ? blocks.h_offset[first] : 0;
+  const std::size_t b_base = first < last ? blocks.b_offset[first] : 0;
+  const auto in_run = [last](std::int32_t block) { return static_cast<std::size_t>(block) < last; };
   tbb::parallel_for(
       tbb::blocked_range<std::size_t>(0, num_cols, 16),
       [&](const tbb::blocked_range<std::size_t>& range) {
@@ -259,21 +290,29 @@ void SparseSystem::assemble(const BlockLinearizations& blocks, Eigen::VectorXd* 
           const int vJ = free_vars_[J];
           const int dJ = var_dim_[static_cast<std::size_t>(vJ)];
           const int col0 = var_offset_[static_cast<std::size_t>(vJ)];
-          for (int c = 0; c < dJ; ++c) {
-            const std::int64_t begin = colptr_[static_cast<std::size_t>(col0 + c)];
-            const std::int64_t end = colptr_[static_cast<std::size_t>(col0 + c) + 1];
-            std::fill(values_.begin() + begin, values_.begin() + end, 0.0);
+          if (first == 0) {
+            for (int c = 0; c < dJ; ++c) {
+              const std::int64_t begin = colptr_[static_cast<std::size_t>(col0 + c)];
+              const std::int64_t end = colptr_[static_cast<std::size_t>(col0 + c) + 1];
+              std::fill(values_.begin() + begin, values_.begin() + end, 0.0);
+            }
           }
           for (std::size_t p = column_pair_begin_[J]; p < column_pair_begin_[J + 1]; ++p) {
             const PairEntry& pair = pairs_[p];
             const bool diagonal = static_cast<std::size_t>(pair.row_var) == J;
             const int dI = var_dim_[static_cast<std::size_t>(
                 free_vars_[static_cast<std::size_t>(pair.row_var)])];
-            for (std::size_t q = pair.contrib_begin; q < pair.contrib_end; ++q) {
-              const Contribution& src = contributions_[q];
+            // A pair's contributions ascend by block: this run's follow the earlier runs'.
+            const auto* q = std::lower_bound(contributions_.data() + pair.contrib_begin,
+                                             contributions_.data() + pair.contrib_end, first,
+                                             [](const Contribution& c, std::size_t block) {
+                                               return static_cast<std::size_t>(c.block) < block;
+                                             });
+            for (; q != contributions_.data() + pair.contrib_end && in_run(q->block); ++q) {
+              const Contribution& src = *q;
               const auto bi = static_cast<std::size_t>(src.block);
               const auto D = static_cast<std::size_t>(blocks.dim[bi]);
-              const double* H = blocks.h.data() + blocks.h_offset[bi];
+              const double* H = blocks.h.data() + (blocks.h_offset[bi] - h_base);
               const auto row_local = static_cast<std::size_t>(src.row_local);
               const auto col_local = static_cast<std::size_t>(src.col_local);
               for (int c = 0; c < dJ; ++c) {
@@ -300,10 +339,15 @@ void SparseSystem::assemble(const BlockLinearizations& blocks, Eigen::VectorXd* 
             }
           }
           double* g = gradient->data() + col0;
-          for (std::size_t s = grad_begin_[J]; s < grad_begin_[J + 1]; ++s) {
-            const auto [block, local] = grad_sources_[s];
-            const double* b =
-                blocks.b.data() + blocks.b_offset[static_cast<std::size_t>(block)] + local;
+          const auto* s = std::lower_bound(
+              grad_sources_.data() + grad_begin_[J], grad_sources_.data() + grad_begin_[J + 1],
+              first, [](const std::pair<std::int32_t, std::int16_t>& source, std::size_t block) {
+                return static_cast<std::size_t>(source.first) < block;
+              });
+          for (; s != grad_sources_.data() + grad_begin_[J + 1] && in_run(s->first); ++s) {
+            const auto [block, local] = *s;
+            const double* b = blocks.b.data() +
+                              (blocks.b_offset[static_cast<std::size_t>(block)] - b_base) + local;
             for (int r = 0; r < dJ; ++r) g[r] += b[r];
           }
         }

@@ -38,6 +38,13 @@ class SparseSystem final : public LinearSystem {
   /// Gathers blocks' H and b into the undamped matrix values and the gradient (parallel over
   /// columns; each destination sums its sources in a fixed order).
   void assemble(const BlockLinearizations& blocks, Eigen::VectorXd* gradient) override;
+  /// Linearizes the own blocks in runs of run_blocks_, each assembled before the next is
+  /// evaluated, so that only one run's H and b are held (a map's hundreds of thousands of
+  /// factors would otherwise hold ~0.7 KB each for the whole solve); the sums are assemble()'s,
+  /// bit for bit. A block that is not finite ends it with the system partly assembled (the
+  /// solve stops there).
+  LinearizeReport linearize(const BlockEvaluator& evaluator, int which,
+                            Eigen::VectorXd* gradient) override;
 
   /// Adds the linearizations of `source`'s blocks at `values` to the assembled system and the
   /// gradient, after the own blocks' (the same sums as for own blocks after them), and their
@@ -87,6 +94,14 @@ class SparseSystem final : public LinearSystem {
     std::int16_t row_local;  // offset of the row variable inside the block's D
     std::int16_t col_local;  // offset of the column variable inside the block's D
   };
+  /// Blocks evaluated and assembled together by linearize(): at least 2^15, and at least twice
+  /// the free variables (each run visits every column, so a run's H and b then take about what
+  /// the matrix itself does, or less).
+  std::size_t run_blocks_ = 0;
+  /// assemble() for blocks [first, last) alone, their H and b at their offsets less block
+  /// first's: adds them after blocks [0, first) (zeroing the system when first is 0).
+  void assemble_run(const BlockLinearizations& blocks, std::size_t first, std::size_t last,
+                    Eigen::VectorXd* gradient);
   /// Adds one source block's linearization record (see block_source.hpp).
   void add_source_block(std::span<const VariableId> variables, const double* record,
                         double* gradient);
