@@ -1,8 +1,8 @@
-// FrameStore: frames on demand under a byte cap (least recently used dropped first, frames in
-// use kept, loader errors passed on and retried, prefetches that never wait), the locality order
-// of pairs, and the dense graph, factors, registration and loop closure from a capped store equal
-// to the resident run; the dense graph measured in shares reading only the frames each share
-// names.
+// FrameStore: frames on demand under a byte cap (least recently used dropped first, frames in use
+// kept, loader errors passed on and retried, prefetches that never wait, points read alone for the
+// overlap tests), the locality order of pairs, and the dense graph, factors, registration and loop
+// closure from a capped store equal to the resident run; the dense graph measured in shares reading
+// only the frames each share names.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
@@ -214,6 +214,86 @@ TEST(FrameStoreTest, PrefetchSkipsAFrameAnotherThreadIsReading) {
   EXPECT_EQ(calls, 1);
   EXPECT_EQ(store.get(0)->name(), "frame 0");
   EXPECT_EQ(calls, 1);
+}
+
+TEST(FrameStoreTest, PointsComeFromTheCacheOrThePointsLoaderWithoutBuildingAFrame) {
+  std::atomic<int> frames_read{0}, points_read{0};
+  FrameStore store(
+      3,
+      [&](std::size_t k) {
+        ++frames_read;
+        return copy_of_frame(k);
+      },
+      [&](std::size_t k) {
+        ++points_read;
+        if (k == 2) throw Error("scan 2: unreadable");
+        PointCloud cloud;
+        cloud.points = drive().frames[k]->cloud().points;
+        return cloud;
+      },
+      0);
+  EXPECT_EQ(store.points(0)->points, drive().frames[0]->cloud().points);
+  EXPECT_EQ(points_read, 1);
+  EXPECT_EQ(frames_read, 0);
+  store.points(0);  // not kept: read again
+  EXPECT_EQ(points_read, 2);
+  const std::shared_ptr<const Frame> frame = store.get(1);
+  EXPECT_EQ(store.points(1).get(), &frame->cloud()) << "a cached frame's own cloud";
+  EXPECT_EQ(points_read, 2);
+  EXPECT_EQ(error_of([&] { store.points(2); }), "scan 2: unreadable");
+  EXPECT_EQ(error_of([&] { store.points(3); }), "frame store: frame 3 requested of 3");
+  const FrameStoreStats stats = store.stats();
+  EXPECT_EQ(stats.loads, 1u);
+  EXPECT_EQ(stats.point_loads, 2u);
+  EXPECT_EQ(stats.requests, 1u);
+  EXPECT_EQ(error_of([] { FrameStore(1, copy_of_frame, FrameStore::PointsLoader{}, 0); }),
+            "frame store: no points loader given");
+  // Without a points loader: the whole frame, which then stays.
+  CountingStore plain(1e9);
+  EXPECT_EQ(plain.store->points(4)->covariances, drive().frames[4]->cloud().covariances);
+  plain.store->points(4);
+  EXPECT_EQ(*plain.calls, 1);
+  EXPECT_EQ(plain.store->stats().point_loads, 0u);
+}
+
+TEST(FrameStoreTest, TheDenseGraphReadsPointsAloneAndDownsamplingKeepsTheFramesPoints) {
+  const Drive& d = drive();
+  FrameStore resident(d.frames);
+  std::atomic<int> frames_read{0};
+  FrameStore store(
+      d.frames.size(),
+      [&](std::size_t k) {
+        ++frames_read;
+        return copy_of_frame(k);
+      },
+      [&](std::size_t k) {
+        PointCloud cloud;
+        cloud.points = d.frames[k]->cloud().points;
+        return cloud;
+      },
+      std::size_t{1} << 40);
+  const std::vector<FramePair> whole = build_dense_graph(resident, d.initial);
+  const std::vector<FramePair> from_points = build_dense_graph(store, d.initial);
+  ASSERT_EQ(whole.size(), from_points.size());
+  for (std::size_t k = 0; k < whole.size(); ++k) {
+    EXPECT_EQ(whole[k].target, from_points[k].target);
+    EXPECT_EQ(whole[k].source, from_points[k].source);
+    EXPECT_EQ(whole[k].overlap, from_points[k].overlap);
+  }
+  EXPECT_EQ(frames_read, 0);
+  EXPECT_EQ(store.stats().point_loads, d.frames.size());
+  // downsample_frame_points() keeps what preprocess_frame() keeps, and fails as it does.
+  PointCloud raw;
+  raw.points = d.frames[3]->cloud().points;
+  PreprocessOptions options;
+  options.voxel_size = 0.7;
+  EXPECT_EQ(downsample_frame_points(raw, options, "scan 3").points,
+            preprocess_frame(raw, options, "scan 3")->cloud().points);
+  options.min_points = 1000000;
+  EXPECT_THAT(error_of([&] { downsample_frame_points(raw, options, "scan 3"); }),
+              HasSubstr("scan 3: only "));
+  EXPECT_EQ(error_of([&] { downsample_frame_points(raw, options, "scan 3"); }),
+            error_of([&] { preprocess_frame(raw, options, "scan 3"); }));
 }
 
 TEST(FrameStoreTest, LocalityOrderIsAPermutationThatKeepsCellsTogether) {

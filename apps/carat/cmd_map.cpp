@@ -155,9 +155,13 @@ void add_run_json(nlohmann::json* j, const MapArgs& args, const MappingResult& m
     const FrameStoreStats stats = store.stats();
     const nlohmann::json cap =
         stats.max_bytes == SIZE_MAX ? nlohmann::json(nullptr) : nlohmann::json(stats.max_bytes);
-    (*j)["frame_store"] = {
-        {"max_bytes", cap},     {"requests", stats.requests},   {"hits", stats.hits},
-        {"loads", stats.loads}, {"evictions", stats.evictions}, {"peak_bytes", stats.peak_bytes}};
+    (*j)["frame_store"] = {{"max_bytes", cap},
+                           {"requests", stats.requests},
+                           {"hits", stats.hits},
+                           {"loads", stats.loads},
+                           {"point_loads", stats.point_loads},
+                           {"evictions", stats.evictions},
+                           {"peak_bytes", stats.peak_bytes}};
   }
   (*j)["peak_rss_bytes"] = peak_rss_bytes();
   (*j)["start"] = args.initial.empty() ? "reference" : "initial";
@@ -180,9 +184,11 @@ void print_run(const MapArgs& args, const MappingResult& map, FrameStore& store,
     const std::string cap = stats.max_bytes == SIZE_MAX
                                 ? std::string("without a cap")
                                 : "under " + format_bytes(static_cast<double>(stats.max_bytes));
-    std::printf("  frames read on demand %s: %zu reads for %zu requests, at most %s held\n",
-                cap.c_str(), stats.loads, stats.requests,
-                format_bytes(static_cast<double>(stats.peak_bytes)).c_str());
+    std::printf(
+        "  frames read on demand %s: %zu reads for %zu requests (and %zu of points alone), at "
+        "most %s held\n",
+        cap.c_str(), stats.loads, stats.requests, stats.point_loads,
+        format_bytes(static_cast<double>(stats.peak_bytes)).c_str());
   }
   if (initial_ate && !args.initial.empty()) {
     std::printf("  start (%s): ATE RMSE %.4f m, %.3f deg\n", args.initial.c_str(),

@@ -47,6 +47,13 @@ std::shared_ptr<FrameStore> frames_from(const MpiFrameSource& source) {
   return open_scans(source.files, scans);
 }
 
+/// Scans the rank's store read from disk so far: whole frames and, for overlap tests, points
+/// alone.
+std::size_t scans_read(const FrameStore& store) {
+  const FrameStoreStats stats = store.stats();
+  return stats.loads + stats.point_loads;
+}
+
 enum Command : std::uint64_t {
   kStop = 0,
   kBuild = 1,        // build and hold a round's factors
@@ -73,7 +80,7 @@ std::vector<std::byte> do_loop_share(FrameStore& store, const LoopJob& job,
         descriptors[q] = make_scan_context(store.get(frame)->cloud(), job.options.descriptor);
       });
     });
-    return encode_descriptors(descriptors, time.elapsed_s(), store.stats().loads, peak_rss_bytes());
+    return encode_descriptors(descriptors, time.elapsed_s(), scans_read(store), peak_rss_bytes());
   }
   if (job.options.kind == LoopWork::Kind::kValidate) {
     std::vector<LoopCandidate> candidates;
@@ -88,15 +95,14 @@ std::vector<std::byte> do_loop_share(FrameStore& store, const LoopJob& job,
     std::vector<LoopCheck> checks;
     if (!candidates.empty())
       checks = validate_loop_candidates(store, job.T_world_frame, candidates, options);
-    return encode_loop_checks(checks, time.elapsed_s(), store.stats().loads, peak_rss_bytes());
+    return encode_loop_checks(checks, time.elapsed_s(), scans_read(store), peak_rss_bytes());
   }
   std::vector<FramePair> pairs;
   for (const std::size_t k : indices) pairs.push_back(job.pairs[k]);
   std::vector<PairRegistration> registrations;
   if (!pairs.empty())
     registrations = register_pairs(store, pairs, job.T_world_frame, job.options.settings, threads);
-  return encode_registrations(registrations, time.elapsed_s(), store.stats().loads,
-                              peak_rss_bytes());
+  return encode_registrations(registrations, time.elapsed_s(), scans_read(store), peak_rss_bytes());
 }
 
 /// A failure the test suite asks a rank for (CARAT_MPI_TEST_FAULT="throw@K" or "abort@K": fail
@@ -283,7 +289,7 @@ int MpiMapJob::serve(int threads) {
         for (const std::size_t k : job.shares[static_cast<std::size_t>(rank_)])
           share.push_back(job.pairs[k]);
         if (!share.empty()) measure_overlaps(*store, job.T_world_frame, share, job.options);
-        answer = encode_overlaps(share, time.elapsed_s(), store->stats().loads, peak_rss_bytes());
+        answer = encode_overlaps(share, time.elapsed_s(), scans_read(*store), peak_rss_bytes());
       } else {
         BuildJob job = decode_job(payload);
         job.options.num_threads = threads;
@@ -299,7 +305,7 @@ int MpiMapJob::serve(int threads) {
         }
         held = std::make_unique<RegistrationShare>(job.pairs, indices, std::move(factors),
                                                    job.T_world_frame, job.options);
-        answer = encode_held(*held, time.elapsed_s(), store->stats().loads, peak_rss_bytes());
+        answer = encode_held(*held, time.elapsed_s(), scans_read(*store), peak_rss_bytes());
       }
     } catch (const std::bad_alloc&) {
       answer = encode_failure("out of memory");
@@ -509,7 +515,7 @@ void MpiMapJob::measure(std::span<FramePair> pairs,
   pairs_measured_per_rank_.assign(static_cast<std::size_t>(size_), 0);
   pairs_measured_per_rank_[0] = shares[0].size();
   frames_read_per_rank_.assign(static_cast<std::size_t>(size_), 0);
-  frames_read_per_rank_[0] = store_->stats().loads;
+  frames_read_per_rank_[0] = scans_read(*store_);
   const std::vector<std::vector<std::byte>> answers = collect_answers(own_failure);
   std::vector<FramePair> measured(pairs.begin(), pairs.end());
   for (int r = 1; r < size_; ++r) {
@@ -602,7 +608,7 @@ std::shared_ptr<HeldRegistrationFactors> MpiMapJob::hold(
   build_s_per_rank_.assign(static_cast<std::size_t>(size_), 0.0);
   build_s_per_rank_[0] = own_time.elapsed_s();
   frames_read_per_rank_.assign(static_cast<std::size_t>(size_), 0);
-  frames_read_per_rank_[0] = store_->resident() ? store_->size() : store_->stats().loads;
+  frames_read_per_rank_[0] = store_->resident() ? store_->size() : scans_read(*store_);
   const std::vector<std::vector<std::byte>> answers = collect_answers(own_failure);
   const auto add = [&](const RegistrationFactorStats& share, std::span<const std::size_t> indices,
                        std::span<const std::size_t> full, std::span<const std::size_t> kept) {

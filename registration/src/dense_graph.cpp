@@ -90,9 +90,10 @@ void measure_overlaps(FrameStore& frames, std::span<const Eigen::Isometry3d> T_w
   arena.execute([&] {
     internal::parallel_for_each_index(wanted.size(), [&](std::size_t w) {
       const std::size_t i = wanted[w];
-      const std::shared_ptr<const Frame> frame = frames.get(i);
-      occupancy[i] = std::make_unique<VoxelOccupancy>(frame->cloud(), options.voxel_size);
-      const auto& points = frame->cloud().points;
+      // Points alone: a store that can read them without the covariances and tree does so.
+      const std::shared_ptr<const PointCloud> cloud = frames.points(i);
+      occupancy[i] = std::make_unique<VoxelOccupancy>(*cloud, options.voxel_size);
+      const auto& points = cloud->points;
       sampled[i].points.reserve((points.size() + stride - 1) / stride);
       for (std::size_t k = 0; k < points.size(); k += stride)
         sampled[i].points.push_back(points[k]);

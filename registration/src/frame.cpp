@@ -74,9 +74,8 @@ void Frame::measure_constraint() {
   }
 }
 
-std::shared_ptr<const Frame> preprocess_frame(const PointCloud& raw,
-                                              const PreprocessOptions& options,
-                                              const std::string& name) {
+PointCloud downsample_frame_points(const PointCloud& raw, const PreprocessOptions& options,
+                                   const std::string& name) {
   if (!(std::isfinite(options.voxel_size) && options.voxel_size > 0.0))
     throw Error(name + ": voxel size must be finite and > 0, got " +
                 std::to_string(options.voxel_size));
@@ -93,6 +92,13 @@ std::shared_ptr<const Frame> preprocess_frame(const PointCloud& raw,
                 " points after downsampling (at least " + std::to_string(options.min_points) +
                 " are needed)");
   }
+  return cloud;
+}
+
+std::shared_ptr<const Frame> preprocess_frame(const PointCloud& raw,
+                                              const PreprocessOptions& options,
+                                              const std::string& name) {
+  PointCloud cloud = downsample_frame_points(raw, options, name);
   CovarianceOptions covariance;
   covariance.neighbors = options.covariance_neighbors;
   covariance.num_threads = options.num_threads;

@@ -28,6 +28,13 @@ FrameStore::FrameStore(std::size_t count, Loader load, std::size_t max_bytes)
   stats_.max_bytes = max_bytes;
 }
 
+FrameStore::FrameStore(std::size_t count, Loader load, PointsLoader load_points,
+                       std::size_t max_bytes)
+    : FrameStore(count, std::move(load), max_bytes) {
+  if (!load_points) throw Error("frame store: no points loader given");
+  load_points_ = std::move(load_points);
+}
+
 std::shared_ptr<const Frame> FrameStore::get(std::size_t k) {
   if (k >= entries_.size()) {
     throw Error("frame store: frame " + std::to_string(k) + " requested of " +
@@ -62,6 +69,26 @@ bool FrameStore::prefetch(std::size_t k) {
     return false;
   }
   return true;
+}
+
+std::shared_ptr<const PointCloud> FrameStore::points(std::size_t k) {
+  if (k >= entries_.size()) {
+    throw Error("frame store: frame " + std::to_string(k) + " requested of " +
+                std::to_string(entries_.size()));
+  }
+  {
+    std::lock_guard lock(mutex_);
+    const std::shared_ptr<const Frame>& frame = entries_[k].frame;
+    if (frame) return std::shared_ptr<const PointCloud>(frame, &frame->cloud());
+  }
+  if (!load_points_) {
+    std::shared_ptr<const Frame> frame = get(k);
+    return std::shared_ptr<const PointCloud>(frame, &frame->cloud());
+  }
+  auto cloud = std::make_shared<const PointCloud>(load_points_(k));
+  std::lock_guard lock(mutex_);
+  ++stats_.point_loads;
+  return cloud;
 }
 
 std::shared_ptr<const Frame> FrameStore::load_marked(std::size_t k,

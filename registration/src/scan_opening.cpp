@@ -58,6 +58,11 @@ std::shared_ptr<FrameStore> open_scans(
   }
   return std::make_shared<FrameStore>(
       files.size(), [files, options](std::size_t k) { return open_scan(files[k], options); },
+      [files, options](std::size_t k) {
+        return downsample_frame_points(
+            read_scan_checked(files[k], options.read, options.preprocess.min_points),
+            options.preprocess, files[k].path.string());
+      },
       options.max_bytes);
 }
 

@@ -18,12 +18,13 @@ namespace carat {
 
 /// What a FrameStore did so far.
 struct FrameStoreStats {
-  std::size_t requests = 0;    ///< get() calls
-  std::size_t hits = 0;        ///< get() calls served from memory
-  std::size_t loads = 0;       ///< frames read and preprocessed (the loader's calls)
-  std::size_t evictions = 0;   ///< frames dropped from the cache to stay under the cap
-  std::size_t peak_bytes = 0;  ///< largest bytes of frames held at once (Frame::memory_bytes())
-  std::size_t max_bytes = 0;   ///< the cap (0: none)
+  std::size_t requests = 0;     ///< get() calls
+  std::size_t hits = 0;         ///< get() calls served from memory
+  std::size_t loads = 0;        ///< frames read and preprocessed (the loader's calls)
+  std::size_t point_loads = 0;  ///< frames read for their points alone (the points loader's calls)
+  std::size_t evictions = 0;    ///< frames dropped from the cache to stay under the cap
+  std::size_t peak_bytes = 0;   ///< largest bytes of frames held at once (Frame::memory_bytes())
+  std::size_t max_bytes = 0;    ///< the cap (0: none)
 };
 
 /// Frames 0 .. size()-1 for the registration pipeline. Thread-safe: any thread may call get().
@@ -32,6 +33,10 @@ class FrameStore {
   /// Reads and preprocesses frame k (called from any thread, at most once at a time per frame);
   /// throws carat::Error naming the frame when it cannot.
   using Loader = std::function<std::shared_ptr<const Frame>(std::size_t)>;
+  /// Reads frame k's points alone, as the Loader's frame would hold them (frame coordinates,
+  /// downsampled; covariances not needed), from any thread; throws carat::Error naming the frame
+  /// when it cannot.
+  using PointsLoader = std::function<PointCloud(std::size_t)>;
 
   /// Every frame already in memory; nothing is loaded or evicted. Throws carat::Error for a
   /// null frame.
@@ -40,6 +45,9 @@ class FrameStore {
   /// in use by a caller stay and count; the least recently used others are dropped first).
   /// max_bytes = 0: no cap, every frame is loaded once and kept.
   FrameStore(std::size_t count, Loader load, std::size_t max_bytes);
+  /// As above, with `load_points` to serve points() for frames not in memory without building
+  /// them (no covariances, no tree: a fraction of a frame's preprocessing).
+  FrameStore(std::size_t count, Loader load, PointsLoader load_points, std::size_t max_bytes);
   FrameStore(const FrameStore&) = delete;
   FrameStore& operator=(const FrameStore&) = delete;
 
@@ -54,6 +62,11 @@ class FrameStore {
   /// Not a request: stats() counts its reads as loads only. A loader error is dropped (the
   /// frame stays unread, and the next get() tries again and throws it); so is k out of range.
   bool prefetch(std::size_t k);
+  /// Frame k's points (frame coordinates), for a caller that needs nothing else, such as an
+  /// overlap test: the cached frame's cloud when frame k is in memory, else read with the points
+  /// loader and not kept (its covariances may then be absent), else get(k)'s. Not a request:
+  /// stats() counts the points loader's reads as point_loads. Throws as get(k) does.
+  std::shared_ptr<const PointCloud> points(std::size_t k);
   /// True when the frames are held in memory by the caller (the first constructor).
   bool resident() const { return !load_; }
   /// Drops every cached frame that no caller holds, when frames are read on demand (a later
@@ -80,6 +93,7 @@ class FrameStore {
 
   std::vector<Entry> entries_;
   Loader load_;
+  PointsLoader load_points_;
   std::size_t max_bytes_ = 0;
   std::size_t bytes_ = 0;
   std::list<std::size_t> lru_;  // cached frames, most recently used first

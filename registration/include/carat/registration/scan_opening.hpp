@@ -45,8 +45,10 @@ std::shared_ptr<const Frame> open_scan(const ScanFile& file, const OpenScansOpti
 
 /// The scans as frames 0 .. files.size()-1 in a FrameStore: resident when options.max_bytes is
 /// 0 (every scan read and checked now; `progress` gets (scans done, scans)), else read on
-/// demand under the cap (checked as each is read). Throws carat::Error for no scans, bad
-/// options, or the first scan (in order) that cannot be read or fails a check.
+/// demand under the cap (checked as each is read; FrameStore::points() reads a scan's points
+/// alone, without the degenerate-geometry check, which the frame's own read makes). Throws
+/// carat::Error for no scans, bad options, or the first scan (in order) that cannot be read or
+/// fails a check.
 std::shared_ptr<FrameStore> open_scans(
     std::vector<ScanFile> files, const OpenScansOptions& options,
     const std::function<void(std::size_t, std::size_t)>& progress = {});
