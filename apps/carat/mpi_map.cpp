@@ -49,9 +49,9 @@ std::shared_ptr<FrameStore> frames_from(const MpiFrameSource& source) {
 
 /// Scans the rank's store read from disk so far: whole frames and, for overlap tests, points
 /// alone.
-std::size_t scans_read(const FrameStore& store) {
+ScanReads scans_read(const FrameStore& store) {
   const FrameStoreStats stats = store.stats();
-  return stats.loads + stats.point_loads;
+  return {stats.loads, stats.point_loads};
 }
 
 enum Command : std::uint64_t {
@@ -463,6 +463,7 @@ void MpiMapJob::share_loop_work(const LoopWork& work, std::span<const FramePair>
   std::vector<std::vector<std::byte>> answers = collect_answers(own_failure);
   answers[0] = std::move(own_answer);
   frames_read_per_rank_.resize(static_cast<std::size_t>(size_), 0);
+  point_reads_per_rank_.resize(static_cast<std::size_t>(size_), 0);
   for (int r = 0; r < size_; ++r) {
     const auto rank = static_cast<std::size_t>(r);
     const std::string what = "the answer of rank " + std::to_string(r);
@@ -473,6 +474,7 @@ void MpiMapJob::share_loop_work(const LoopWork& work, std::span<const FramePair>
     loop_pairs_per_rank_[rank] += shares[rank].size();
     loop_s_per_rank_[rank] += answer.seconds;
     frames_read_per_rank_[rank] = answer.frames_read;
+    point_reads_per_rank_[rank] = answer.point_reads;
     if (r > 0) note_peak_rss(rank, answer.peak_rss_bytes);
   }
 #else
@@ -515,7 +517,9 @@ void MpiMapJob::measure(std::span<FramePair> pairs,
   pairs_measured_per_rank_.assign(static_cast<std::size_t>(size_), 0);
   pairs_measured_per_rank_[0] = shares[0].size();
   frames_read_per_rank_.assign(static_cast<std::size_t>(size_), 0);
-  frames_read_per_rank_[0] = scans_read(*store_);
+  point_reads_per_rank_.assign(static_cast<std::size_t>(size_), 0);
+  frames_read_per_rank_[0] = scans_read(*store_).frames;
+  point_reads_per_rank_[0] = scans_read(*store_).points;
   const std::vector<std::vector<std::byte>> answers = collect_answers(own_failure);
   std::vector<FramePair> measured(pairs.begin(), pairs.end());
   for (int r = 1; r < size_; ++r) {
@@ -524,6 +528,7 @@ void MpiMapJob::measure(std::span<FramePair> pairs,
         answers[rank], "the answer of rank " + std::to_string(r), shares[rank], &measured);
     overlap_s_per_rank_[rank] = answer.seconds;
     frames_read_per_rank_[rank] = answer.frames_read;
+    point_reads_per_rank_[rank] = answer.point_reads;
     note_peak_rss(rank, answer.peak_rss_bytes);
     pairs_measured_per_rank_[rank] = shares[rank].size();
   }
@@ -608,7 +613,9 @@ std::shared_ptr<HeldRegistrationFactors> MpiMapJob::hold(
   build_s_per_rank_.assign(static_cast<std::size_t>(size_), 0.0);
   build_s_per_rank_[0] = own_time.elapsed_s();
   frames_read_per_rank_.assign(static_cast<std::size_t>(size_), 0);
-  frames_read_per_rank_[0] = store_->resident() ? store_->size() : scans_read(*store_);
+  point_reads_per_rank_.assign(static_cast<std::size_t>(size_), 0);
+  frames_read_per_rank_[0] = store_->resident() ? store_->size() : scans_read(*store_).frames;
+  point_reads_per_rank_[0] = store_->resident() ? 0 : scans_read(*store_).points;
   const std::vector<std::vector<std::byte>> answers = collect_answers(own_failure);
   const auto add = [&](const RegistrationFactorStats& share, std::span<const std::size_t> indices,
                        std::span<const std::size_t> full, std::span<const std::size_t> kept) {
@@ -636,6 +643,7 @@ std::shared_ptr<HeldRegistrationFactors> MpiMapJob::hold(
         answers[rank], "the answer of rank " + std::to_string(r), shares_[rank].size(), &held);
     build_s_per_rank_[rank] = answer.seconds;
     frames_read_per_rank_[rank] = answer.frames_read;
+    point_reads_per_rank_[rank] = answer.point_reads;
     note_peak_rss(rank, answer.peak_rss_bytes);
     factors_per_rank_[rank] = shares_[rank].size();
     add(held.stats, shares_[rank], held.correspondence_bytes, held.residual_bytes);
@@ -780,7 +788,8 @@ std::string MpiMapJob::summary_line() const {
          joined(pairs_measured_per_rank_, "%zu") + " candidate pairs in " +
          joined(overlap_s_per_rank_, "%.2f") + " s, built and hold " +
          joined(factors_per_rank_, "%zu") + " factors (" + joined(build_s_per_rank_, "%.2f") +
-         " s) from " + joined(frames_read_per_rank_, "%zu") + " frames; " +
+         " s) from " + joined(frames_read_per_rank_, "%zu") + " frames (and " +
+         joined(point_reads_per_rank_, "%zu") + " frames' points alone); " +
          std::to_string(linearizations_) + " linearizations (" +
          format_bytes(static_cast<double>(linearization_bytes_)) + " of records each) and " +
          std::to_string(cost_evaluations_) + " cost evaluations over " + std::to_string(rounds_) +
@@ -810,7 +819,8 @@ nlohmann::json MpiMapJob::report() const {
           {"bytes_per_cost_evaluation", cost_bytes_},
           {"pose_bytes_per_linearization", values_bytes_},
           {"build_s_per_rank", build_s_per_rank_},
-          {"frames_read_per_rank", frames_read_per_rank_}};
+          {"frames_read_per_rank", frames_read_per_rank_},
+          {"point_reads_per_rank", point_reads_per_rank_}};
 }
 
 }  // namespace carat::cli

@@ -135,6 +135,7 @@ class MpiMapJob {
   std::vector<std::size_t> factors_per_rank_;           // the last round's, built and held
   std::vector<double> build_s_per_rank_;                // the last round's wall time of each share
   std::vector<std::size_t> frames_read_per_rank_;       // frames each rank has read so far
+  std::vector<std::size_t> point_reads_per_rank_;       // frames read for their points alone
   std::vector<std::size_t> loop_pairs_per_rank_;        // the loop step's GICP pairs done
   std::vector<double> loop_s_per_rank_;                 // their wall time
   std::vector<std::size_t> pairs_measured_per_rank_;    // the dense graph's candidates measured

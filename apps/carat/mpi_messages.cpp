@@ -87,12 +87,13 @@ void read_work(ByteReader& in, std::vector<FramePair>* pairs,
   }
 }
 
-/// An answer's start: success, the rank's time, frames read, peak memory and item count.
-void write_answer_header(ByteWriter& out, double seconds, std::size_t frames_read,
+/// An answer's start: success, the rank's time, scans read, peak memory and item count.
+void write_answer_header(ByteWriter& out, double seconds, ScanReads reads,
                          std::uint64_t peak_rss_bytes, std::size_t items) {
   out.put(std::uint8_t{kWorkDone});
   out.put(seconds);
-  out.put(static_cast<std::uint64_t>(frames_read));
+  out.put(static_cast<std::uint64_t>(reads.frames));
+  out.put(static_cast<std::uint64_t>(reads.points));
   out.put(peak_rss_bytes);
   out.put(static_cast<std::uint64_t>(items));
 }
@@ -104,6 +105,7 @@ WorkAnswer read_answer_header(ByteReader& in, std::size_t items, const char* nam
   WorkAnswer answer;
   answer.seconds = in.get<double>();
   answer.frames_read = static_cast<std::size_t>(in.get<std::uint64_t>());
+  answer.point_reads = static_cast<std::size_t>(in.get<std::uint64_t>());
   answer.peak_rss_bytes = in.get<std::uint64_t>();
   if (in.get<std::uint64_t>() != items) in.garbled(std::string(name) + " count");
   return answer;
@@ -111,12 +113,11 @@ WorkAnswer read_answer_header(ByteReader& in, std::size_t items, const char* nam
 
 /// An answer of one item per entry of a share: the header, then write(out, item) for each.
 template <class Item, class Write>
-std::vector<std::byte> encode_items(std::span<const Item> items, double seconds,
-                                    std::size_t frames_read, std::uint64_t peak_rss_bytes,
-                                    Write write) {
+std::vector<std::byte> encode_items(std::span<const Item> items, double seconds, ScanReads reads,
+                                    std::uint64_t peak_rss_bytes, Write write) {
   std::vector<std::byte> bytes;
   ByteWriter out(bytes);
-  write_answer_header(out, seconds, frames_read, peak_rss_bytes, items.size());
+  write_answer_header(out, seconds, reads, peak_rss_bytes, items.size());
   for (const Item& item : items) write(out, item);
   return bytes;
 }
@@ -270,8 +271,8 @@ LoopJob decode_loop_job(std::span<const std::byte> bytes) {
 }
 
 std::vector<std::byte> encode_loop_checks(std::span<const LoopCheck> checks, double seconds,
-                                          std::size_t frames_read, std::uint64_t peak_rss_bytes) {
-  return encode_items(checks, seconds, frames_read, peak_rss_bytes,
+                                          ScanReads reads, std::uint64_t peak_rss_bytes) {
+  return encode_items(checks, seconds, reads, peak_rss_bytes,
                       [](ByteWriter& out, const LoopCheck& check) {
                         out.put(static_cast<std::uint8_t>(check.verdict));
                         out.put(check.inlier_fraction);
@@ -280,9 +281,9 @@ std::vector<std::byte> encode_loop_checks(std::span<const LoopCheck> checks, dou
 }
 
 std::vector<std::byte> encode_descriptors(std::span<const ScanContext> descriptors, double seconds,
-                                          std::size_t frames_read, std::uint64_t peak_rss_bytes) {
+                                          ScanReads reads, std::uint64_t peak_rss_bytes) {
   static_assert(field_count<ScanContext>() == 6, "mpi_messages: write the new field");
-  return encode_items(descriptors, seconds, frames_read, peak_rss_bytes,
+  return encode_items(descriptors, seconds, reads, peak_rss_bytes,
                       [](ByteWriter& out, const ScanContext& d) {
                         out.put(static_cast<std::int64_t>(d.rings));
                         out.put(static_cast<std::int64_t>(d.sectors));
@@ -316,9 +317,9 @@ WorkAnswer read_descriptors(std::span<const std::byte> bytes, const std::string&
 }
 
 std::vector<std::byte> encode_registrations(std::span<const PairRegistration> registrations,
-                                            double seconds, std::size_t frames_read,
+                                            double seconds, ScanReads reads,
                                             std::uint64_t peak_rss_bytes) {
-  return encode_items(registrations, seconds, frames_read, peak_rss_bytes, write_registration);
+  return encode_items(registrations, seconds, reads, peak_rss_bytes, write_registration);
 }
 
 WorkAnswer read_loop_checks(std::span<const std::byte> bytes, const std::string& what,
@@ -367,8 +368,8 @@ OverlapJob decode_overlap_job(std::span<const std::byte> bytes) {
 }
 
 std::vector<std::byte> encode_overlaps(std::span<const FramePair> pairs, double measure_s,
-                                       std::size_t frames_read, std::uint64_t peak_rss_bytes) {
-  return encode_items(pairs, measure_s, frames_read, peak_rss_bytes,
+                                       ScanReads reads, std::uint64_t peak_rss_bytes) {
+  return encode_items(pairs, measure_s, reads, peak_rss_bytes,
                       [](ByteWriter& out, const FramePair& pair) { out.put(pair.overlap); });
 }
 
@@ -423,11 +424,11 @@ std::vector<std::vector<std::size_t>> split_order(std::span<const std::size_t> o
   return shares;
 }
 
-std::vector<std::byte> encode_held(const RegistrationShare& share, double build_s,
-                                   std::size_t frames_read, std::uint64_t peak_rss_bytes) {
+std::vector<std::byte> encode_held(const RegistrationShare& share, double build_s, ScanReads reads,
+                                   std::uint64_t peak_rss_bytes) {
   std::vector<std::byte> bytes;
   ByteWriter out(bytes);
-  write_answer_header(out, build_s, frames_read, peak_rss_bytes, share.size());
+  write_answer_header(out, build_s, reads, peak_rss_bytes, share.size());
   const RegistrationFactorStats& stats = share.stats();
   static_assert(field_count<RegistrationFactorStats>() == 8, "encode_held: send the new field");
   for (const std::size_t count : {stats.num_factors, stats.num_correspondences, stats.num_rows,
@@ -496,7 +497,7 @@ std::vector<std::byte> encode_numbers(std::span<const double> numbers,
                                       std::uint64_t peak_rss_bytes) {
   std::vector<std::byte> bytes;
   ByteWriter out(bytes);
-  write_answer_header(out, 0.0, 0, peak_rss_bytes, numbers.size());
+  write_answer_header(out, 0.0, ScanReads{}, peak_rss_bytes, numbers.size());
   out.put_array(numbers);
   return bytes;
 }

@@ -138,18 +138,25 @@ std::vector<std::byte> encode_failure(const std::string& message);
 /// The message of a failed answer, or empty for any other; `what` names the answer in errors.
 std::string answer_failure(std::span<const std::byte> bytes, const std::string& what);
 
+/// Scans a rank has read from disk so far.
+struct ScanReads {
+  std::size_t frames = 0;  // whole frames read and built (FrameStoreStats::loads)
+  std::size_t points = 0;  // frames read for their points alone (FrameStoreStats::point_loads)
+};
+
 /// What an answer with work done said besides it.
 struct WorkAnswer {
   double seconds = 0.0;              // the rank's wall time for its share
-  std::size_t frames_read = 0;       // frames the rank has read so far
+  std::size_t frames_read = 0;       // frames the rank has read and built so far
+  std::size_t point_reads = 0;       // frames it has read for their points alone so far
   std::uint64_t peak_rss_bytes = 0;  // the rank's peak resident memory so far
 };
 
 /// A rank's answer to a build job: its build time (s), the frames it has read, its peak resident
 /// memory (bytes), and of the factors it now holds their stats and per factor the bytes of its
 /// full block and of its kept block.
-std::vector<std::byte> encode_held(const RegistrationShare& share, double build_s,
-                                   std::size_t frames_read, std::uint64_t peak_rss_bytes);
+std::vector<std::byte> encode_held(const RegistrationShare& share, double build_s, ScanReads reads,
+                                   std::uint64_t peak_rss_bytes);
 
 /// What an answer to a build job says of the held factors.
 struct HeldAnswer {
@@ -189,7 +196,7 @@ WorkAnswer read_numbers(std::span<const std::byte> bytes, const std::string& wha
 /// A rank's answer to an overlap job: its time (s), the frames it has read, its peak resident
 /// memory (bytes), and the overlap of each pair of its share, in the share's order.
 std::vector<std::byte> encode_overlaps(std::span<const FramePair> pairs, double measure_s,
-                                       std::size_t frames_read, std::uint64_t peak_rss_bytes);
+                                       ScanReads reads, std::uint64_t peak_rss_bytes);
 
 /// Reads an answer with overlaps: the overlaps of `expected` (pair indices) into
 /// (*pairs)[k].overlap. Throws carat::Error naming `what` for bytes that are not that answer or
@@ -201,13 +208,13 @@ WorkAnswer read_overlap_answer(std::span<const std::byte> bytes, const std::stri
 /// A rank's answer to a loop job: its time (s), the frames it has read, its peak resident
 /// memory (bytes), and its share's checks (validation) or registrations, in the share's order.
 std::vector<std::byte> encode_loop_checks(std::span<const LoopCheck> checks, double seconds,
-                                          std::size_t frames_read, std::uint64_t peak_rss_bytes);
+                                          ScanReads reads, std::uint64_t peak_rss_bytes);
 /// The same for descriptors.
 std::vector<std::byte> encode_descriptors(std::span<const ScanContext> descriptors, double seconds,
-                                          std::size_t frames_read, std::uint64_t peak_rss_bytes);
+                                          ScanReads reads, std::uint64_t peak_rss_bytes);
 /// The same for registrations.
 std::vector<std::byte> encode_registrations(std::span<const PairRegistration> registrations,
-                                            double seconds, std::size_t frames_read,
+                                            double seconds, ScanReads reads,
                                             std::uint64_t peak_rss_bytes);
 
 /// Reads encode_loop_checks()'s answer into (*checks)[k] for k in `expected`. Throws
