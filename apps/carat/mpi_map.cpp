@@ -518,8 +518,9 @@ void MpiMapJob::measure(std::span<FramePair> pairs,
   pairs_measured_per_rank_[0] = shares[0].size();
   frames_read_per_rank_.assign(static_cast<std::size_t>(size_), 0);
   point_reads_per_rank_.assign(static_cast<std::size_t>(size_), 0);
-  frames_read_per_rank_[0] = scans_read(*store_).frames;
-  point_reads_per_rank_[0] = scans_read(*store_).points;
+  const ScanReads own_reads = scans_read(*store_);
+  frames_read_per_rank_[0] = own_reads.frames;
+  point_reads_per_rank_[0] = own_reads.points;
   const std::vector<std::vector<std::byte>> answers = collect_answers(own_failure);
   std::vector<FramePair> measured(pairs.begin(), pairs.end());
   for (int r = 1; r < size_; ++r) {
@@ -614,8 +615,10 @@ std::shared_ptr<HeldRegistrationFactors> MpiMapJob::hold(
   build_s_per_rank_[0] = own_time.elapsed_s();
   frames_read_per_rank_.assign(static_cast<std::size_t>(size_), 0);
   point_reads_per_rank_.assign(static_cast<std::size_t>(size_), 0);
-  frames_read_per_rank_[0] = store_->resident() ? store_->size() : scans_read(*store_).frames;
-  point_reads_per_rank_[0] = store_->resident() ? 0 : scans_read(*store_).points;
+  const ScanReads own_reads =
+      store_->resident() ? ScanReads{store_->size(), 0} : scans_read(*store_);
+  frames_read_per_rank_[0] = own_reads.frames;
+  point_reads_per_rank_[0] = own_reads.points;
   const std::vector<std::vector<std::byte>> answers = collect_answers(own_failure);
   const auto add = [&](const RegistrationFactorStats& share, std::span<const std::size_t> indices,
                        std::span<const std::size_t> full, std::span<const std::size_t> kept) {

@@ -21,10 +21,10 @@ struct FrameStoreStats {
   std::size_t requests = 0;     ///< get() calls
   std::size_t hits = 0;         ///< get() calls served from memory
   std::size_t loads = 0;        ///< frames read and preprocessed (the loader's calls)
-  std::size_t point_loads = 0;  ///< frames read for their points alone (the points loader's calls)
   std::size_t evictions = 0;    ///< frames dropped from the cache to stay under the cap
   std::size_t peak_bytes = 0;   ///< largest bytes of frames held at once (Frame::memory_bytes())
   std::size_t max_bytes = 0;    ///< the cap (0: none)
+  std::size_t point_loads = 0;  ///< frames read for their points alone (the points loader's calls)
 };
 
 /// Frames 0 .. size()-1 for the registration pipeline. Thread-safe: any thread may call get().
