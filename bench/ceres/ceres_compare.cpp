@@ -377,6 +377,9 @@ int main(int argc, char** argv) {
       // Whole process against Ceres's Solve() alone (its reading and building not counted).
       j["time_ratio_carat_process_over_ceres"] =
           j["carat_process"]["wall_s"].get<double>() / j["ceres"]["time_s"].get<double>();
+      j["time_ratio_carat_process_over_ceres_system_blas"] =
+          j["carat_process"]["wall_s"].get<double>() /
+          j["ceres_system_blas"]["time_s"].get<double>();
       if (j["dimension"] == 2) {  // Ceres on carat's own residual: the same cost function
         j["ceres_same_cost"] = run_child(self, "ceres-same-cost", file, "");
         if (j["ceres_same_cost"].contains("error")) {

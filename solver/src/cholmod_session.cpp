@@ -3,6 +3,7 @@
 #include <cholmod.h>
 
 #include <algorithm>
+#include <cstdint>
 #include <string>
 
 #include "carat/base/error.hpp"
@@ -18,6 +19,7 @@ struct CholmodSession::State {
   cholmod_dense* dense_x = nullptr;
   cholmod_dense* dense_y = nullptr;  // workspaces of cholmod_l_solve2
   cholmod_dense* dense_e = nullptr;
+  const char* chosen = "natural";  // the ordering analyze_pattern() kept
 
   State() {
     cholmod_l_start(&common);
@@ -62,29 +64,11 @@ void CholmodSession::set_lower_matrix(std::size_t n, const std::int64_t* colptr,
   st.matrix.packed = 1;
 }
 
-void CholmodSession::set_ordering(Ordering ordering) {
-  cholmod_common& common = state_->common;
-  switch (ordering) {
-    case Ordering::kAmd:
-      common.nmethods = 1;
-      common.method[0].ordering = CHOLMOD_AMD;
-      break;
-    case Ordering::kMetis:
-      common.nmethods = 1;
-      common.method[0].ordering = CHOLMOD_METIS;
-      break;
-    case Ordering::kAuto:
-      common.nmethods = 3;  // CHOLMOD keeps the one whose factor needs the fewest flops
-      common.method[0].ordering = CHOLMOD_AMD;
-      common.method[1].ordering = CHOLMOD_METIS;
-      common.method[2].ordering = CHOLMOD_NESDIS;
-      break;
-  }
-}
+namespace {
 
-const char* CholmodSession::chosen_ordering() const {
-  const cholmod_common& common = state_->common;
-  switch (common.method[common.selected].ordering) {
+/// CHOLMOD's name for an ordering method.
+const char* ordering_name(int method) {
+  switch (method) {
     case CHOLMOD_AMD:
       return "AMD";
     case CHOLMOD_METIS:
@@ -96,10 +80,68 @@ const char* CholmodSession::chosen_ordering() const {
   }
 }
 
+/// Nonzeros of the triangle of a packed pattern that CHOLMOD reads (stype > 0: the upper one,
+/// stype < 0: the lower one), diagonal included.
+double triangle_nonzeros(const cholmod_sparse& A) {
+  const auto* p = static_cast<const std::int64_t*>(A.p);
+  const auto* i = static_cast<const std::int64_t*>(A.i);
+  std::size_t count = 0;
+  for (std::size_t j = 0; j < A.ncol; ++j) {
+    for (std::int64_t k = p[j]; k < p[j + 1]; ++k) {
+      const auto row = static_cast<std::size_t>(i[k]);
+      if (A.stype > 0 ? row <= j : row >= j) ++count;
+    }
+  }
+  return static_cast<double>(count);
+}
+
+}  // namespace
+
+cholmod_factor* CholmodSession::analyze_pattern(cholmod_sparse* A, Ordering ordering) {
+  cholmod_common& common = state_->common;
+  common.nmethods = 1;
+  common.method[0].ordering = ordering == Ordering::kMetis ? CHOLMOD_METIS : CHOLMOD_AMD;
+  cholmod_factor* first = cholmod_l_analyze(A, &common);
+  state_->chosen = ordering_name(common.method[0].ordering);
+  if (!first || ordering != Ordering::kAuto ||
+      common.lnz < kNestedDissectionFill * triangle_nonzeros(*A)) {
+    return first;
+  }
+  const double amd_fl = common.fl;
+  const double amd_lnz = common.lnz;
+  common.nmethods = 2;  // CHOLMOD keeps the one of the two whose factor needs fewer flops
+  common.method[0].ordering = CHOLMOD_METIS;
+  common.method[1].ordering = CHOLMOD_NESDIS;
+  cholmod_factor* dissected = cholmod_l_analyze(A, &common);
+  if (dissected && common.fl < amd_fl) {
+    state_->chosen = ordering_name(common.method[common.selected].ordering);
+    cholmod_l_free_factor(&first, &common);
+    return dissected;
+  }
+  // AMD stays (also when the nested dissections could not be computed).
+  cholmod_l_free_factor(&dissected, &common);
+  common.status = CHOLMOD_OK;
+  common.fl = amd_fl;
+  common.lnz = amd_lnz;
+  return first;
+}
+
+const char* CholmodSession::chosen_ordering() const { return state_->chosen; }
+
 void CholmodSession::analyze(const char* who) {
   State& st = *state_;
   cholmod_l_free_factor(&st.factor, &st.common);
   st.factor = cholmod_l_analyze(&st.matrix, &st.common);
+  if (!st.factor) {
+    throw Error(std::string(who) + ": CHOLMOD symbolic analysis failed (status " +
+                std::to_string(st.common.status) + ")");
+  }
+}
+
+void CholmodSession::analyze(const char* who, Ordering ordering) {
+  State& st = *state_;
+  cholmod_l_free_factor(&st.factor, &st.common);
+  st.factor = analyze_pattern(&st.matrix, ordering);
   if (!st.factor) {
     throw Error(std::string(who) + ": CHOLMOD symbolic analysis failed (status " +
                 std::to_string(st.common.status) + ")");

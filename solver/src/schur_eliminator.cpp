@@ -273,8 +273,7 @@ SchurEliminator::SchurEliminator(const SchurStructure& structure, const SchurVal
   cholmod_->set_lower_matrix(at(s_.ns), s_.colptr.data(), s_.rows.data(), reduced_.data(),
                              reduced_.size());
   cholmod_->common().supernodal = CHOLMOD_SUPERNODAL;
-  cholmod_->set_ordering(ordering);
-  cholmod_->analyze("Schur complement");
+  cholmod_->analyze("Schur complement", ordering);
   ordering_name_ = cholmod_->chosen_ordering();
   factor_nnz_ = static_cast<std::size_t>(cholmod_->common().lnz);
   factor_flops_ = cholmod_->common().fl;

@@ -23,7 +23,7 @@ namespace carat::internal {
 
 class SchurEliminator {
  public:
-  /// Analyzes S's pattern with `ordering` (CholmodSession::set_ordering()); the structure and
+  /// Analyzes S's pattern with `ordering` (CholmodSession::analyze_pattern()); the structure and
   /// the values must outlive this object.
   SchurEliminator(const SchurStructure& structure, const SchurValues& values, Ordering ordering);
   ~SchurEliminator();

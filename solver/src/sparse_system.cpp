@@ -95,8 +95,7 @@ SparseSystem::SparseSystem(const Problem& problem, Ordering ordering)
     G->stype = 1;  // symmetric, both triangles stored: CHOLMOD uses the upper part
     common.supernodal = CHOLMOD_SIMPLICIAL;
     common.postorder = 1;
-    cholmod_->set_ordering(ordering);
-    cholmod_factor* LG = cholmod_l_analyze(G, &common);
+    cholmod_factor* LG = cholmod_->analyze_pattern(G, ordering);
     cholmod_l_free_sparse(&G, &common);
     if (!LG)
       throw Error("sparse system: ordering failed (CHOLMOD status " +

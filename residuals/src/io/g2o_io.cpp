@@ -24,16 +24,17 @@ constexpr bool is_blank(char c) {
   return c == ' ' || c == '\t' || c == '\n' || c == '\v' || c == '\f' || c == '\r';
 }
 
-std::vector<std::string_view> split(std::string_view line) {
-  std::vector<std::string_view> tokens;
+/// The white-space separated tokens of `line` into *tokens (cleared first; its storage is kept
+/// from line to line).
+void split(std::string_view line, std::vector<std::string_view>* tokens) {
+  tokens->clear();
   std::size_t i = 0;
   while (i < line.size()) {
     while (i < line.size() && is_blank(line[i])) ++i;
     const std::size_t start = i;
     while (i < line.size() && !is_blank(line[i])) ++i;
-    if (i > start) tokens.push_back(line.substr(start, i - start));
+    if (i > start) tokens->push_back(line.substr(start, i - start));
   }
-  return tokens;
 }
 
 class LineParser {
@@ -186,10 +187,11 @@ G2oGraph read_g2o_lines(LineReader& reader, Dimension expected, const G2oReadOpt
   std::vector<std::size_t> edge_lines;
   std::vector<std::int64_t> fixed;
   std::string_view text;
+  std::vector<std::string_view> tokens;
   while (reader.next_line(&text)) {
     const std::size_t line = reader.line_number();
     const auto hash = text.find('#');
-    const auto tokens = split(text.substr(0, hash));
+    split(text.substr(0, hash), &tokens);
     if (tokens.empty()) continue;
     const LineParser p(name, line);
     const std::string_view tag = tokens[0];
@@ -224,18 +226,16 @@ G2oGraph read_g2o_lines(LineReader& reader, Dimension expected, const G2oReadOpt
     };
     if (tag == "VERTEX_SE3:QUAT") {
       expect_count(p, tokens, 8, "VERTEX_SE3:QUAT");
-      PoseGraph::Vertex v;
+      PoseGraph::Vertex& v = graph.vertices.emplace_back();  // a failed line ends the read
       v.id = p.id(tokens[1]);
       v.T_world_vertex = p.pose(tokens, 2);
       add_vertex_line(v.id);
-      graph.vertices.push_back(v);
     } else if (tag == "EDGE_SE3:QUAT") {
       expect_count(p, tokens, 30, "EDGE_SE3:QUAT");
-      PoseGraph::Edge e;
+      PoseGraph::Edge& e = graph.edges.emplace_back();
       read_ends(&e.from, &e.to);
       e.T_from_to = p.pose(tokens, 3);
       e.information = read_information<se3::Matrix6d>(p, tokens, 10, options, report, line);
-      graph.edges.push_back(e);
       edge_lines.push_back(line);
     } else if (tag == "VERTEX_SE2") {
       expect_count(p, tokens, 4, "VERTEX_SE2");

@@ -45,9 +45,10 @@ LmStart parse_lm_start(std::string_view name);
 /// analysis: for the whole system on the variable-level graph (then expanded to scalars and
 /// postordered), for the Schur complement on the reduced system.
 enum class Ordering {
-  kAuto,   ///< AMD, METIS and CHOLMOD's NESDIS are each tried and the one whose factor needs
-           ///< the fewest flops is kept; the same rule for the whole system and the Schur
-           ///< complement's reduced system
+  kAuto,   ///< AMD; where AMD's factor holds at least 4 times the analyzed triangle's
+           ///< nonzeros, METIS and CHOLMOD's NESDIS are tried too and the one whose factor
+           ///< needs the fewest flops is kept (AMD on a tie); the same rule for the whole system
+           ///< and the Schur complement's reduced system
   kAmd,    ///< approximate minimum degree
   kMetis,  ///< METIS nested dissection (good for large, mesh-like graphs)
 };
