@@ -95,6 +95,15 @@ double triangle_nonzeros(const cholmod_sparse& A) {
   return static_cast<double>(count);
 }
 
+/// Throws carat::Error ("`who`: CHOLMOD symbolic analysis failed ...") if the analysis gave no
+/// factor.
+void require_factor(const cholmod_factor* factor, const cholmod_common& common, const char* who) {
+  if (!factor) {
+    throw Error(std::string(who) + ": CHOLMOD symbolic analysis failed (status " +
+                std::to_string(common.status) + ")");
+  }
+}
+
 }  // namespace
 
 cholmod_factor* CholmodSession::analyze_pattern(cholmod_sparse* A, Ordering ordering) {
@@ -132,20 +141,14 @@ void CholmodSession::analyze(const char* who) {
   State& st = *state_;
   cholmod_l_free_factor(&st.factor, &st.common);
   st.factor = cholmod_l_analyze(&st.matrix, &st.common);
-  if (!st.factor) {
-    throw Error(std::string(who) + ": CHOLMOD symbolic analysis failed (status " +
-                std::to_string(st.common.status) + ")");
-  }
+  require_factor(st.factor, st.common, who);
 }
 
 void CholmodSession::analyze(const char* who, Ordering ordering) {
   State& st = *state_;
   cholmod_l_free_factor(&st.factor, &st.common);
   st.factor = analyze_pattern(&st.matrix, ordering);
-  if (!st.factor) {
-    throw Error(std::string(who) + ": CHOLMOD symbolic analysis failed (status " +
-                std::to_string(st.common.status) + ")");
-  }
+  require_factor(st.factor, st.common, who);
 }
 
 bool CholmodSession::factorize() {
