@@ -34,6 +34,16 @@
 namespace carat::cli {
 namespace {
 
+enum Command : std::uint64_t {
+  kStop = 0,
+  kBuild = 1,        // build and hold a round's factors
+  kOverlaps = 2,     // measure the dense graph's candidates
+  kLinearize = 3,    // stream the held factors' linearization records at the poses sent
+  kCosts = 4,        // stream their costs
+  kFactorCosts = 5,  // answer their costs per correspondence
+  kLoops = 6,        // the loop step: describe frames, validate candidates or register pairs
+};
+
 #if CARAT_WITH_MPI
 
 /// Frames read and preprocessed on demand as rank 0 read them, under rank 0's cap (none: each
@@ -54,15 +64,6 @@ ScanReads scans_read(const FrameStore& store) {
   return {stats.loads, stats.point_loads};
 }
 
-enum Command : std::uint64_t {
-  kStop = 0,
-  kBuild = 1,        // build and hold a round's factors
-  kOverlaps = 2,     // measure the dense graph's candidates
-  kLinearize = 3,    // stream the held factors' linearization records at the poses sent
-  kCosts = 4,        // stream their costs
-  kFactorCosts = 5,  // answer their costs per correspondence
-  kLoops = 6,        // the loop step: describe frames, validate candidates or register pairs
-};
 constexpr int kAnswerTag = 7;
 constexpr std::size_t kChunk = std::size_t{1} << 30;  // MPI counts are int
 
