@@ -69,7 +69,13 @@ void record_bad_block(std::atomic<std::size_t>& first_bad, std::size_t i) {
 
 BlockEvaluator::BlockEvaluator(const Problem& problem) : problem_(problem) {
   const auto blocks = problem.blocks();
-  for (const auto& entry : blocks) dims_.push_back(entry.block->tangent_dim());
+  dims_.reserve(blocks.size());
+  std::size_t num_params = 0;
+  for (const auto& entry : blocks) {
+    dims_.push_back(entry.block->tangent_dim());
+    num_params += entry.variables.size();
+  }
+  param_offsets_.reserve(num_params);
   param_begin_.reserve(blocks.size() + 1);
   param_begin_.push_back(0);
   for (const auto& entry : blocks) {
