@@ -23,17 +23,11 @@ class BalTokens {
 
   /// The next token; false at the end of the input.
   bool next(std::string_view* token) {
-    for (;;) {
-      while (position_ < line_.size() && is_space(line_[position_])) ++position_;
-      if (position_ < line_.size()) {
-        const std::size_t start = position_;
-        while (position_ < line_.size() && !is_space(line_[position_])) ++position_;
-        *token = line_.substr(start, position_ - start);
-        return true;
-      }
-      if (!reader_.next_line(&line_)) return false;
-      position_ = 0;
-    }
+    if (!at_token()) return false;
+    const std::size_t start = position_;
+    while (position_ < line_.size() && !is_space(line_[position_])) ++position_;
+    *token = line_.substr(start, position_ - start);
+    return true;
   }
 
   /// The next token, or an error naming what the file ended in.
@@ -72,6 +66,25 @@ class BalTokens {
     return static_cast<int>(value);
   }
 
+  /// The next token as an index in [0, count); `where()` names what is being read.
+  template <typename Where>
+  int next_index(const Where& where, const char* what, int count) {
+    std::int64_t value = 0;
+    if (parse_whole(&value, [count](std::int64_t v) { return v >= 0 && v < count; })) {
+      return static_cast<int>(value);
+    }
+    return index(expect(where), what, count);  // the same token again, for its message
+  }
+
+  /// The next token as a finite number; `where()` names what is being read, `describe()` the
+  /// number.
+  template <typename Where, typename Describe>
+  double next_number(const Where& where, const Describe& describe) {
+    double value = 0.0;
+    if (parse_whole(&value, [](double v) { return std::isfinite(v); })) return value;
+    return number(expect(where), describe);  // the same token again, for its message
+  }
+
   /// An index in [0, count).
   int index(std::string_view token, const char* what, int count) const {
     std::int64_t value = 0;
@@ -106,6 +119,32 @@ class BalTokens {
   }
 
  private:
+  /// Moves to the start of the next token; false at the end of the input.
+  bool at_token() {
+    for (;;) {
+      while (position_ < line_.size() && is_space(line_[position_])) ++position_;
+      if (position_ < line_.size()) return true;
+      if (!reader_.next_line(&line_)) return false;
+      position_ = 0;
+    }
+  }
+
+  /// Reads the next token into `value` and moves past it when std::from_chars reads the whole
+  /// token and `accept(*value)` holds; otherwise leaves the position at the token's start (or the
+  /// end of the input).
+  template <typename T, typename Accept>
+  bool parse_whole(T* value, const Accept& accept) {
+    if (!at_token()) return false;
+    const char* first = line_.data() + position_;
+    const char* last = line_.data() + line_.size();
+    const auto [end, ec] = std::from_chars(first, last, *value);
+    if (ec != std::errc() || (end != last && !is_space(*end)) || !accept(*value)) {
+      return false;
+    }
+    position_ += static_cast<std::size_t>(end - first);
+    return true;
+  }
+
   LineReader& reader_;
   std::string_view line_;
   std::size_t position_ = 0;
@@ -178,10 +217,10 @@ BalProblem read_bal_tokens(BalTokens& tokens) {
       return "observation " + std::to_string(k) + " of " + std::to_string(num_observations);
     };
     BalObservation o;
-    o.camera = tokens.index(tokens.expect(where), "camera", num_cameras);
-    o.point = tokens.index(tokens.expect(where), "point", num_points);
-    o.x = tokens.number(tokens.expect(where), [] { return std::string("observation x"); });
-    o.y = tokens.number(tokens.expect(where), [] { return std::string("observation y"); });
+    o.camera = tokens.next_index(where, "camera", num_cameras);
+    o.point = tokens.next_index(where, "point", num_points);
+    o.x = tokens.next_number(where, [] { return std::string("observation x"); });
+    o.y = tokens.next_number(where, [] { return std::string("observation y"); });
     camera_use.add(o.camera);
     point_use.add(o.point);
     problem.observations.push_back(o);
@@ -197,9 +236,8 @@ BalProblem read_bal_tokens(BalTokens& tokens) {
         return "camera " + std::to_string(i) + " (parameter " + std::to_string(k + 1) +
                " of 9; the header promises " + std::to_string(num_cameras) + " cameras)";
       };
-      camera[k] = tokens.number(tokens.expect(where), [&] {
-        return "camera " + std::to_string(i) + " parameter " + std::to_string(k);
-      });
+      camera[k] = tokens.next_number(
+          where, [&] { return "camera " + std::to_string(i) + " parameter " + std::to_string(k); });
       if (k == 0 && !camera_use.used(i)) {
         tokens.fail("camera " + std::to_string(i) +
                     " observes no point (every camera and point must take part in an "
@@ -217,9 +255,8 @@ BalProblem read_bal_tokens(BalTokens& tokens) {
         return "point " + std::to_string(i) + " (coordinate " + std::to_string(k + 1) +
                " of 3; the header promises " + std::to_string(num_points) + " points)";
       };
-      point[k] = tokens.number(tokens.expect(where), [&] {
-        return "point " + std::to_string(i) + " coordinate " + std::to_string(k);
-      });
+      point[k] = tokens.next_number(
+          where, [&] { return "point " + std::to_string(i) + " coordinate " + std::to_string(k); });
       if (k == 0 && !point_use.used(i)) {
         tokens.fail("point " + std::to_string(i) +
                     " is observed by no camera (every camera and point must take part in an "
