@@ -150,6 +150,12 @@ void SchurLinearization::plan_other_blocks(const Problem& problem) {
   const auto blocks = problem.blocks();
   std::vector<char> has_point(blocks.size(), 0);
   for (const auto& [block, local] : s_.pt_contribs) has_point[static_cast<std::size_t>(block)] = 1;
+  for (std::size_t i = 0; i < blocks.size(); ++i) {
+    if (!has_point[i]) other_blocks_.push_back(i);
+  }
+  // Indexed by block, and sized only when some block has no point (none has in a bundle
+  // adjustment: nothing then reads other_).
+  if (other_blocks_.empty()) return;
   other_.dim.assign(blocks.size(), 0);
   other_.h_offset.assign(blocks.size(), 0);
   other_.b_offset.assign(blocks.size(), 0);
@@ -159,7 +165,6 @@ void SchurLinearization::plan_other_blocks(const Problem& problem) {
     const int D = s_.block_dims[i];
     other_.dim[i] = D;
     if (has_point[i]) continue;
-    other_blocks_.push_back(i);
     other_.h_offset[i] = h;
     other_.b_offset[i] = b;
     h += at(D) * at(D + 1) / 2;
@@ -341,7 +346,7 @@ LinearizeReport SchurLinearization::linearize(const BlockEvaluator& evaluator, i
   Stopwatch wall;
   gradient->setZero(s_.n);
   double* g = gradient->data();
-  const std::size_t num_blocks = other_.dim.size();
+  const std::size_t num_blocks = s_.block_dims.size();
   std::atomic<std::size_t> first_bad{num_blocks};
   const std::size_t num_chunks = num_point_chunks();
   chunk_cost_.assign(num_chunks, 0.0);
