@@ -490,6 +490,31 @@ TEST(BalProblemTest, CountsPointsBehindTheirCameras) {
   bal.points[0].z() = 20.0;  // P_z = 20 - 10 > 0 for both cameras (rotations are small)
   EXPECT_EQ(count_points_behind_cameras(bal), 2u);
   EXPECT_TRUE(std::isfinite(bal_cost(bal)));  // still a residual: documented, not refused
+
+  // The count is in_front_of_camera()'s, observation by observation, for rotations on both sides
+  // of the Taylor branch (|w| below and above 1e-3 rad) and points on both sides of the cameras.
+  bal.cameras[0].head<3>() << 2e-4, -1e-4, 3e-4;
+  bal.cameras[1].head<3>() << 0.9, -1.7, 0.4;
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> coordinate(-30.0, 30.0);
+  bal.points.resize(40);
+  bal.observations.clear();
+  for (int i = 0; i < 40; ++i) {
+    bal.points[static_cast<std::size_t>(i)] =
+        Eigen::Vector3d(coordinate(rng), coordinate(rng), coordinate(rng));
+    bal.observations.push_back({i % 2, i, 0.0, 0.0});
+    bal.observations.push_back({(i + 1) % 2, i, 0.0, 0.0});
+  }
+  std::size_t behind = 0;
+  for (const BalObservation& o : bal.observations) {
+    if (!in_front_of_camera(bal.cameras[static_cast<std::size_t>(o.camera)].data(),
+                            bal.points[static_cast<std::size_t>(o.point)].data())) {
+      ++behind;
+    }
+  }
+  EXPECT_GT(behind, 10u);
+  EXPECT_LT(behind, 70u);
+  EXPECT_EQ(count_points_behind_cameras(bal), behind);
 }
 
 }  // namespace

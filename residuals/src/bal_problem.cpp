@@ -1,5 +1,6 @@
 #include "carat/residuals/bal_problem.hpp"
 
+#include <array>
 #include <cmath>
 #include <span>
 #include <string>
@@ -9,6 +10,7 @@
 #include "carat/residuals/bal_camera_manifold.hpp"
 #include "carat/residuals/snavely_block.hpp"
 #include "carat/residuals/snavely_camera.hpp"
+#include "carat/solver/lie_functions.hpp"
 #include "carat/solver/manifold.hpp"
 
 namespace carat {
@@ -122,12 +124,19 @@ double bal_cost(const BalProblem& bal) {
 
 std::size_t count_points_behind_cameras(const BalProblem& bal) {
   check_bal_problem(bal, "count_points_behind_cameras");
+  // in_front_of_camera()'s arithmetic, each camera's Rodrigues coefficients computed once.
+  std::vector<std::array<double, 2>> coefficients(bal.cameras.size());
+  for (std::size_t c = 0; c < bal.cameras.size(); ++c) {
+    lie::angle_axis_coefficients(bal.cameras[c].data(), &coefficients[c][0], &coefficients[c][1]);
+  }
   std::size_t count = 0;
   for (const BalObservation& o : bal.observations) {
-    if (!in_front_of_camera(bal.cameras[static_cast<std::size_t>(o.camera)].data(),
-                            bal.points[static_cast<std::size_t>(o.point)].data())) {
-      ++count;
-    }
+    const auto c = static_cast<std::size_t>(o.camera);
+    const double* camera = bal.cameras[c].data();
+    double P[3];
+    lie::angle_axis_rotate(camera, coefficients[c][0], coefficients[c][1],
+                           bal.points[static_cast<std::size_t>(o.point)].data(), P);
+    if (!(P[2] + camera[5] < 0.0)) ++count;
   }
   return count;
 }

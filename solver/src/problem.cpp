@@ -93,11 +93,9 @@ VariableId Problem::add_euclidean(const Eigen::VectorXd& initial) {
       std::span<const double>(initial.data(), static_cast<std::size_t>(initial.size())));
 }
 
-void Problem::check(VariableId id) const {
-  if (id.index < 0 || id.index >= num_variables()) {
-    throw Error("Problem: variable id " + std::to_string(id.index) + " does not exist (" +
-                std::to_string(num_variables()) + " variables)");
-  }
+void Problem::throw_no_variable(VariableId id) const {
+  throw Error("Problem: variable id " + std::to_string(id.index) + " does not exist (" +
+              std::to_string(num_variables()) + " variables)");
 }
 
 void Problem::set_constant(VariableId id, bool constant) {

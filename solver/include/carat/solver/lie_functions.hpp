@@ -109,26 +109,29 @@ void so3_log(const T q[4], T w[3]) {
   w[2] = sign * k * q[2];
 }
 
-/// out = Exp(w) p: rotates p by the rotation vector w (radians) by Rodrigues' formula
-///   Exp(w) p = p + a w x p + b w x (w x p),  a = sin(theta) / theta,  b = (1 - cos(theta)) /
-///   theta^2,
-/// with a and b from their Taylor series below theta = |w| = 1e-3 rad, where the closed forms lose
-/// precision (out may alias p).
+/// Rodrigues' coefficients of the rotation vector w (radians): a = sin(theta) / theta and
+/// b = (1 - cos(theta)) / theta^2 for theta = |w|, from their Taylor series below theta = 1e-3 rad,
+/// where the closed forms lose precision.
 template <typename T>
-void angle_axis_rotate(const T w[3], const T p[3], T out[3]) {
+void angle_axis_coefficients(const T w[3], T* a, T* b) {
   using std::cos;
   using std::sin;
   using std::sqrt;
   const T theta_sq = w[0] * w[0] + w[1] * w[1] + w[2] * w[2];
-  T a, b;
   if (value_of(theta_sq) > 1e-6) {
     const T theta = sqrt(theta_sq);
-    a = sin(theta) / theta;
-    b = (T(1.0) - cos(theta)) / theta_sq;
+    *a = sin(theta) / theta;
+    *b = (T(1.0) - cos(theta)) / theta_sq;
   } else {
-    a = T(1.0) - theta_sq / T(6.0);
-    b = T(0.5) - theta_sq / T(24.0);
+    *a = T(1.0) - theta_sq / T(6.0);
+    *b = T(0.5) - theta_sq / T(24.0);
   }
+}
+
+/// out = p + a w x p + b w x (w x p) for w's coefficients a and b (angle_axis_coefficients()):
+/// angle_axis_rotate() with the coefficients computed once for many points (out may alias p).
+template <typename T>
+void angle_axis_rotate(const T w[3], const T& a, const T& b, const T p[3], T out[3]) {
   T wxp[3], wxwxp[3];
   cross(w, p, wxp);
   cross(w, wxp, wxwxp);
@@ -138,6 +141,18 @@ void angle_axis_rotate(const T w[3], const T p[3], T out[3]) {
   out[0] = x;
   out[1] = y;
   out[2] = z;
+}
+
+/// out = Exp(w) p: rotates p by the rotation vector w (radians) by Rodrigues' formula
+///   Exp(w) p = p + a w x p + b w x (w x p),  a = sin(theta) / theta,  b = (1 - cos(theta)) /
+///   theta^2,
+/// with a and b from their Taylor series below theta = |w| = 1e-3 rad, where the closed forms lose
+/// precision (out may alias p).
+template <typename T>
+void angle_axis_rotate(const T w[3], const T p[3], T out[3]) {
+  T a, b;
+  angle_axis_coefficients(w, &a, &b);
+  angle_axis_rotate(w, a, b, p, out);
 }
 
 /// A rigid transform templated on the scalar: p_to = R p_from + t.

@@ -147,7 +147,11 @@ class Problem {
   std::size_t value_offset(VariableId id) const;
 
  private:
-  void check(VariableId id) const;
+  /// Throws carat::Error when `id` names no variable of this problem.
+  void check(VariableId id) const {
+    if (id.index < 0 || id.index >= num_variables()) throw_no_variable(id);
+  }
+  [[noreturn]] void throw_no_variable(VariableId id) const;
   /// Index into values_ of a bounded coordinate; throws for a variable bounds cannot apply to.
   std::size_t bound_index(VariableId id, int coordinate, const char* who) const;
   /// set_lower_bound() (lower) or set_upper_bound().
